@@ -1,0 +1,153 @@
+"""The five ETH/UCY scenes: letters, recordings, homography, photo and walkability map.
+
+Pixel convention (verified on every recording): ``pixel = H^-1 (x, y, 1)``, divided by its third
+component, gives (column u, row v); ``world = H (u, v, 1)``.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from functools import cache, cached_property
+from pathlib import Path
+
+import numpy as np
+
+from replays.data_root import data_root
+from replays.errors import DataFormatError
+
+
+@dataclass(frozen=True)
+class SceneInfo:
+    """Static facts of one scene (no arrays)."""
+
+    name: str
+    """scene name: eth, hotel, univ, zara1, zara2"""
+    letter: str
+    """letter of the domain-adaptation protocol (A-E)"""
+    recordings: tuple[str, ...]
+    """recordings of the test set (whole files)"""
+    train_recordings: tuple[str, ...]
+    """recordings whose raw/train and raw/val portions train a domain-adaptation model"""
+    image: str
+    """stem of the photo/map pair under image/"""
+
+    def __repr__(self) -> str:
+        return f"{self.letter}/{self.name}"
+
+
+SCENES: dict[str, SceneInfo] = {
+    s.name: s
+    for s in (
+        SceneInfo("eth", "A", ("biwi_eth",), ("biwi_eth",), "seq_eth"),
+        SceneInfo("hotel", "B", ("biwi_hotel",), ("biwi_hotel",), "seq_hotel"),
+        SceneInfo("univ", "C", ("students001", "students003"),
+                  ("students001", "students003", "uni_examples"), "students003"),
+        SceneInfo("zara1", "D", ("crowds_zara01",), ("crowds_zara01",), "crowds_zara01"),
+        SceneInfo("zara2", "E", ("crowds_zara02",), ("crowds_zara02", "crowds_zara03"), "crowds_zara02"),
+    )
+}
+SCENE_NAMES: tuple[str, ...] = tuple(SCENES)
+LETTERS: dict[str, str] = {s.letter: s.name for s in SCENES.values()}
+
+
+def scene_info(name: str) -> SceneInfo:
+    """Look a scene up by name (``"zara1"``) or letter (``"D"``)."""
+    key = LETTERS.get(name, name.lower())
+    if key not in SCENES:
+        raise KeyError(f"unknown scene {name!r}; expected one of {', '.join(SCENES)} or letters A-E")
+    return SCENES[key]
+
+
+def scene_of_recording(recording: str) -> SceneInfo:
+    """Scene a recording belongs to; accepts split suffixes (``crowds_zara03_train``)."""
+    base = recording.removesuffix("_train").removesuffix("_val")
+    for info in SCENES.values():
+        if base in info.train_recordings:
+            return info
+    raise KeyError(f"recording {recording!r} belongs to no ETH/UCY scene")
+
+
+def read_homography(path: Path) -> np.ndarray:
+    """(3, 3) float64 matrix H with world = H @ pixel, from a whitespace-separated text file."""
+    try:
+        H = np.loadtxt(path, dtype=np.float64)
+    except (OSError, ValueError) as err:
+        raise DataFormatError(f"{path}: cannot read a 3x3 homography ({err})") from err
+    if H.shape != (3, 3) or not np.isfinite(H).all() or abs(np.linalg.det(H)) < 1e-12:
+        raise DataFormatError(f"{path}: expected a finite, invertible 3x3 matrix, got shape {H.shape}")
+    return H
+
+
+def read_image(path: Path, grayscale: bool) -> np.ndarray:
+    """Read a PNG with OpenCV: (H, W) uint8 if grayscale else (H, W, 3) uint8 RGB."""
+    import cv2
+
+    flag = cv2.IMREAD_UNCHANGED if grayscale else cv2.IMREAD_COLOR
+    image = cv2.imread(str(path), flag)
+    if image is None:
+        raise DataFormatError(f"{path}: missing or not a readable image")
+    if grayscale and image.ndim != 2:
+        raise DataFormatError(f"{path}: expected a single-channel map, got shape {image.shape}")
+    return image if grayscale else cv2.cvtColor(image, cv2.COLOR_BGR2RGB)
+
+
+class Scene:
+    """A scene's geometry: homography, photo, walkability map and world <-> pixel conversion."""
+
+    def __init__(self, info: SceneInfo, root: Path):
+        self.info = info
+        self.name = info.name
+        self.root = root
+        self.H = read_homography(root / "homography" / f"{info.recordings[0]}_H.txt")
+        self.H_inv = np.linalg.inv(self.H)
+
+    def __repr__(self) -> str:
+        return f"Scene({self.info!r})"
+
+    @cached_property
+    def photo(self) -> np.ndarray:
+        """(H, W, 3) uint8 RGB scene photo."""
+        return read_image(self.root / "image" / f"{self.info.image}_reference.png", grayscale=False)
+
+    @cached_property
+    def walkable(self) -> np.ndarray:
+        """(H, W) bool walkability mask (True = walkable), same size as the photo."""
+        mask = read_image(self.root / "image" / f"{self.info.image}_map.png", grayscale=True)
+        if not np.isin(mask, (0, 1)).all():
+            raise DataFormatError(f"{self.root}/image/{self.info.image}_map.png: expected values 0/1 only")
+        return mask.astype(bool)
+
+    def world_to_pixel(self, xy_m: np.ndarray) -> np.ndarray:
+        """(..., 2) world metres -> (..., 2) float pixel (column u, row v)."""
+        return apply_homography(self.H_inv, xy_m)
+
+    def pixel_to_world(self, uv_px: np.ndarray) -> np.ndarray:
+        """(..., 2) pixel (column u, row v) -> (..., 2) world metres."""
+        return apply_homography(self.H, uv_px)
+
+    def is_walkable(self, xy_m: np.ndarray) -> np.ndarray:
+        """(..., 2) world metres -> (...) bool; points off the image count as not walkable."""
+        uv = np.rint(self.world_to_pixel(xy_m))
+        height, width = self.walkable.shape
+        inside = (uv[..., 0] >= 0) & (uv[..., 0] < width) & (uv[..., 1] >= 0) & (uv[..., 1] < height)
+        u = np.where(inside, uv[..., 0], 0).astype(np.intp)
+        v = np.where(inside, uv[..., 1], 0).astype(np.intp)
+        return inside & self.walkable[v, u]
+
+
+def apply_homography(H: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Apply a 3x3 projective map to (..., 2) points; returns (..., 2) float64."""
+    points = np.asarray(points, dtype=np.float64)
+    mapped = points @ H[:, :2].T + H[:, 2]
+    return mapped[..., :2] / mapped[..., 2:3]
+
+
+@cache
+def _load_scene(name: str, root: Path) -> Scene:
+    return Scene(scene_info(name), root)
+
+
+def load_scene(name: str, root: str | os.PathLike | None = None) -> Scene:
+    """Scene by name or letter, its files read from the data root (cached per root)."""
+    return _load_scene(scene_info(name).name, data_root(root))
