@@ -59,14 +59,18 @@ def data_root(path: str | os.PathLike | None = None, *, check: bool = True) -> P
     else:
         root, source = DEFAULT_CACHE, "the default cache"
     root = root.expanduser().resolve()
-    if check:
+    if check and root not in _COMPLETE_ROOTS:
         missing = [name for name in expected_sums() if not (root / name).is_file()]
         if missing:
             raise DataRootError(
                 f"ETH/UCY data root {root} (from {source}) is missing {len(missing)} of "
                 f"{len(expected_sums())} files, first: {missing[0]}. {FIX_HINT}"
             )
+        _COMPLETE_ROOTS.add(root)
     return root
+
+
+_COMPLETE_ROOTS: set[Path] = set()  # roots found complete in this process (files are not re-stat'ed)
 
 
 def verify_data_root(root: Path) -> None:

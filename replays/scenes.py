@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass
-from functools import cache, cached_property
+from functools import cache
 from pathlib import Path
 
 import numpy as np
@@ -93,30 +93,39 @@ def read_image(path: Path, grayscale: bool) -> np.ndarray:
 
 
 class Scene:
-    """A scene's geometry: homography, photo, walkability map and world <-> pixel conversion."""
+    """A scene's geometry: homography, walkability map, photo and world <-> pixel conversion.
 
-    def __init__(self, info: SceneInfo, root: Path):
-        self.info = info
-        self.name = info.name
-        self.root = root
-        self.H = read_homography(root / "homography" / f"{info.recordings[0]}_H.txt")
+    Built from files with ``load_scene`` (ETH/UCY) or from arrays (simulated layouts rasterised to a map).
+
+    Attributes:
+        name: scene name.
+        H: (3, 3) float64, world = H @ (u, v, 1).   H_inv: its inverse.
+        walkable: (H, W) bool, True = walkable.
+        photo: (H, W, 3) uint8 RGB (a rendering of the map for simulated layouts).
+    """
+
+    def __init__(self, name: str, H: np.ndarray, walkable: np.ndarray, photo: np.ndarray | None = None):
+        self.name = name
+        self.H = np.asarray(H, dtype=np.float64)
         self.H_inv = np.linalg.inv(self.H)
+        self.walkable = np.asarray(walkable, dtype=bool)
+        self.photo = photo if photo is not None else np.repeat(self.walkable[..., None] * np.uint8(255), 3, -1)
 
     def __repr__(self) -> str:
-        return f"Scene({self.info!r})"
+        return f"Scene({self.name}, map {self.walkable.shape[1]}x{self.walkable.shape[0]} px)"
 
-    @cached_property
-    def photo(self) -> np.ndarray:
-        """(H, W, 3) uint8 RGB scene photo."""
-        return read_image(self.root / "image" / f"{self.info.image}_reference.png", grayscale=False)
-
-    @cached_property
-    def walkable(self) -> np.ndarray:
-        """(H, W) bool walkability mask (True = walkable), same size as the photo."""
-        mask = read_image(self.root / "image" / f"{self.info.image}_map.png", grayscale=True)
+    @classmethod
+    def from_files(cls, info: SceneInfo, root: Path) -> Scene:
+        """Read an ETH/UCY scene's homography, map and photo from the data root."""
+        H = read_homography(root / "homography" / f"{info.recordings[0]}_H.txt")
+        map_path = root / "image" / f"{info.image}_map.png"
+        mask = read_image(map_path, grayscale=True)
         if not np.isin(mask, (0, 1)).all():
-            raise DataFormatError(f"{self.root}/image/{self.info.image}_map.png: expected values 0/1 only")
-        return mask.astype(bool)
+            raise DataFormatError(f"{map_path}: expected values 0/1 only")
+        photo = read_image(root / "image" / f"{info.image}_reference.png", grayscale=False)
+        if photo.shape[:2] != mask.shape:
+            raise DataFormatError(f"{map_path}: map {mask.shape} and photo {photo.shape[:2]} differ in size")
+        return cls(info.name, H, mask.astype(bool), photo)
 
     def world_to_pixel(self, xy_m: np.ndarray) -> np.ndarray:
         """(..., 2) world metres -> (..., 2) float pixel (column u, row v)."""
@@ -145,7 +154,7 @@ def apply_homography(H: np.ndarray, points: np.ndarray) -> np.ndarray:
 
 @cache
 def _load_scene(name: str, root: Path) -> Scene:
-    return Scene(scene_info(name), root)
+    return Scene.from_files(scene_info(name), root)
 
 
 def load_scene(name: str, root: str | os.PathLike | None = None) -> Scene:

@@ -73,10 +73,15 @@ class Windows:
 
 
 _ARRAYS = ("obs", "fut", "group", "recording", "frame", "agent")
+_CACHED = ("obs", "fut", "group", "frame", "agent")  # per-file arrays; the recording name is the file stem
 
 
 def cut_windows(recording: Recording, obs_len: int) -> dict[str, np.ndarray]:
-    """Cut one recording into windows (see module docstring); groups numbered from 0 in this file."""
+    """Cut one recording into windows (see module docstring); groups numbered from 0 in this file.
+
+    Returns:
+        obs (S, obs_len, 2), fut (S, 12, 2) float32 metres; group, frame, agent (S,) int64.
+    """
     seq_len = obs_len + T_PRED
     xy, present = recording.dense()
     xy = np.round(xy, COORD_DECIMALS)
@@ -93,7 +98,6 @@ def cut_windows(recording: Recording, obs_len: int) -> dict[str, np.ndarray]:
         "obs": paths[:, :obs_len],
         "fut": paths[:, obs_len:],
         "group": np.unique(w_idx, return_inverse=True)[1].astype(np.int64),
-        "recording": np.full(len(w_idx), recording.name),
         "frame": recording.frames[w_idx].astype(np.int64),
         "agent": recording.agents[a_idx].astype(np.int64),
     }
@@ -102,7 +106,7 @@ def cut_windows(recording: Recording, obs_len: int) -> dict[str, np.ndarray]:
 def _empty(obs_len: int) -> dict[str, np.ndarray]:
     return {
         "obs": np.zeros((0, obs_len, 2), np.float32), "fut": np.zeros((0, T_PRED, 2), np.float32),
-        "group": np.zeros(0, np.int64), "recording": np.zeros(0, "<U1"),
+        "group": np.zeros(0, np.int64),
         "frame": np.zeros(0, np.int64), "agent": np.zeros(0, np.int64),
     }
 
@@ -125,7 +129,7 @@ def file_windows(path: Path, obs_len: int) -> dict[str, np.ndarray]:
     cached = cache_dir() / f"{path.stem}-{obs_len}-{digest}.npz"
     try:
         with np.load(cached) as data:
-            result = {name: data[name] for name in _ARRAYS}
+            result = {name: data[name] for name in _CACHED}
     except (OSError, ValueError, KeyError):
         result = cut_windows(read_recording(path), obs_len)
         _save_npz(cached, result)
@@ -191,7 +195,9 @@ def load_windows(task: str, scene: str, split: str, root: str | os.PathLike | No
         raise DataRootError(f"{root_path}: no recordings for {task}/{scene}/{split}")
     parts = [file_windows(path, obs_len) for path in files]
     offsets = np.cumsum([0] + [p["group"].max() + 1 if len(p["group"]) else 0 for p in parts])
-    merged = {name: np.concatenate([p[name] for p in parts]) for name in _ARRAYS}
+    merged = {name: np.concatenate([p[name] for p in parts]) for name in _CACHED}
+    merged["recording"] = np.concatenate([np.full(len(p["group"]), path.stem, dtype=object)
+                                          for p, path in zip(parts, files, strict=True)])
     merged["group"] = np.concatenate([p["group"] + off for p, off in zip(parts, offsets, strict=False)])
     name = scene.upper() if task == "domain" else scene_info(scene).name
     windows = Windows(**merged, task=task, scene=name, split=split)

@@ -1,0 +1,50 @@
+"""Gymnasium environments of STCrowd; importing this package registers every id (no env code is imported).
+
+    import gymnasium as gym, envs
+    env = gym.make("STCrowd-Zara1-v0")                      # ZARA1 replayed from the recording
+    env = gym.make("STCrowd-SimCrossing-v0")                # pymunk crowd, no data needed
+    env = gym.make("STCrowd-Zara1-v0", ego=False, task="deterministic", predictor="cvm-s")
+
+Replay and real-scene simulated ids need the ETH/UCY data root ($STCROWD_DATA or the user cache).
+"""
+
+from __future__ import annotations
+
+from gymnasium.envs.registration import register
+
+REPLAY_SCENES: tuple[str, ...] = ("Eth", "Hotel", "Univ", "Zara1", "Zara2")
+SIM_LAYOUTS: tuple[str, ...] = ("Crossing", "Corridor", "Bottleneck")
+MAX_EPISODE_STEPS = 200  # 80 s of 0.4 s steps; a replay also ends with its recording
+
+# Replays: pedestrians follow an ETH/UCY recording
+for _scene in REPLAY_SCENES:
+    register(
+        id=f"STCrowd-{_scene}-v0",
+        entry_point="envs.replay_env:ReplayCrowdEnv",
+        kwargs={"scene": _scene.lower()},
+        max_episode_steps=MAX_EPISODE_STEPS,
+    )
+
+# Simulated: pymunk crowds in synthetic layouts (no data needed)
+for _layout in SIM_LAYOUTS:
+    register(
+        id=f"STCrowd-Sim{_layout}-v0",
+        entry_point="envs.sim_env:SimCrowdEnv",
+        kwargs={"layout": _layout.lower()},
+        max_episode_steps=MAX_EPISODE_STEPS,
+    )
+
+# Simulated: pymunk crowds in a real scene's geometry (needs the data root)
+for _scene in REPLAY_SCENES:
+    register(
+        id=f"STCrowd-Sim{_scene}-v0",
+        entry_point="envs.sim_env:SimCrowdEnv",
+        kwargs={"layout": _scene.lower()},
+        max_episode_steps=MAX_EPISODE_STEPS,
+    )
+
+STCROWD_IDS: tuple[str, ...] = (
+    *(f"STCrowd-{s}-v0" for s in REPLAY_SCENES),
+    *(f"STCrowd-Sim{s}-v0" for s in SIM_LAYOUTS + REPLAY_SCENES),
+)
+"""every registered id, replays first"""

@@ -1,0 +1,3 @@
+from replays.cli import main
+
+raise SystemExit(main())

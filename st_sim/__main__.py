@@ -1,0 +1,3 @@
+from st_sim.cli import main
+
+raise SystemExit(main())

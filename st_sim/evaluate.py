@@ -1,0 +1,131 @@
+"""Offline windowed evaluation: a predictor on a task's test windows -> ADE/FDE, map violations, collisions."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass
+
+import numpy as np
+from tqdm import tqdm
+
+from predictor.protocol import Predictor
+from replays.constants import TASKS
+from replays.scenes import SCENE_NAMES, Scene, load_scene, scene_info
+from replays.windows import Windows, load_windows
+from st_sim.metrics import ade_fde, collision_rate, map_violation, path_map_violation
+from st_sim.paper import paper_numbers
+
+DOMAIN_PAIRS: tuple[str, ...] = tuple(
+    f"{scene_info(a).letter}2{scene_info(b).letter}" for a in SCENE_NAMES for b in SCENE_NAMES if a != b
+)
+
+
+@dataclass
+class SceneResult:
+    """Scores of one predictor on one scene's (or domain pair's) test windows. Distances in metres."""
+
+    scene: str
+    samples: int
+    ade: float
+    fde: float
+    map_violation: float
+    """share of predicted points on non-walkable or off-image pixels"""
+    path_map_violation: float
+    """share of predicted paths with at least one such point"""
+    gt_map_violation: float
+    """the same share for the ground-truth futures (annotation noise)"""
+    collision_rate: float
+    """share of (same-window agent pair, sample) whose predictions come within 0.2 m"""
+    wall_s: float
+    paper_ade: float | None = None
+    paper_fde: float | None = None
+
+
+def score_predictions(pred: np.ndarray, windows: Windows, scene: Scene) -> dict[str, float]:
+    """Metrics of predictions (N, S, 12, 2) against ``windows.fut``, on ``scene``'s map."""
+    ade, fde = ade_fde(pred, windows.fut)
+    return {
+        "ade": float(ade.mean()), "fde": float(fde.mean()),
+        "map_violation": map_violation(pred, scene), "path_map_violation": path_map_violation(pred, scene),
+        "gt_map_violation": map_violation(windows.fut, scene),
+        "collision_rate": collision_rate(pred, windows.group),
+    }
+
+
+def target_scene(task: str, scene: str) -> str:
+    """Scene whose map the test windows live on (the target of a domain pair)."""
+    return scene_info(scene.upper().split("2")[1]).name if task == "domain" else scene_info(scene).name
+
+
+def evaluate_scene(predictor: Predictor, task: str, scene: str, num_samples: int | None = None,
+                   momentary_from_8: bool = False, root=None) -> SceneResult:
+    """Score ``predictor`` on the test split of one scene (or domain pair ``"A2B"``).
+
+    Args:
+        momentary_from_8: for the momentary task, score the 8-frame protocol's samples using only their
+            last 2 observed frames instead of the loader's own 2-frame windows.
+    """
+    start = time.perf_counter()
+    if task == "momentary" and momentary_from_8:
+        windows = load_windows("stochastic", scene, "test", root).last_observed(2)
+    else:
+        windows = load_windows(task, scene, "test", root)
+    map_scene = load_scene(target_scene(task, scene), root)
+    samples = num_samples or TASKS[task]["num_samples"]
+    pred = predictor.predict(windows.obs, windows.group, map_scene, samples)
+    scores = score_predictions(pred, windows, map_scene)
+    paper = paper_numbers(task, scene.upper() if task == "domain" else scene)
+    return SceneResult(scene=scene, samples=len(windows), **scores, wall_s=time.perf_counter() - start,
+                       paper_ade=paper[0] if paper else None, paper_fde=paper[1] if paper else None)
+
+
+def evaluate_task(make_predictor: Callable[[str, str], Predictor], task: str, scenes: list[str] | None = None,
+                  momentary_from_8: bool = False, root=None, progress: bool = True) -> dict:
+    """Evaluate every scene (or domain pair) of a task.
+
+    Args:
+        make_predictor: (task, scene) -> predictor for that scene (e.g. a leave-one-out checkpoint).
+        scenes: scene names, or domain pairs for ``domain``; default all.
+
+    Returns:
+        ``{"task", "avg": {"ade", "fde", "paper_ade", "paper_fde"}, "scenes": {scene: SceneResult dict}}``.
+    """
+    scenes = scenes or list(DOMAIN_PAIRS if task == "domain" else SCENE_NAMES)
+    results = {}
+    for scene in tqdm(scenes, desc=f"{task}", unit="scene", disable=not progress):
+        results[scene] = evaluate_scene(make_predictor(task, scene), task, scene, None, momentary_from_8, root)
+    avg = {"ade": float(np.mean([r.ade for r in results.values()])),
+           "fde": float(np.mean([r.fde for r in results.values()]))}
+    paper_avg = paper_numbers(task, "avg")
+    if paper_avg and len(scenes) == (20 if task == "domain" else 5):
+        avg.update(paper_ade=paper_avg[0], paper_fde=paper_avg[1])
+    return {"task": task, "avg": avg, "scenes": {name: asdict(r) for name, r in results.items()}}
+
+
+def _pair(ade: float, fde: float) -> str:
+    return f"{ade:.3f} / {fde:.3f}"
+
+
+def markdown_table(result: dict, predictor_name: str) -> str:
+    """A markdown table of ``evaluate_task``'s result with the paper's numbers and the delta."""
+    lines = [
+        f"**{result['task']}** — predictor `{predictor_name}` (ADE / FDE in metres)", "",
+        "| scene | samples | ADE / FDE | paper | delta | map-viol. pred (paths) | map-viol. GT | collisions |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for name, r in result["scenes"].items():
+        paper = _pair(r["paper_ade"], r["paper_fde"]) if r["paper_ade"] is not None else "–"
+        delta = (f"{r['ade'] - r['paper_ade']:+.3f} / {r['fde'] - r['paper_fde']:+.3f}"
+                 if r["paper_ade"] is not None else "–")
+        lines.append(
+            f"| {name} | {r['samples']} | {_pair(r['ade'], r['fde'])} | {paper} | {delta} | "
+            f"{100 * r['map_violation']:.2f}% ({100 * r['path_map_violation']:.1f}%) | "
+            f"{100 * r['gt_map_violation']:.2f}% | {100 * r['collision_rate']:.2f}% |"
+        )
+    avg = result["avg"]
+    paper = _pair(avg["paper_ade"], avg["paper_fde"]) if "paper_ade" in avg else "–"
+    delta = (f"{avg['ade'] - avg['paper_ade']:+.3f} / {avg['fde'] - avg['paper_fde']:+.3f}"
+             if "paper_ade" in avg else "–")
+    lines.append(f"| **AVG** | | **{_pair(avg['ade'], avg['fde'])}** | {paper} | {delta} | | | |")
+    return "\n".join(lines)
