@@ -15,7 +15,7 @@ def run_fetch(args: argparse.Namespace) -> int:
     """Fetch and verify every file; an interrupted run resumes where it stopped."""
     try:
         report = fetch(args.source, args.dest, quiet=args.quiet)
-    except FetchError as err:
+    except (FetchError, OSError) as err:  # OSError: the destination cannot be written
         print(f"error: {err}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:

@@ -21,10 +21,11 @@ import shutil
 import tarfile
 import time
 import zipfile
+import zlib
 from collections.abc import Callable, Iterable, Iterator
 from contextlib import AbstractContextManager, contextmanager
 from dataclasses import dataclass
-from http.client import HTTPException, HTTPResponse
+from http.client import HTTPException, HTTPResponse, IncompleteRead
 from pathlib import Path
 from typing import IO, Final, NamedTuple, Protocol
 from urllib.error import HTTPError, URLError
@@ -52,6 +53,7 @@ TIMEOUT_S: Final = 30.0  # per connection attempt and per blocking read
 RETRY_DELAYS_S: Final = (0.5, 2.0)  # pauses before the 2nd and 3rd attempt at one file
 CHUNK_BYTES: Final = 1 << 16
 USER_AGENT: Final = "stcrowd-fetch/0.1 (python urllib)"
+ARCHIVE_ERRORS: Final = (tarfile.TarError, zipfile.BadZipFile, EOFError, zlib.error)  # damaged archive
 SOURCE_HINT: Final = "--from takes a folder laid out like the data root, a .zip/.tar(.gz) of one, or an http(s) URL"
 
 
@@ -79,14 +81,14 @@ class Opened(NamedTuple):
     stream: IO[bytes]
     start: int
     """byte offset the stream begins at: the ``.part`` length when resuming, else 0"""
-    where: str
-    """URL or path of the file, for messages"""
+    length: int | None
+    """bytes the stream should deliver (HTTP Content-Length), None if unknown"""
 
 
 class Source(Protocol):
     """Where the files come from; ``open`` may honour ``offset`` (resume) or start at 0."""
 
-    label: str
+    def where(self, name: str) -> str: ...
 
     def order(self, names: list[str]) -> list[str]: ...
 
@@ -106,19 +108,21 @@ def mirror_url(name: str) -> str:
 class UrlSource:
     """Files over http(s); ``url_of`` maps a relative path to its URL."""
 
-    def __init__(self, url_of: Callable[[str], str], label: str) -> None:
+    def __init__(self, url_of: Callable[[str], str]) -> None:
         self.url_of = url_of
-        self.label = label
+
+    def where(self, name: str) -> str:
+        return self.url_of(name)
 
     def order(self, names: list[str]) -> list[str]:
         return names
 
     @contextmanager
     def open(self, name: str, offset: int) -> Iterator[Opened]:
-        url = self.url_of(name)
-        response, start = _request(url, offset)
+        response, start = _request(self.url_of(name), offset)
+        length = response.headers.get("Content-Length")
         with response:
-            yield Opened(response, start, url)
+            yield Opened(response, start, None if length is None else int(length))
 
 
 def _request(url: str, offset: int) -> tuple[HTTPResponse, int]:
@@ -146,7 +150,9 @@ class FolderSource:
 
     def __init__(self, root: Path) -> None:
         self.root = root
-        self.label = str(root)
+
+    def where(self, name: str) -> str:
+        return str(self.root / name)
 
     def order(self, names: list[str]) -> list[str]:
         return names
@@ -158,18 +164,21 @@ class FolderSource:
             raise FetchError(f"{path}: missing from the source folder {self.root}. {SOURCE_HINT}.")
         with open(path, "rb") as stream:
             stream.seek(offset)
-            yield Opened(stream, offset, str(path))
+            yield Opened(stream, offset, None)
 
 
 class ArchiveSource:
     """Files read from a zip or tar archive holding the data-root layout at its top or under one folder."""
 
     def __init__(self, path: Path, members: dict, open_member: Callable, position: Callable) -> None:
-        self.label = str(path)
+        self.path = path
         self._members = {posixpath.normpath(name): member for name, member in members.items()}
         self._open_member = open_member
         self._position = position
         self.prefix = _layout_prefix(self._members, expected_sums())
+
+    def where(self, name: str) -> str:
+        return f"{self.path}:{self.prefix + name}"
 
     def order(self, names: list[str]) -> list[str]:
         """Archive order, so a compressed tar is read front to back once."""
@@ -180,9 +189,9 @@ class ArchiveSource:
     def open(self, name: str, offset: int) -> Iterator[Opened]:
         member = self._members.get(self.prefix + name)
         if member is None:
-            raise FetchError(f"{self.label}: the archive has no file {self.prefix + name}. {SOURCE_HINT}.")
+            raise FetchError(f"{self.path}: the archive has no file {self.prefix + name}. {SOURCE_HINT}.")
         with self._open_member(member) as stream:
-            yield Opened(stream, 0, f"{self.label}:{self.prefix + name}")
+            yield Opened(stream, 0, None)
 
 
 def _layout_prefix(members: Iterable[str], names: Iterable[str]) -> str:
@@ -198,26 +207,36 @@ def _layout_prefix(members: Iterable[str], names: Iterable[str]) -> str:
 def open_source(spec: str | os.PathLike | None) -> Iterator[Source]:
     """Open the source named by ``--from``: None (public mirrors), an http(s) URL, a folder or an archive."""
     if spec is None:
-        yield UrlSource(mirror_url, "the public mirrors (Social-STGCNN and LMTrajectory on GitHub)")
+        yield UrlSource(mirror_url)
         return
     text = os.fspath(spec)
     if text.startswith(("http://", "https://")):
         base_url = text if text.endswith("/") else text + "/"
-        yield UrlSource(lambda name: base_url + quote(name), base_url)
+        yield UrlSource(lambda name: base_url + quote(name))
         return
     path = Path(text).expanduser()
     if path.is_dir():
         yield FolderSource(path)
-    elif zipfile.is_zipfile(path):
+    elif path.is_file() and (zipfile.is_zipfile(path) or tarfile.is_tarfile(path)):
+        try:
+            with _open_archive(path) as archive_source:
+                yield archive_source
+        except ARCHIVE_ERRORS as err:  # raised while listing; per-file read errors are reported by _transfer
+            raise FetchError(f"{path}: damaged or truncated archive ({err}). Get a fresh copy of it.") from err
+    else:
+        raise FetchError(f"{text}: no such folder, not a zip or tar archive, and not an http(s) URL. {SOURCE_HINT}.")
+
+
+@contextmanager
+def _open_archive(path: Path) -> Iterator[ArchiveSource]:
+    if zipfile.is_zipfile(path):
         with zipfile.ZipFile(path) as archive:
             members = {info.filename: info for info in archive.infolist() if not info.is_dir()}
             yield ArchiveSource(path, members, archive.open, lambda info: info.header_offset)
-    elif path.is_file() and tarfile.is_tarfile(path):
+    else:
         with tarfile.open(path, "r:*") as archive:
             members = {m.name: m for m in archive.getmembers() if m.isfile()}
             yield ArchiveSource(path, members, archive.extractfile, lambda m: m.offset)
-    else:
-        raise FetchError(f"{text}: no such folder, not a zip or tar archive, and not an http(s) URL. {SOURCE_HINT}.")
 
 
 def fetch(source: str | os.PathLike | None = None, dest: str | os.PathLike | None = None, *,
@@ -247,7 +266,7 @@ def fetch(source: str | os.PathLike | None = None, dest: str | os.PathLike | Non
                 moved += _fetch_file(src, name, sums[name], final)
                 fetched += 1
             bar.update(1)
-            bar.set_postfix_str(f"{moved / 1e6:.1f} MB")
+            bar.set_postfix_str(f"{moved / 1e6:.1f} MB", refresh=False)
     return FetchReport(dest, fetched, skipped, moved)
 
 
@@ -270,25 +289,25 @@ def _fetch_file(src: Source, name: str, digest: str, final: Path) -> int:
     """Transfer one file into its ``.part``, check its SHA-256, move it into place; returns bytes moved."""
     part = _part_of(final)
     final.parent.mkdir(parents=True, exist_ok=True)
-    moved, start, where = _transfer(src, name, part)
+    moved, start = _transfer(src, name, part)
     got = sha256_of(part)
     if got != digest and start > 0:  # the kept prefix may belong to another copy: start over once
         part.unlink()
-        more, start, where = _transfer(src, name, part)
+        more, start = _transfer(src, name, part)
         moved, got = moved + more, sha256_of(part)
     if got != digest:
         part.unlink()
         raise FetchError(
-            f"{name}: SHA-256 mismatch for {where}: expected {digest}, got {got}. The download was deleted and "
-            f"{final} was not written; the source copy is corrupt or a different version. Run the command again, "
-            f"or fetch from another copy with --from DIR_OR_ARCHIVE_OR_URL."
+            f"{name}: SHA-256 mismatch for {src.where(name)}: expected {digest}, got {got}. "
+            f"The download was deleted and {final} was not written; the source copy is corrupt or a different "
+            "version. Run the command again, or fetch from another copy with --from DIR_OR_ARCHIVE_OR_URL."
         )
     os.replace(part, final)
     return moved
 
 
-def _transfer(src: Source, name: str, part: Path) -> tuple[int, int, str]:
-    """Append the missing bytes of ``name`` to ``part``, retrying network errors; returns (bytes, start, where)."""
+def _transfer(src: Source, name: str, part: Path) -> tuple[int, int]:
+    """Append the missing bytes of ``name`` to ``part``, retrying network errors; returns (bytes, start)."""
     delays_s = iter(RETRY_DELAYS_S)
     while True:
         offset = part.stat().st_size if part.is_file() else 0
@@ -297,8 +316,11 @@ def _transfer(src: Source, name: str, part: Path) -> tuple[int, int, str]:
                 shutil.copyfileobj(opened.stream, out, CHUNK_BYTES)
                 out.flush()
                 os.fsync(out.fileno())
-                return out.tell() - opened.start, opened.start, opened.where
-        except (OSError, HTTPException) as err:
+                moved = out.tell() - opened.start
+                if opened.length is not None and moved < opened.length:  # urllib does not notice a cut body
+                    raise IncompleteRead(b"", opened.length - moved)
+                return moved, opened.start
+        except (OSError, HTTPException, *ARCHIVE_ERRORS) as err:
             delay_s = next(delays_s, None)
             if delay_s is None or not _is_transient(err):
                 raise FetchError(_describe(err, name, src)) from err
@@ -318,7 +340,9 @@ def _describe(err: Exception, name: str, src: Source) -> str:
         return f"{name}: {err.url} answered HTTP {err.code} {err.reason}. {SOURCE_HINT}."
     if _is_transient(err):
         reason = err.reason if isinstance(err, URLError) else err
-        return (f"{name}: could not download from {src.label} after {attempts} attempts ({reason}). "
+        return (f"{name}: could not download {src.where(name)} after {attempts} attempts ({reason}). "
                 "Check the network connection and run the command again (finished files are kept), "
                 "or fetch from a local copy with --from DIR_OR_ARCHIVE.")
+    if isinstance(err, ARCHIVE_ERRORS):
+        return f"{name}: cannot read {src.where(name)} ({err}): the archive is damaged. Get a fresh copy of it."
     return f"{name}: {err}"

@@ -55,7 +55,8 @@ def build_parser() -> argparse.ArgumentParser:
     commands = parser.add_subparsers(dest="command", required=True)
 
     evaluate = commands.add_parser("evaluate", help="score a predictor on a benchmark task's test windows")
-    evaluate.add_argument("--task", choices=list(TASKS), default="stochastic", help="benchmark task (default: stochastic)")
+    evaluate.add_argument("--task", choices=list(TASKS), default="stochastic",
+                          help="benchmark task (default: stochastic)")
     evaluate.add_argument("--predictor", default="cvm-s",
                           help="cvm | cvm-s | linear | singular | checkpoint file or folder (default: cvm-s)")
     evaluate.add_argument("--scenes", nargs="+", default=None,

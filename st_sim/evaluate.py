@@ -59,12 +59,13 @@ def target_scene(task: str, scene: str) -> str:
 
 
 def evaluate_scene(predictor: Predictor, task: str, scene: str, num_samples: int | None = None,
-                   momentary_from_8: bool = False, root=None) -> SceneResult:
+                   momentary_from_8: bool = False, root=None, steps: int | None = None) -> SceneResult:
     """Score ``predictor`` on the test split of one scene (or domain pair ``"A2B"``).
 
     Args:
         momentary_from_8: for the momentary task, score the 8-frame protocol's samples using only their
             last 2 observed frames instead of the loader's own 2-frame windows.
+        steps: DDIM steps for predictors that take them (ablation); None = as trained.
     """
     start = time.perf_counter()
     if task == "momentary" and momentary_from_8:
@@ -73,7 +74,10 @@ def evaluate_scene(predictor: Predictor, task: str, scene: str, num_samples: int
         windows = load_windows(task, scene, "test", root)
     map_scene = load_scene(target_scene(task, scene), root)
     samples = num_samples or TASKS[task]["num_samples"]
-    pred = predictor.predict(windows.obs, windows.group, map_scene, samples)
+    if steps is not None:
+        pred = predictor.predict_detailed(windows.obs, windows.group, map_scene, samples, steps).futures
+    else:
+        pred = predictor.predict(windows.obs, windows.group, map_scene, samples)
     scores = score_predictions(pred, windows, map_scene)
     paper = paper_numbers(task, scene.upper() if task == "domain" else scene)
     return SceneResult(scene=scene, samples=len(windows), **scores, wall_s=time.perf_counter() - start,

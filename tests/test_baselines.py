@@ -7,7 +7,8 @@ from predictor.baselines import ConstantVelocity, ConstantVelocitySampler, Linea
 from st_sim.metrics import ade_fde
 
 
-def straight_lines(n: int = 5, t_obs: int = 8, rng=np.random.default_rng(1)):
+def straight_lines(n: int = 5, t_obs: int = 8):
+    rng = np.random.default_rng(1)
     start, velocity = rng.normal(size=(n, 1, 2)), rng.normal(size=(n, 1, 2))
     steps = np.arange(t_obs + 12)[None, :, None]
     paths = (start + steps * velocity).astype(np.float32)

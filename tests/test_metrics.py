@@ -32,7 +32,7 @@ def test_map_violation_counts_points_and_paths(toy_scene):
 
 def test_same_group_pairs_lists_each_pair_once():
     first, second = same_group_pairs(np.array([0, 1, 0, 2, 1, 0]))
-    pairs = sorted(tuple(sorted(p)) for p in zip(first.tolist(), second.tolist()))
+    pairs = sorted(tuple(sorted(p)) for p in zip(first.tolist(), second.tolist(), strict=False))
     assert pairs == [(0, 2), (0, 5), (1, 4), (2, 5)]
 
 
@@ -41,7 +41,7 @@ def test_collision_rate_hand_case():
     walk = np.stack([t, np.zeros(3)], -1)
     pred = np.stack([
         np.stack([walk, walk]),                         # agent 0, two samples
-        np.stack([walk + [0, 0.1], walk + [0, 5.0]]),   # agent 1: sample 0 collides, sample 1 not
+        np.stack([walk + np.array([0, 0.1]), walk + np.array([0, 5.0])]),   # agent 1: sample 0 collides, sample 1 not
         np.stack([walk, walk]),                         # agent 2, alone in its window
     ])
     assert collision_rate(pred, np.array([0, 0, 1])) == pytest.approx(0.5)

@@ -40,7 +40,7 @@ def test_read_recording_empty_file_is_rejected(tmp_path, text):
 
 
 def test_read_recording_missing_file_names_it(tmp_path):
-    with pytest.raises(DataFormatError, match="nope.txt"):
+    with pytest.raises(DataFormatError, match=r"nope\.txt"):
         read_recording(tmp_path / "nope.txt")
 
 

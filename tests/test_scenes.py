@@ -3,7 +3,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from replays import DataFormatError, SCENES, data_root, load_scene, read_recording, scene_of_recording
+from replays import SCENES, DataFormatError, data_root, load_scene, read_recording, scene_of_recording
 from replays.scenes import read_homography
 
 RECORDINGS = [r for info in SCENES.values() for r in info.train_recordings]
@@ -34,7 +34,7 @@ def test_scene_lookup_by_letter_and_errors():
 def test_bad_homography_names_file(tmp_path):
     path = tmp_path / "bad_H.txt"
     path.write_text("1 0\n0 1\n")
-    with pytest.raises(DataFormatError, match="bad_H.txt"):
+    with pytest.raises(DataFormatError, match=r"bad_H\.txt"):
         read_homography(path)
 
 

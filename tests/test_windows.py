@@ -75,8 +75,8 @@ def test_cut_windows_handles_gaps_absences_and_lone_agents(tmp_path):
 def test_fewshot_keeps_every_tenth_training_window():
     full = load_windows("stochastic", "zara1", "train")
     few = load_windows("fewshot", "zara1", "train")
-    kept_frames = {(r, f) for r, f, g in zip(full.recording, full.frame, full.group) if g % 10 == 0}
-    assert {(r, f) for r, f in zip(few.recording, few.frame)} == kept_frames
+    kept_frames = {(r, f) for r, f, g in zip(full.recording, full.frame, full.group, strict=False) if g % 10 == 0}
+    assert {(r, f) for r, f in zip(few.recording, few.frame, strict=False)} == kept_frames
     assert few.num_groups == (full.num_groups + 9) // 10
     assert len(load_windows("fewshot", "zara1", "test")) == 2253
 

@@ -1,0 +1,71 @@
+"""``python -m predictor <command>``: train a SingularTrajectory model, evaluate a checkpoint."""
+
+from __future__ import annotations
+
+import argparse
+from dataclasses import fields
+
+from predictor.train import TrainConfig
+from replays.constants import TASKS
+
+
+def run_train(args: argparse.Namespace) -> int:
+    from predictor.train import main as train
+
+    overrides = {f.name: getattr(args, f.name) for f in fields(TrainConfig) if getattr(args, f.name, None) is not None}
+    overrides["progress"] = not args.quiet
+    best = train(TrainConfig(**overrides))
+    print(f"best checkpoint: {best}")
+    return 0
+
+
+def run_evaluate(args: argparse.Namespace) -> int:
+    from predictor.checkpoint import load, read_checkpoint
+    from st_sim.evaluate import evaluate_scene
+
+    state = read_checkpoint(args.checkpoint)
+    task, scene = state["train_config"]["task"], args.scene or state["train_config"]["scene"]
+    model = load(args.checkpoint)
+    r = evaluate_scene(model, task, scene, steps=args.steps, root=args.data_root)
+    print(f"{task}/{scene}: {r.samples} samples  ADE {r.ade:.4f}  FDE {r.fde:.4f}  "
+          f"map-violation {100 * r.map_violation:.2f}% (GT {100 * r.gt_map_violation:.2f}%)  "
+          f"collisions {100 * r.collision_rate:.2f}%  paper {r.paper_ade} / {r.paper_fde}  ({r.wall_s:.1f} s)")
+    return 0
+
+
+COMMANDS = {"train": run_train, "evaluate": run_evaluate}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="python -m predictor", description=__doc__)
+    commands = parser.add_subparsers(dest="command", required=True)
+    defaults = TrainConfig()
+
+    train = commands.add_parser("train", help="train one model; resumes from OUT/last.pt")
+    train.add_argument("--task", choices=list(TASKS), default=defaults.task, help=f"(default: {defaults.task})")
+    train.add_argument("--scene", default=defaults.scene,
+                       help=f"test scene (leave-one-out) or domain pair like A2B (default: {defaults.scene})")
+    train.add_argument("--out", required=True, help="output folder for last.pt and best.pt")
+    train.add_argument("--epochs", type=int, help=f"training epochs (default: {defaults.epochs})")
+    train.add_argument("--objective", choices=["e2e", "eps"],
+                       help=f"training objective (default: {defaults.objective})")
+    train.add_argument("--k", type=int, help=f"Singular-space dimension (default: {defaults.k})")
+    train.add_argument("--steps", type=int, help=f"DDIM steps M (default: {defaults.steps})")
+    train.add_argument("--fixed-anchors", dest="adapt_anchors", action="store_const", const=False,
+                       help="use fixed prototype anchors (default: map-adaptive)")
+    train.add_argument("--seed", type=int, help=f"random seed (default: {defaults.seed})")
+    train.add_argument("--threads", type=int, help=f"torch threads (default: {defaults.threads})")
+    train.add_argument("--data-root", help="ETH/UCY folder (default: $STCROWD_DATA or the cache)")
+    train.add_argument("--quiet", action="store_true", help="no progress bars")
+
+    evaluate = commands.add_parser("evaluate", help="score a checkpoint on its task's test split")
+    evaluate.add_argument("--checkpoint", required=True, help="best.pt or last.pt")
+    evaluate.add_argument("--scene", help="test scene or pair (default: the one it was trained for)")
+    evaluate.add_argument("--steps", type=int, default=None, help="DDIM steps at inference (default: as trained)")
+    evaluate.add_argument("--data-root", help="ETH/UCY folder (default: $STCROWD_DATA or the cache)")
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    return COMMANDS[args.command](args)

@@ -1,0 +1,175 @@
+"""The SingularTrajectory predictor: agent frames + Singular space + adaptive anchors + diffusion refiner.
+
+Populations: index 0 = moving agents (speed-normalised), 1 = slow agents (see ``predictor.normalize``);
+each has its own Singular space, prototype anchors and coefficient scales.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from predictor.anchors import adaptive_anchors
+from predictor.normalize import AgentFrame, agent_frames
+from predictor.protocol import check_inputs, empty_prediction
+from predictor.refiner import Refiner
+from predictor.singular_space import T_WIN, SingularSpace
+from replays.scenes import Scene
+
+
+@dataclass(frozen=True)
+class ModelConfig:
+    task: str = "stochastic"
+    """benchmark task the model is trained for"""
+    obs_len: int = 8
+    """observed steps T_obs (8, or 2 for momentary)"""
+    num_samples: int = 20
+    """S, prototype anchors = predicted futures per agent"""
+    k: int = 4
+    """Singular-space dimension K"""
+    scale_by_speed: bool = True
+    """normalise moving agents' paths by their recent speed"""
+    adapt_anchors: bool = True
+    """bend prototype paths onto walkable pixels (False = fixed prototype anchors)"""
+    dim: int = 256
+    """refiner width"""
+    heads: int = 4
+    """attention heads"""
+    layers: int = 1
+    """interaction transformer layers"""
+    steps: int = 10
+    """M, DDIM steps"""
+    init_noise: float = 1.0
+    """scale of the starting noise x_M of the sampler"""
+
+    @property
+    def history_dim(self) -> int:
+        return 2 * self.obs_len + self.k + 8  # history, its coefficients, log speed, slow flag, 6 interaction
+
+
+@dataclass
+class Prediction:
+    """Predicted futures with the anchors they were refined from; all (N, S, 12, 2) world metres."""
+
+    futures: np.ndarray
+    prototype_anchors: np.ndarray
+    adapted_anchors: np.ndarray
+
+
+@dataclass
+class Inputs:
+    """Model inputs of N agents (agent frame unless noted)."""
+
+    frames: AgentFrame
+    population: np.ndarray  # (N,) int
+    history: np.ndarray  # (N, F) float32 features
+    anchors: np.ndarray  # (N, S, K) adapted anchor coefficients
+    anchor_paths_m: np.ndarray  # (2, N, S, 12, 2) prototype and adapted anchors, world metres
+    group: np.ndarray  # (N,) int64
+
+
+class SingularTrajectory:
+    """Predictor object; ``predict`` has the same signature as the baselines'."""
+
+    name = "singular"
+
+    def __init__(self, cfg: ModelConfig, spaces: list[SingularSpace], anchors: np.ndarray,
+                 coef_scale: np.ndarray, residual_scale: np.ndarray, refiner: Refiner, seed: int = 0):
+        self.cfg = cfg
+        self.spaces = spaces
+        self.anchors = anchors  # (2, S, K) prototype coefficients per population
+        self.coef_scale = coef_scale  # (2,) typical coefficient size per population
+        self.residual_scale = residual_scale  # (2,) typical anchor-to-truth residual per population
+        self.refiner = refiner.eval()
+        self.seed = seed
+        self.bases = torch.tensor(np.stack([s.basis for s in spaces]), dtype=torch.float32)  # (2, 24, K)
+
+    # ---------------------------------------------------------------- inputs
+    def prepare(self, obs: np.ndarray, group: np.ndarray, scenes: list[Scene | None],
+                scene_index: np.ndarray) -> Inputs:
+        """Features for N agents; agent i lies on ``scenes[scene_index[i]]``."""
+        frames = agent_frames(obs, self.cfg.scale_by_speed)
+        population = frames.slow.astype(np.int64)
+        history_local = frames.to_agent(obs.astype(np.float64))  # (N, T_obs, 2)
+        history_coef = np.zeros((len(obs), self.cfg.k))
+        for p, space in enumerate(self.spaces):
+            mask = population == p
+            history_coef[mask] = space.project(history_local[mask] - history_local[mask][:, :1])
+        n, s, k = len(obs), self.cfg.num_samples, self.cfg.k
+        anchors, anchor_paths = np.zeros((n, s, k)), np.zeros((2, n, s, T_WIN, 2))
+        for i, scene in enumerate(scenes):
+            mask = scene_index == i
+            sub = AgentFrame(*(getattr(frames, f)[mask] for f in ("origin_m", "angle_rad", "scale_m", "slow")))
+            anchors[mask], anchor_paths[:, mask] = adaptive_anchors(
+                self.anchors, sub, self.spaces, population[mask], scene if self.cfg.adapt_anchors else None)
+        history = np.concatenate([
+            history_local.reshape(n, -1), history_coef / self.coef_scale[population][:, None],
+            np.log(frames.scale_m)[:, None], frames.slow[:, None], _interaction_features(obs, group, frames),
+        ], axis=1).astype(np.float32)
+        return Inputs(frames, population, history, anchors, anchor_paths, group)
+
+    def tensors(self, inputs: Inputs) -> dict[str, torch.Tensor]:
+        """Network-ready tensors: scaled anchors, history, group, population, speed scale."""
+        pop = inputs.population
+        return {
+            "history": torch.from_numpy(inputs.history),
+            "anchors": torch.from_numpy((inputs.anchors / self.coef_scale[pop][:, None, None]).astype(np.float32)),
+            "group": torch.from_numpy(np.asarray(inputs.group, np.int64)),
+            "population": torch.from_numpy(pop),
+            "scale_m": torch.from_numpy(inputs.frames.scale_m.astype(np.float32)),
+        }
+
+    def paths_local(self, anchors_scaled: torch.Tensor, residual: torch.Tensor, population: torch.Tensor
+                    ) -> torch.Tensor:
+        """Agent-frame paths (B, S, 12, 2) from scaled anchors and refiner residuals (B, S, K)."""
+        coef_scale = torch.as_tensor(self.coef_scale, dtype=torch.float32)[population][:, None, None]
+        res_scale = torch.as_tensor(self.residual_scale, dtype=torch.float32)[population][:, None, None]
+        coefs = anchors_scaled * coef_scale + residual * res_scale
+        flat = torch.einsum("bsk,bdk->bsd", coefs, self.bases[population])
+        return flat.view(*coefs.shape[:2], T_WIN, 2)
+
+    # ---------------------------------------------------------------- prediction
+    @torch.no_grad()
+    def predict_detailed(self, obs: np.ndarray, group: np.ndarray, scene: Scene | None,
+                         num_samples: int | None = None, steps: int | None = None) -> Prediction:
+        """Futures, prototype and adapted anchors, each (N, S, 12, 2) world metres."""
+        num_samples = num_samples or self.cfg.num_samples
+        obs, group = check_inputs(obs, group, num_samples)
+        if num_samples > self.cfg.num_samples:
+            raise ValueError(f"model trained for S = {self.cfg.num_samples} samples, asked for {num_samples}")
+        if obs.shape[1] != self.cfg.obs_len:
+            raise ValueError(f"model observes {self.cfg.obs_len} steps, got obs of {obs.shape[1]}")
+        if len(obs) == 0:
+            empty = empty_prediction(num_samples)
+            return Prediction(empty, empty, empty)
+        inputs = self.prepare(obs, group, [scene], np.zeros(len(obs), np.int64))
+        t = self.tensors(inputs)
+        ctx = self.refiner.context(t["history"], t["anchors"], t["group"])
+        generator = torch.Generator().manual_seed(self.seed)
+        noise = self.cfg.init_noise * torch.randn(t["anchors"].shape, generator=generator)
+        residual = self.refiner.sample(t["anchors"], ctx, noise, steps)
+        local = self.paths_local(t["anchors"], residual, t["population"]).double().numpy()
+        futures = inputs.frames.to_world(local).astype(np.float32)
+        keep = slice(0, num_samples)  # anchors are ordered by cluster size: the first are the likeliest
+        return Prediction(futures[:, keep], inputs.anchor_paths_m[0][:, keep].astype(np.float32),
+                          inputs.anchor_paths_m[1][:, keep].astype(np.float32))
+
+    def predict(self, obs: np.ndarray, group: np.ndarray, scene: Scene | None = None,
+                num_samples: int | None = None) -> np.ndarray:
+        """(N, T_obs, 2) world metres -> (N, S, 12, 2) float32 world metres."""
+        return self.predict_detailed(obs, group, scene, num_samples).futures
+
+
+def _interaction_features(obs: np.ndarray, group: np.ndarray, frames: AgentFrame) -> np.ndarray:
+    """(N, 6): position relative to the window's centroid (world, and agent frame) and world velocity."""
+    last = obs[:, -1].astype(np.float64)
+    _, inverse, counts = np.unique(group, return_inverse=True, return_counts=True)
+    sums = np.zeros((len(counts), 2))
+    np.add.at(sums, inverse, last)
+    offset = last - (sums / counts[:, None])[inverse]  # metres from the window centroid
+    c, s = np.cos(-frames.angle_rad), np.sin(-frames.angle_rad)
+    offset_local = np.stack([c * offset[:, 0] - s * offset[:, 1], s * offset[:, 0] + c * offset[:, 1]], axis=-1)
+    velocity = obs[:, -1] - obs[:, -2]
+    return np.concatenate([offset, offset_local, velocity], axis=1)

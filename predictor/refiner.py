@@ -1,0 +1,107 @@
+"""Conditional denoising diffusion over the S x K anchor residual (all prototypes refined jointly).
+
+The network predicts the clean residual x0 from (noisy residual x_m, step m, conditions); epsilon
+follows from x0, so one network serves both training objectives:
+  * ``eps``: the paper's epsilon-prediction MSE at a random diffusion step;
+  * ``e2e``: unroll the M-step DDIM chain and minimise best-of-S ADE of the final paths.
+Conditions: the agent's history features, its anchors, and interaction through one transformer layer
+whose attention is masked to agents of the same window (scene moment).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass
+
+import torch
+from torch import nn
+
+
+@dataclass(frozen=True)
+class RefinerConfig:
+    history_dim: int
+    """features per agent describing its history (agent frame)"""
+    num_samples: int = 20
+    """S, anchors refined jointly"""
+    k: int = 4
+    """Singular-space dimension"""
+    dim: int = 256
+    """width of the context transformer and of the denoiser"""
+    heads: int = 4
+    """attention heads of the interaction layer"""
+    layers: int = 1
+    """interaction transformer layers"""
+    steps: int = 10
+    """M, DDIM denoising steps"""
+
+
+def cosine_alpha_bar(steps: int) -> torch.Tensor:
+    """(steps + 1,) cumulative signal level, 1 at m = 0 falling to ~0 at m = steps (cosine schedule)."""
+    m = torch.arange(steps + 1, dtype=torch.float64) / steps
+    f = torch.cos((m + 0.008) / 1.008 * math.pi / 2) ** 2
+    return (f / f[0]).clamp(min=1e-4).float()
+
+
+def step_embedding(m: torch.Tensor, dim: int) -> torch.Tensor:
+    """(B,) integer steps -> (B, dim) sinusoidal embedding."""
+    half = dim // 2
+    freqs = torch.exp(-math.log(1000.0) * torch.arange(half, dtype=torch.float32) / half)
+    angles = m.float()[:, None] * freqs[None]
+    return torch.cat([angles.sin(), angles.cos()], dim=-1)
+
+
+class Refiner(nn.Module):
+    """Context encoder (history + interaction) and an x0-predicting denoiser over S x K residuals."""
+
+    def __init__(self, cfg: RefinerConfig):
+        super().__init__()
+        self.cfg = cfg
+        d, sk = cfg.dim, cfg.num_samples * cfg.k
+        self.encode_history = nn.Sequential(nn.Linear(cfg.history_dim + sk, d), nn.SiLU(), nn.Linear(d, d))
+        layer = nn.TransformerEncoderLayer(d, cfg.heads, dim_feedforward=2 * d, dropout=0.0, batch_first=True,
+                                           norm_first=True)
+        self.interact = nn.TransformerEncoder(layer, cfg.layers, enable_nested_tensor=False)
+        self.embed_residual = nn.Linear(2 * sk, d)
+        self.embed_step = nn.Linear(d, d)
+        self.denoise = nn.Sequential(nn.SiLU(), nn.Linear(d, d), nn.SiLU(), nn.Linear(d, d), nn.SiLU(),
+                                     nn.Linear(d, sk))
+        self.register_buffer("alpha_bar", cosine_alpha_bar(cfg.steps), persistent=False)
+
+    def context(self, history: torch.Tensor, anchors: torch.Tensor, group: torch.Tensor) -> torch.Tensor:
+        """Per-agent condition (B, dim) from history (B, F), anchors (B, S, K) and window ids (B,)."""
+        tokens = self.encode_history(torch.cat([history, anchors.flatten(1)], dim=1))
+        apart = group[:, None] != group[None, :]  # (B, B) True = may not attend
+        return self.interact(tokens[None], mask=apart)[0]
+
+    def predict_x0(self, x_m: torch.Tensor, m: torch.Tensor, anchors: torch.Tensor, ctx: torch.Tensor) -> torch.Tensor:
+        """Clean residual (B, S, K) from noisy residual x_m (B, S, K) at steps m (B,)."""
+        h = self.embed_residual(torch.cat([x_m.flatten(1), anchors.flatten(1)], dim=1))
+        h = h + ctx + self.embed_step(step_embedding(m, self.cfg.dim))
+        return self.denoise(h).view_as(x_m)
+
+    def sample(self, anchors: torch.Tensor, ctx: torch.Tensor, noise: torch.Tensor, steps: int | None = None
+               ) -> torch.Tensor:
+        """Deterministic DDIM (eta = 0) from x_M = noise (B, S, K) to the clean residual (B, S, K).
+
+        ``steps`` < M skips evenly through the schedule (M in {1, 5, 10} ablation).
+        """
+        total = self.cfg.steps
+        schedule = torch.linspace(total, 0, (steps or total) + 1).round().long().tolist()
+        x = noise
+        for m, m_next in itertools.pairwise(schedule):
+            a, a_next = self.alpha_bar[m], self.alpha_bar[m_next]
+            x0 = self.predict_x0(x, torch.full((len(x),), m), anchors, ctx)
+            eps = (x - a.sqrt() * x0) / (1 - a).sqrt()
+            x = a_next.sqrt() * x0 + (1 - a_next).sqrt() * eps if m_next > 0 else x0
+        return x
+
+    def eps_loss(self, x0: torch.Tensor, anchors: torch.Tensor, ctx: torch.Tensor, generator: torch.Generator
+                 ) -> torch.Tensor:
+        """Epsilon-prediction MSE at a random step for clean residuals x0 (B, S, K)."""
+        m = torch.randint(1, self.cfg.steps + 1, (len(x0),), generator=generator)
+        noise = torch.randn(x0.shape, generator=generator)
+        a = self.alpha_bar[m][:, None, None]
+        x_m = a.sqrt() * x0 + (1 - a).sqrt() * noise
+        eps = (x_m - a.sqrt() * self.predict_x0(x_m, m, anchors, ctx)) / (1 - a).sqrt()
+        return (eps - noise).pow(2).mean()

@@ -1,0 +1,256 @@
+"""Train a SingularTrajectory model for one task and scene (or domain pair); reads top to bottom.
+
+    python -m predictor train --task stochastic --scene zara1 --out runs/stochastic/zara1
+"""
+
+from __future__ import annotations
+
+import math
+import random
+import time
+from dataclasses import asdict, dataclass, replace
+from pathlib import Path
+
+import numpy as np
+import torch
+from tqdm import tqdm
+
+from predictor.anchors import prototype_anchors
+from predictor.checkpoint import model_from_state, model_state, read_checkpoint, save_atomic
+from predictor.model import ModelConfig, SingularTrajectory
+from predictor.normalize import agent_frames
+from predictor.refiner import Refiner, RefinerConfig
+from predictor.singular_space import fit_singular_space
+from replays.constants import TASKS
+from replays.data_root import data_root, expected_sums
+from replays.scenes import load_scene, scene_of_recording
+from replays.windows import Windows, load_windows, split_files
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    task: str = "stochastic"
+    """stochastic | deterministic | momentary | fewshot | domain"""
+    scene: str = "zara1"
+    """test scene (leave-one-out) or domain pair such as A2B"""
+    out: str = "runs/stochastic/zara1"
+    """output folder: last.pt (resumable state) and best.pt (selected on validation FDE)"""
+    epochs: int = 12
+    """passes over the training windows"""
+    batch_agents: int = 512
+    """agents per batch (whole windows are kept together)"""
+    lr: float = 1e-3
+    """AdamW peak learning rate"""
+    weight_decay: float = 1e-4
+    """AdamW weight decay"""
+    warmup_epochs: float = 0.5
+    """linear warm-up, then cosine decay to zero over the remaining epochs"""
+    clip_grad: float = 1.0
+    """gradient-norm clipping"""
+    objective: str = "e2e"
+    """e2e: best-of-S ADE (+ FDE) through the unrolled DDIM chain; eps: the paper's epsilon MSE"""
+    fde_weight: float = 1.0
+    """e2e loss = min-over-S ADE + fde_weight * min-over-S FDE"""
+    k: int = 4
+    """Singular-space dimension K"""
+    dim: int = 256
+    """refiner width"""
+    steps: int = 10
+    """M, DDIM steps"""
+    adapt_anchors: bool = True
+    """map-adaptive anchors (False = fixed prototypes)"""
+    seed: int = 0
+    """seeds numpy, torch, python and the batch order"""
+    threads: int = 1
+    """torch CPU threads (1 is fastest on a shared 2-core machine)"""
+    data_root: str | None = None
+    """ETH/UCY folder (default: $STCROWD_DATA or the cache)"""
+    progress: bool = True
+    """show progress bars"""
+
+
+def split_scenes(windows: Windows, root) -> tuple[list, np.ndarray]:
+    """Scenes of a split's recordings and each sample's index into that list."""
+    names = sorted({scene_of_recording(r).name for r in np.unique(windows.recording)})
+    scenes = [load_scene(n, root) for n in names]
+    index = np.array([names.index(scene_of_recording(r).name) for r in windows.recording], np.int64)
+    return scenes, index
+
+
+def fit_model(cfg: TrainConfig, train: Windows) -> SingularTrajectory:
+    """Singular spaces, prototype anchors and coefficient scales from the training windows; fresh refiner."""
+    task = TASKS[cfg.task]
+    model_cfg = ModelConfig(task=cfg.task, obs_len=task["obs_len"], num_samples=task["num_samples"], k=cfg.k,
+                            adapt_anchors=cfg.adapt_anchors, dim=cfg.dim, steps=cfg.steps)
+    frames = agent_frames(train.obs, model_cfg.scale_by_speed)
+    futures = frames.to_agent(train.fut.astype(np.float64))
+    spaces, anchors, coef_scale, residual_scale = [], [], [], []
+    for population in (~frames.slow, frames.slow):  # 0 = moving, 1 = slow
+        space = fit_singular_space(futures[population], cfg.k)
+        coefs = space.project(futures[population])
+        protos = prototype_anchors(coefs, model_cfg.num_samples, cfg.seed)
+        nearest = np.linalg.norm(coefs[:, None] - protos[None], axis=-1).min(axis=1)
+        spaces.append(space)
+        anchors.append(protos)
+        coef_scale.append(coefs.std())
+        residual_scale.append(np.sqrt((nearest**2).mean() / cfg.k))
+    refiner = Refiner(RefinerConfig(history_dim=model_cfg.history_dim, num_samples=model_cfg.num_samples, k=cfg.k,
+                                    dim=cfg.dim, heads=model_cfg.heads, layers=model_cfg.layers, steps=cfg.steps))
+    return SingularTrajectory(model_cfg, spaces, np.stack(anchors), np.array(coef_scale), np.array(residual_scale),
+                              refiner, seed=cfg.seed)
+
+
+def split_tensors(model: SingularTrajectory, windows: Windows, root) -> dict[str, torch.Tensor]:
+    """All inputs of a split at once (anchors adapted here, once), plus the agent-frame truth in metres."""
+    scenes, index = split_scenes(windows, root)
+    inputs = model.prepare(windows.obs, windows.group, scenes, index)
+    tensors = model.tensors(inputs)
+    truth = inputs.frames.to_agent(windows.fut.astype(np.float64)) * inputs.frames.scale_m[:, None, None]
+    tensors["truth_m"] = torch.from_numpy(truth.astype(np.float32))  # (N, 12, 2) agent-frame axes, metres
+    coefs = np.zeros((len(windows), model.cfg.k))
+    local = inputs.frames.to_agent(windows.fut.astype(np.float64))
+    for p, space in enumerate(model.spaces):
+        mask = inputs.population == p
+        coefs[mask] = space.project(local[mask])
+    residual = (coefs[:, None] - inputs.anchors) / model.residual_scale[inputs.population][:, None, None]
+    tensors["residual"] = torch.from_numpy(residual.astype(np.float32))  # (N, S, K) clean x0 for eps training
+    return tensors
+
+
+def batches(group: torch.Tensor, batch_agents: int, generator: torch.Generator | None) -> list[torch.Tensor]:
+    """Sample indices in batches of about ``batch_agents``, whole windows kept together (shuffled if generator)."""
+    ids, counts = torch.unique_consecutive(group, return_counts=True)
+    starts = torch.cumsum(counts, 0) - counts
+    order = torch.randperm(len(ids), generator=generator) if generator is not None else torch.arange(len(ids))
+    out, current, size = [], [], 0
+    for g in order.tolist():
+        current.append(torch.arange(starts[g], starts[g] + counts[g]))
+        size += int(counts[g])
+        if size >= batch_agents:
+            out.append(torch.cat(current))
+            current, size = [], 0
+    if current:
+        out.append(torch.cat(current))
+    return out
+
+
+def rollout(model: SingularTrajectory, t: dict[str, torch.Tensor], idx: torch.Tensor, noise_seed: int,
+            steps: int | None = None) -> torch.Tensor:
+    """Agent-frame predictions in metres (B, S, 12, 2) for samples ``idx`` through the full DDIM chain."""
+    refiner = model.refiner
+    anchors = t["anchors"][idx]
+    ctx = refiner.context(t["history"][idx], anchors, t["group"][idx])
+    noise = model.cfg.init_noise * torch.randn(anchors.shape, generator=torch.Generator().manual_seed(noise_seed))
+    residual = refiner.sample(anchors, ctx, noise, steps)
+    return model.paths_local(anchors, residual, t["population"][idx]) * t["scale_m"][idx][:, None, None, None]
+
+
+def best_of_s(pred_m: torch.Tensor, truth_m: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """Per-agent min-over-S ADE and FDE (B,) in metres."""
+    dist = (pred_m - truth_m[:, None]).norm(dim=-1)  # (B, S, 12)
+    return dist.mean(-1).min(1).values, dist[..., -1].min(1).values
+
+
+@torch.no_grad()
+def validate(model: SingularTrajectory, t: dict[str, torch.Tensor], batch_agents: int) -> tuple[float, float]:
+    """Mean best-of-S ADE and FDE in metres over a split."""
+    model.refiner.eval()
+    ade, fde = [], []
+    for idx in batches(t["group"], batch_agents, None):
+        a, f = best_of_s(rollout(model, t, idx, noise_seed=model.seed), t["truth_m"][idx])
+        ade.append(a)
+        fde.append(f)
+    return float(torch.cat(ade).mean()), float(torch.cat(fde).mean())
+
+
+def data_checksums(cfg: TrainConfig, root: Path) -> dict[str, str]:
+    """SHA-256 of every file of the training and validation splits (from the project's sums)."""
+    sums = expected_sums()
+    files = split_files(cfg.task, cfg.scene, "train", root) + split_files(cfg.task, cfg.scene, "val", root)
+    return {str(f.relative_to(root)): sums.get(str(f.relative_to(root)), "unlisted") for f in files}
+
+
+def main(cfg: TrainConfig) -> Path:
+    # ---- seeding and threads
+    random.seed(cfg.seed)
+    np.random.seed(cfg.seed)
+    torch.manual_seed(cfg.seed)
+    torch.set_num_threads(cfg.threads)
+    out = Path(cfg.out)
+    run_name = f"{cfg.task}__{cfg.scene}__seed{cfg.seed}"
+
+    # ---- data: windows -> model statistics -> precomputed tensors (obs T_obs, pred 12 steps of 0.4 s)
+    root = data_root(cfg.data_root)
+    train = load_windows(cfg.task, cfg.scene, "train", root)
+    val = load_windows(cfg.task, cfg.scene, "val", root)
+    model = fit_model(cfg, train)
+    t_train, t_val = split_tensors(model, train, root), split_tensors(model, val, root)
+    checksums = data_checksums(cfg, root)
+
+    # ---- optimiser and schedule: AdamW, linear warm-up then cosine decay (per batch)
+    refiner = model.refiner
+    optimizer = torch.optim.AdamW(refiner.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
+    per_epoch = len(batches(t_train["group"], cfg.batch_agents, None))
+    total, warmup = cfg.epochs * per_epoch, max(1, int(cfg.warmup_epochs * per_epoch))
+    schedule = torch.optim.lr_scheduler.LambdaLR(optimizer, lambda i: min((i + 1) / warmup, 0.5 * (
+        1 + math.cos(math.pi * min(1.0, max(0, i - warmup) / max(1, total - warmup))))))
+
+    # ---- resume from last.pt if this run was interrupted
+    start_epoch, best, history = 0, {"fde": float("inf")}, []
+    if (out / "last.pt").is_file():
+        state = read_checkpoint(out / "last.pt")
+        if state["train_config"] != asdict(cfg):
+            raise ValueError(f"{out / 'last.pt'}: was written with another configuration; use a new --out")
+        model = model_from_state(state["model"])
+        model.seed = cfg.seed
+        refiner = model.refiner
+        optimizer = torch.optim.AdamW(refiner.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
+        optimizer.load_state_dict(state["optimizer"])
+        schedule.optimizer = optimizer
+        schedule.load_state_dict(state["schedule"])
+        start_epoch, best, history = state["epoch"] + 1, state["best"], state["history"]
+        print(f"{run_name}: resuming after epoch {state['epoch'] + 1}")
+
+    # ---- loop: epochs -> batches -> loss -> clip -> step; validation FDE picks best.pt
+    generator = torch.Generator()
+    began = time.perf_counter()
+    for epoch in range(start_epoch, cfg.epochs):
+        refiner.train()
+        generator.manual_seed(cfg.seed * 1000 + epoch)
+        losses = []
+        bar = tqdm(batches(t_train["group"], cfg.batch_agents, generator), desc=f"{run_name} epoch {epoch + 1}/"
+                   f"{cfg.epochs}", leave=False, disable=not cfg.progress)
+        for step, idx in enumerate(bar):
+            if cfg.objective == "e2e":
+                ade, fde = best_of_s(rollout(model, t_train, idx, noise_seed=epoch * 100_000 + step),
+                                     t_train["truth_m"][idx])
+                loss = ade.mean() + cfg.fde_weight * fde.mean()
+            else:
+                anchors = t_train["anchors"][idx]
+                ctx = refiner.context(t_train["history"][idx], anchors, t_train["group"][idx])
+                loss = refiner.eps_loss(t_train["residual"][idx], anchors, ctx, generator)
+            optimizer.zero_grad(set_to_none=True)
+            loss.backward()
+            torch.nn.utils.clip_grad_norm_(refiner.parameters(), cfg.clip_grad)
+            optimizer.step()
+            schedule.step()
+            losses.append(loss.item())
+            bar.set_postfix(loss=f"{np.mean(losses[-20:]):.4f}")
+        val_ade, val_fde = validate(model, t_val, cfg.batch_agents)
+        record = {"epoch": epoch + 1, "train/loss": float(np.mean(losses)), "val/ade_m": val_ade,
+                  "val/fde_m": val_fde, "wall_s": time.perf_counter() - began}
+        history.append(record)
+        print(f"{run_name} epoch {epoch + 1}: loss {record['train/loss']:.4f}  val ADE {val_ade:.4f}  "
+              f"FDE {val_fde:.4f}  ({record['wall_s']:.0f} s)")
+        meta = {"train_config": asdict(cfg), "data_checksums": checksums, "history": history}
+        if val_fde < best["fde"]:
+            best = {"fde": val_fde, "ade": val_ade, "epoch": epoch + 1}
+            save_atomic({"model": model_state(model), **meta, "best": best}, out / "best.pt")
+        save_atomic({"model": model_state(model), **meta, "best": best, "epoch": epoch,
+                     "optimizer": optimizer.state_dict(), "schedule": schedule.state_dict()}, out / "last.pt")
+    return out / "best.pt"
+
+
+def config_for(task: str, scene: str, out: str, **overrides) -> TrainConfig:
+    """Default configuration of a task/scene with optional overrides."""
+    return replace(TrainConfig(task=task, scene=scene, out=out), **overrides)
