@@ -33,7 +33,15 @@ def run_evaluate(args: argparse.Namespace) -> int:
     return 0
 
 
-COMMANDS = {"train": run_train, "evaluate": run_evaluate}
+def run_export(args: argparse.Namespace) -> int:
+    from predictor.export import export_checkpoint
+
+    entry = export_checkpoint(args.checkpoint, args.name, args.data_root)
+    print(f"{args.name}: {entry['file']} ({entry['size_bytes'] / 1e6:.2f} MB) test {entry['test']}")
+    return 0
+
+
+COMMANDS = {"train": run_train, "evaluate": run_evaluate, "export": run_export}
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -63,6 +71,10 @@ def build_parser() -> argparse.ArgumentParser:
     evaluate.add_argument("--scene", help="test scene or pair (default: the one it was trained for)")
     evaluate.add_argument("--steps", type=int, default=None, help="DDIM steps at inference (default: as trained)")
     evaluate.add_argument("--data-root", help="ETH/UCY folder (default: $STCROWD_DATA or the cache)")
+    export = commands.add_parser("export", help="ship a checkpoint in predictor/pretrained/ (fp16 + manifest)")
+    export.add_argument("--checkpoint", required=True, help="best.pt to ship")
+    export.add_argument("--name", required=True, help="name for load_pretrained, e.g. stochastic/eth or universal")
+    export.add_argument("--data-root", help="ETH/UCY folder (default: $STCROWD_DATA or the cache)")
     return parser
 
 

@@ -18,6 +18,8 @@ from predictor.refiner import Refiner
 from predictor.singular_space import T_WIN, SingularSpace
 from replays.scenes import Scene
 
+BATCH_AGENTS = 512  # agents per refiner call at inference (whole windows; bounds attention memory)
+
 
 @dataclass(frozen=True)
 class ModelConfig:
@@ -31,6 +33,10 @@ class ModelConfig:
     """Singular-space dimension K"""
     scale_by_speed: bool = True
     """normalise moving agents' paths by their recent speed"""
+    world_features: bool = True
+    """feed world-frame offset from the window centroid and velocity (False = agent-frame inputs only)"""
+    slow_speed_m: float = 0.3
+    """agents slower than this [m per 0.4 s step] form the slow population (own space, no scaling)"""
     adapt_anchors: bool = True
     """bend prototype paths onto walkable pixels (False = fixed prototype anchors)"""
     dim: int = 256
@@ -90,7 +96,7 @@ class SingularTrajectory:
     def prepare(self, obs: np.ndarray, group: np.ndarray, scenes: list[Scene | None],
                 scene_index: np.ndarray) -> Inputs:
         """Features for N agents; agent i lies on ``scenes[scene_index[i]]``."""
-        frames = agent_frames(obs, self.cfg.scale_by_speed)
+        frames = agent_frames(obs, self.cfg.scale_by_speed, self.cfg.slow_speed_m)
         population = frames.slow.astype(np.int64)
         history_local = frames.to_agent(obs.astype(np.float64))  # (N, T_obs, 2)
         history_coef = np.zeros((len(obs), self.cfg.k))
@@ -106,7 +112,8 @@ class SingularTrajectory:
                 self.anchors, sub, self.spaces, population[mask], scene if self.cfg.adapt_anchors else None)
         history = np.concatenate([
             history_local.reshape(n, -1), history_coef / self.coef_scale[population][:, None],
-            np.log(frames.scale_m)[:, None], frames.slow[:, None], _interaction_features(obs, group, frames),
+            np.log(frames.scale_m)[:, None], frames.slow[:, None],
+            _interaction_features(obs, group, frames, self.cfg.world_features),
         ], axis=1).astype(np.float32)
         return Inputs(frames, population, history, anchors, anchor_paths, group)
 
@@ -146,11 +153,16 @@ class SingularTrajectory:
             return Prediction(empty, empty, empty)
         inputs = self.prepare(obs, group, [scene], np.zeros(len(obs), np.int64))
         t = self.tensors(inputs)
-        ctx = self.refiner.context(t["history"], t["anchors"], t["group"])
         generator = torch.Generator().manual_seed(self.seed)
         noise = self.cfg.init_noise * torch.randn(t["anchors"].shape, generator=generator)
-        residual = self.refiner.sample(t["anchors"], ctx, noise, steps)
-        local = self.paths_local(t["anchors"], residual, t["population"]).double().numpy()
+        order = torch.argsort(t["group"], stable=True)  # windows contiguous, so chunks keep them whole
+        local = torch.empty(len(obs), self.cfg.num_samples, T_WIN, 2)
+        for chunk in window_batches(t["group"][order], BATCH_AGENTS, None):
+            idx = order[chunk]
+            ctx = self.refiner.context(t["history"][idx], t["anchors"][idx], t["group"][idx])
+            residual = self.refiner.sample(t["anchors"][idx], ctx, noise[idx], steps)
+            local[idx] = self.paths_local(t["anchors"][idx], residual, t["population"][idx])
+        local = local.double().numpy()
         futures = inputs.frames.to_world(local).astype(np.float32)
         keep = slice(0, num_samples)  # anchors are ordered by cluster size: the first are the likeliest
         return Prediction(futures[:, keep], inputs.anchor_paths_m[0][:, keep].astype(np.float32),
@@ -162,8 +174,31 @@ class SingularTrajectory:
         return self.predict_detailed(obs, group, scene, num_samples).futures
 
 
-def _interaction_features(obs: np.ndarray, group: np.ndarray, frames: AgentFrame) -> np.ndarray:
-    """(N, 6): position relative to the window's centroid (world, and agent frame) and world velocity."""
+def window_batches(group: torch.Tensor, batch_agents: int, generator: torch.Generator | None) -> list[torch.Tensor]:
+    """Indices in batches of about ``batch_agents``, whole windows kept together (shuffled if generator).
+
+    ``group`` (N,) must hold each window's samples contiguously.
+    """
+    ids, counts = torch.unique_consecutive(group, return_counts=True)
+    starts = torch.cumsum(counts, 0) - counts
+    order = torch.randperm(len(ids), generator=generator) if generator is not None else torch.arange(len(ids))
+    out, current, size = [], [], 0
+    for g in order.tolist():
+        current.append(torch.arange(starts[g], starts[g] + counts[g]))
+        size += int(counts[g])
+        if size >= batch_agents:
+            out.append(torch.cat(current))
+            current, size = [], 0
+    if current:
+        out.append(torch.cat(current))
+    return out
+
+
+def _interaction_features(obs: np.ndarray, group: np.ndarray, frames: AgentFrame, world: bool) -> np.ndarray:
+    """(N, 6): position relative to the window's centroid (world, and agent frame) and world velocity.
+
+    With ``world`` False the world-frame columns are zero (inputs invariant to the scene's orientation).
+    """
     last = obs[:, -1].astype(np.float64)
     _, inverse, counts = np.unique(group, return_inverse=True, return_counts=True)
     sums = np.zeros((len(counts), 2))
@@ -172,4 +207,6 @@ def _interaction_features(obs: np.ndarray, group: np.ndarray, frames: AgentFrame
     c, s = np.cos(-frames.angle_rad), np.sin(-frames.angle_rad)
     offset_local = np.stack([c * offset[:, 0] - s * offset[:, 1], s * offset[:, 0] + c * offset[:, 1]], axis=-1)
     velocity = obs[:, -1] - obs[:, -2]
+    if not world:
+        offset, velocity = np.zeros_like(offset), np.zeros_like(velocity)
     return np.concatenate([offset, offset_local, velocity], axis=1)

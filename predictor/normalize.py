@@ -47,17 +47,17 @@ def _rotate(xy: np.ndarray, angle: np.ndarray) -> np.ndarray:
     return np.stack([c * xy[..., 0] - s * xy[..., 1], s * xy[..., 0] + c * xy[..., 1]], axis=-1)
 
 
-def agent_frames(obs_m: np.ndarray, scale: bool = True) -> AgentFrame:
+def agent_frames(obs_m: np.ndarray, scale: bool = True, slow_speed_m: float = SLOW_SPEED_M) -> AgentFrame:
     """Frames for observed paths (N, T_obs, 2) metres.
 
     Heading: last minus third-last point (last minus second-last when T_obs = 2). Scale: mean step
-    length over that span, for agents at or above ``SLOW_SPEED_M`` per step when ``scale`` is set.
+    length over that span, for agents at or above ``slow_speed_m`` per step when ``scale`` is set.
     """
     obs_m = np.asarray(obs_m, dtype=np.float64)
     back = 2 if obs_m.shape[1] >= 3 else 1
     step = (obs_m[:, -1] - obs_m[:, -1 - back]) / back  # (N, 2) metres per step
     speed = np.linalg.norm(step, axis=-1)
     angle = np.where(speed > MIN_HEADING_M, np.arctan2(step[:, 1], step[:, 0]), 0.0)
-    slow = speed < SLOW_SPEED_M
+    slow = speed < slow_speed_m
     scale_m = np.where(slow | (not scale), 1.0, speed)
     return AgentFrame(obs_m[:, -1].copy(), angle, scale_m, slow)

@@ -67,6 +67,7 @@ class Refiner(nn.Module):
         self.denoise = nn.Sequential(nn.SiLU(), nn.Linear(d, d), nn.SiLU(), nn.Linear(d, d), nn.SiLU(),
                                      nn.Linear(d, sk))
         self.register_buffer("alpha_bar", cosine_alpha_bar(cfg.steps), persistent=False)
+        self.register_buffer("step_table", step_embedding(torch.arange(cfg.steps + 1), d), persistent=False)
 
     def context(self, history: torch.Tensor, anchors: torch.Tensor, group: torch.Tensor) -> torch.Tensor:
         """Per-agent condition (B, dim) from history (B, F), anchors (B, S, K) and window ids (B,)."""
@@ -77,7 +78,7 @@ class Refiner(nn.Module):
     def predict_x0(self, x_m: torch.Tensor, m: torch.Tensor, anchors: torch.Tensor, ctx: torch.Tensor) -> torch.Tensor:
         """Clean residual (B, S, K) from noisy residual x_m (B, S, K) at steps m (B,)."""
         h = self.embed_residual(torch.cat([x_m.flatten(1), anchors.flatten(1)], dim=1))
-        h = h + ctx + self.embed_step(step_embedding(m, self.cfg.dim))
+        h = h + ctx + self.embed_step(self.step_table[m])
         return self.denoise(h).view_as(x_m)
 
     def sample(self, anchors: torch.Tensor, ctx: torch.Tensor, noise: torch.Tensor, steps: int | None = None

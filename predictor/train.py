@@ -17,7 +17,7 @@ from tqdm import tqdm
 
 from predictor.anchors import prototype_anchors
 from predictor.checkpoint import model_from_state, model_state, read_checkpoint, save_atomic
-from predictor.model import ModelConfig, SingularTrajectory
+from predictor.model import ModelConfig, SingularTrajectory, window_batches
 from predictor.normalize import agent_frames
 from predictor.refiner import Refiner, RefinerConfig
 from predictor.singular_space import fit_singular_space
@@ -35,7 +35,7 @@ class TrainConfig:
     """test scene (leave-one-out) or domain pair such as A2B"""
     out: str = "runs/stochastic/zara1"
     """output folder: last.pt (resumable state) and best.pt (selected on validation FDE)"""
-    epochs: int = 12
+    epochs: int = 6
     """passes over the training windows"""
     batch_agents: int = 512
     """agents per batch (whole windows are kept together)"""
@@ -59,6 +59,14 @@ class TrainConfig:
     """M, DDIM steps"""
     adapt_anchors: bool = True
     """map-adaptive anchors (False = fixed prototypes)"""
+    slow_speed_m: float = 0.3
+    """slow-population threshold [m per 0.4 s step]"""
+    world_features: bool = True
+    """world-frame inputs (centroid offset, velocity); False = orientation-invariant inputs"""
+    init_noise: float = 1.0
+    """scale of the sampler's starting noise x_M (0 = a deterministic refinement chain)"""
+    max_train_windows: int | None = None
+    """use only the first N training windows (quick checks and tests); None = all"""
     seed: int = 0
     """seeds numpy, torch, python and the batch order"""
     threads: int = 1
@@ -81,8 +89,9 @@ def fit_model(cfg: TrainConfig, train: Windows) -> SingularTrajectory:
     """Singular spaces, prototype anchors and coefficient scales from the training windows; fresh refiner."""
     task = TASKS[cfg.task]
     model_cfg = ModelConfig(task=cfg.task, obs_len=task["obs_len"], num_samples=task["num_samples"], k=cfg.k,
-                            adapt_anchors=cfg.adapt_anchors, dim=cfg.dim, steps=cfg.steps)
-    frames = agent_frames(train.obs, model_cfg.scale_by_speed)
+                            adapt_anchors=cfg.adapt_anchors, dim=cfg.dim, steps=cfg.steps, init_noise=cfg.init_noise,
+                            slow_speed_m=cfg.slow_speed_m, world_features=cfg.world_features)
+    frames = agent_frames(train.obs, model_cfg.scale_by_speed, model_cfg.slow_speed_m)
     futures = frames.to_agent(train.fut.astype(np.float64))
     spaces, anchors, coef_scale, residual_scale = [], [], [], []
     for population in (~frames.slow, frames.slow):  # 0 = moving, 1 = slow
@@ -117,23 +126,6 @@ def split_tensors(model: SingularTrajectory, windows: Windows, root) -> dict[str
     return tensors
 
 
-def batches(group: torch.Tensor, batch_agents: int, generator: torch.Generator | None) -> list[torch.Tensor]:
-    """Sample indices in batches of about ``batch_agents``, whole windows kept together (shuffled if generator)."""
-    ids, counts = torch.unique_consecutive(group, return_counts=True)
-    starts = torch.cumsum(counts, 0) - counts
-    order = torch.randperm(len(ids), generator=generator) if generator is not None else torch.arange(len(ids))
-    out, current, size = [], [], 0
-    for g in order.tolist():
-        current.append(torch.arange(starts[g], starts[g] + counts[g]))
-        size += int(counts[g])
-        if size >= batch_agents:
-            out.append(torch.cat(current))
-            current, size = [], 0
-    if current:
-        out.append(torch.cat(current))
-    return out
-
-
 def rollout(model: SingularTrajectory, t: dict[str, torch.Tensor], idx: torch.Tensor, noise_seed: int,
             steps: int | None = None) -> torch.Tensor:
     """Agent-frame predictions in metres (B, S, 12, 2) for samples ``idx`` through the full DDIM chain."""
@@ -156,7 +148,7 @@ def validate(model: SingularTrajectory, t: dict[str, torch.Tensor], batch_agents
     """Mean best-of-S ADE and FDE in metres over a split."""
     model.refiner.eval()
     ade, fde = [], []
-    for idx in batches(t["group"], batch_agents, None):
+    for idx in window_batches(t["group"], batch_agents, None):
         a, f = best_of_s(rollout(model, t, idx, noise_seed=model.seed), t["truth_m"][idx])
         ade.append(a)
         fde.append(f)
@@ -182,6 +174,8 @@ def main(cfg: TrainConfig) -> Path:
     # ---- data: windows -> model statistics -> precomputed tensors (obs T_obs, pred 12 steps of 0.4 s)
     root = data_root(cfg.data_root)
     train = load_windows(cfg.task, cfg.scene, "train", root)
+    if cfg.max_train_windows is not None:
+        train = train.subset(train.group < cfg.max_train_windows)
     val = load_windows(cfg.task, cfg.scene, "val", root)
     model = fit_model(cfg, train)
     t_train, t_val = split_tensors(model, train, root), split_tensors(model, val, root)
@@ -190,7 +184,7 @@ def main(cfg: TrainConfig) -> Path:
     # ---- optimiser and schedule: AdamW, linear warm-up then cosine decay (per batch)
     refiner = model.refiner
     optimizer = torch.optim.AdamW(refiner.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
-    per_epoch = len(batches(t_train["group"], cfg.batch_agents, None))
+    per_epoch = len(window_batches(t_train["group"], cfg.batch_agents, None))
     total, warmup = cfg.epochs * per_epoch, max(1, int(cfg.warmup_epochs * per_epoch))
     schedule = torch.optim.lr_scheduler.LambdaLR(optimizer, lambda i: min((i + 1) / warmup, 0.5 * (
         1 + math.cos(math.pi * min(1.0, max(0, i - warmup) / max(1, total - warmup))))))
@@ -218,7 +212,7 @@ def main(cfg: TrainConfig) -> Path:
         refiner.train()
         generator.manual_seed(cfg.seed * 1000 + epoch)
         losses = []
-        bar = tqdm(batches(t_train["group"], cfg.batch_agents, generator), desc=f"{run_name} epoch {epoch + 1}/"
+        bar = tqdm(window_batches(t_train["group"], cfg.batch_agents, generator), desc=f"{run_name} epoch {epoch + 1}/"
                    f"{cfg.epochs}", leave=False, disable=not cfg.progress)
         for step, idx in enumerate(bar):
             if cfg.objective == "e2e":

@@ -22,6 +22,7 @@ from replays.errors import DataRootError
 from replays.recording import Recording, read_recording
 from replays.scenes import SCENES, scene_info
 
+ALL_SCENES = "all"  # pseudo-scene: all five scenes at once (universal model)
 CACHE_VERSION = 1  # bump when the windowing changes, to invalidate disk caches
 CACHE_ENV_VAR = "STCROWD_CACHE"
 
@@ -149,7 +150,14 @@ def _save_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
 
 
 def split_files(task: str, scene: str, split: str, root: Path) -> list[Path]:
-    """Recording files making up one split, in loading order (sorted by name)."""
+    """Recording files making up one split, in loading order (sorted by name).
+
+    ``scene="all"`` (training a universal model): every recording's train/val portion, or every test set.
+    """
+    if scene == ALL_SCENES:
+        if split == "test":
+            return sorted(f for name in SCENES for f in (root / name / "test").glob("*.txt"))
+        return sorted((root / "raw" / split).glob(f"*_{split}.txt"))
     if task == "domain":
         source, target = _domain_pair(scene)
         if split == "test":
@@ -175,7 +183,8 @@ def load_windows(task: str, scene: str, split: str, root: str | os.PathLike | No
 
     Args:
         task: stochastic | deterministic | momentary | fewshot | domain.
-        scene: eth | hotel | univ | zara1 | zara2 (or letter); for ``domain`` a pair like ``"A2B"``.
+        scene: eth | hotel | univ | zara1 | zara2 (or letter); for ``domain`` a pair like ``"A2B"``;
+            ``"all"`` for every scene at once.
         split: train | val | test.
         root: data root (default: ``$STCROWD_DATA`` or the user cache).
 
@@ -186,8 +195,8 @@ def load_windows(task: str, scene: str, split: str, root: str | os.PathLike | No
         raise ValueError(f"unknown task {task!r}; expected one of {', '.join(TASKS)}")
     if split not in SPLITS:
         raise ValueError(f"unknown split {split!r}; expected one of {', '.join(SPLITS)}")
-    if task != "domain" and scene_info(scene).name not in SCENES:
-        raise ValueError(f"unknown scene {scene!r}")
+    if task != "domain" and scene != ALL_SCENES:
+        scene_info(scene)  # raises on an unknown scene
     root_path = data_root(root)
     obs_len = TASKS[task]["obs_len"]
     files = split_files(task, scene, split, root_path)
@@ -199,7 +208,7 @@ def load_windows(task: str, scene: str, split: str, root: str | os.PathLike | No
     merged["recording"] = np.concatenate([np.full(len(p["group"]), path.stem, dtype=object)
                                           for p, path in zip(parts, files, strict=True)])
     merged["group"] = np.concatenate([p["group"] + off for p, off in zip(parts, offsets, strict=False)])
-    name = scene.upper() if task == "domain" else scene_info(scene).name
+    name = scene.upper() if task == "domain" else scene if scene == ALL_SCENES else scene_info(scene).name
     windows = Windows(**merged, task=task, scene=name, split=split)
     if task == "fewshot" and split == "train":
         windows = windows.subset(windows.group % FEWSHOT_EVERY == 0)

@@ -1,0 +1,87 @@
+"""SingularTrajectory speed on this machine: inference latency and (with --train) time to a trained model.
+
+    OMP_NUM_THREADS=1 STCROWD_DATA=../shared/datasets/eth_ucy python benchmarks/bench_predictor.py [--train]
+
+Inference: 50 agents x 20 samples x 12 steps on one core (target <= 10 ms), split into input preparation
+(agent frames, Singular-space projection, map-adaptive anchors) and the 10-step refiner; the constant-velocity
+baseline is timed in the same run for a ratio. Training: one stochastic ZARA1 model with the default
+configuration, then its test ADE/FDE beside the paper's (target: within 0.005 m in <= 10 min).
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import tempfile
+import time
+
+import numpy as np
+import torch
+
+from predictor.baselines import ConstantVelocity
+from replays import load_scene, load_windows
+
+N_AGENTS = 50
+
+
+def timed(fn, repeats: int) -> list[float]:
+    """Wall milliseconds of ``repeats`` calls (after 3 warm-up calls)."""
+    for _ in range(3):
+        fn()
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        fn()
+        times.append(1000 * (time.perf_counter() - start))
+    return times
+
+
+def inference(model, repeats: int) -> None:
+    test = load_windows("stochastic", "univ", "test")
+    group_sizes = np.bincount(test.group)
+    g = int(np.flatnonzero(group_sizes >= N_AGENTS)[0])  # a real crowded window of UNIV
+    idx = np.flatnonzero(test.group == g)[:N_AGENTS]
+    obs, group, scene = test.obs[idx], test.group[idx], load_scene("univ")
+    full = timed(lambda: model.predict(obs, group, scene, 20), repeats)
+    prep = timed(lambda: model.prepare(obs, group, [scene], np.zeros(len(obs), np.int64)), repeats)
+    cvm = timed(lambda: ConstantVelocity().predict(obs, group, scene, 20), repeats)
+    med = statistics.median
+    print(f"inference, {N_AGENTS} agents x 20 samples x 12 steps, 1 thread, {repeats} repeats (median ms):")
+    print(f"  SingularTrajectory total   {med(full):7.2f} ms  (p90 {np.percentile(full, 90):.2f})")
+    print(f"    input prep + anchors     {med(prep):7.2f} ms")
+    print(f"    refiner ({model.cfg.steps} DDIM steps) {med(full) - med(prep):7.2f} ms")
+    print(f"  constant velocity          {med(cvm):7.2f} ms   ratio {med(full) / med(cvm):.0f}x")
+
+
+def training() -> None:
+    from predictor.checkpoint import load
+    from predictor.train import TrainConfig, main
+    from st_sim.evaluate import evaluate_scene
+
+    with tempfile.TemporaryDirectory() as out:
+        start = time.perf_counter()
+        best = main(TrainConfig(task="stochastic", scene="zara1", out=out, progress=False))
+        wall = time.perf_counter() - start
+        r = evaluate_scene(load(best), "stochastic", "zara1")
+    print(f"training stochastic/zara1 (default config, 1 thread): {wall:.0f} s wall including data preparation")
+    print(f"  test ADE {r.ade:.4f}  FDE {r.fde:.4f}   paper {r.paper_ade} / {r.paper_fde}   "
+          f"delta {r.ade - r.paper_ade:+.4f} / {r.fde - r.paper_fde:+.4f}")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--checkpoint", default=None, help="checkpoint to time (default: shipped stochastic/zara1)")
+    parser.add_argument("--repeats", type=int, default=50, help="timed calls (default: 50)")
+    parser.add_argument("--train", action="store_true", help="also train one ZARA1 model and score it")
+    args = parser.parse_args()
+    torch.set_num_threads(1)
+    import predictor
+
+    model = predictor.load(args.checkpoint) if args.checkpoint else predictor.load_pretrained("stochastic/zara1")
+    inference(model, args.repeats)
+    if args.train:
+        training()
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,59 @@
+"""Ship a trained checkpoint inside the package: fp16 weights + manifest entry with measured test numbers."""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from importlib import resources
+from pathlib import Path
+
+from predictor.checkpoint import PRETRAINED_DIR, load, model_state, read_checkpoint, save_atomic
+from replays.scenes import SCENE_NAMES
+
+
+def pretrained_dir() -> Path:
+    return Path(str(resources.files("predictor").joinpath(PRETRAINED_DIR)))
+
+
+def export_checkpoint(checkpoint: str | os.PathLike, name: str, root=None) -> dict:
+    """Write ``predictor/pretrained/<name>.pt`` (fp16) and its manifest entry; returns the entry.
+
+    The test numbers are measured on the exported (fp16) weights: the scene's own test split for a
+    leave-one-out model, every scene's test split for the universal one.
+    """
+    from st_sim.evaluate import evaluate_scene
+
+    state = read_checkpoint(checkpoint)
+    cfg = state["train_config"]
+    file_name = name.replace("/", "_") + ".pt"
+    target = pretrained_dir() / file_name
+    shipped = {"model": model_state(load(checkpoint), half=True), "train_config": cfg,
+               "data_checksums": state["data_checksums"], "best": state["best"]}
+    save_atomic(shipped, target)
+    model = load(target)
+    scenes = SCENE_NAMES if cfg["scene"] == "all" else (cfg["scene"],)
+    test = {}
+    for scene in scenes:
+        r = evaluate_scene(model, cfg["task"], scene, root=root)
+        test[scene] = {"samples": r.samples, "ade": round(r.ade, 4), "fde": round(r.fde, 4),
+                       "map_violation": round(r.map_violation, 4)}
+    entry = {
+        "file": file_name,
+        "command": f"python -m predictor train --task {cfg['task']} --scene {cfg['scene']} --epochs {cfg['epochs']} "
+                   f"--seed {cfg['seed']} --out OUT",
+        "train_wall_s": round(state["history"][-1]["wall_s"]),
+        "selected_epoch": state["best"]["epoch"],
+        "val": {"ade": round(state["best"]["ade"], 4), "fde": round(state["best"]["fde"], 4)},
+        "test": test,
+        "size_bytes": target.stat().st_size,
+        "data_checksums": state["data_checksums"],
+    }
+    manifest_path = pretrained_dir() / "manifest.json"
+    manifest = json.loads(manifest_path.read_text()) if manifest_path.is_file() else {"checkpoints": {}}
+    manifest["checkpoints"][name] = entry
+    fd, tmp = tempfile.mkstemp(dir=manifest_path.parent, suffix=".json.tmp")
+    with os.fdopen(fd, "w") as f:
+        json.dump(manifest, f, indent=1, sort_keys=True)
+    os.replace(tmp, manifest_path)
+    return entry

@@ -1,0 +1,56 @@
+"""The checkpoints shipped inside the package load by name, stay small and predict sensibly."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import predictor
+from predictor.checkpoint import pretrained_manifest
+from replays import load_scene, load_windows
+from st_sim.metrics import ade_fde
+
+NAMES = [f"stochastic/{s}" for s in ("eth", "hotel", "univ", "zara1", "zara2")] + ["universal"]
+
+
+def test_manifest_lists_every_shipped_checkpoint_with_its_numbers():
+    entries = pretrained_manifest()["checkpoints"]
+    assert sorted(entries) == sorted(NAMES)
+    for name, entry in entries.items():
+        assert entry["size_bytes"] <= 4_000_000, name
+        assert entry["command"].startswith("python -m predictor train"), name
+        assert all(len(digest) == 64 for digest in entry["data_checksums"].values()), name
+
+
+@pytest.mark.parametrize("name", NAMES, ids=NAMES)
+def test_pretrained_loads_by_name_and_beats_its_manifest_bound(name):
+    model = predictor.load_pretrained(name)
+    scene = "zara1" if name == "universal" else name.split("/")[1]
+    test = load_windows("stochastic", scene, "test")
+    keep = test.group < 40  # a slice of whole windows keeps the test fast
+    pred = model.predict(test.obs[keep], test.group[keep], load_scene(scene), 20)
+    assert pred.shape == (keep.sum(), 20, 12, 2)
+    ade, fde = ade_fde(pred, test.fut[keep])
+    assert ade.mean() < 0.6 and fde.mean() < 1.2, (ade.mean(), fde.mean())
+
+
+def test_manifest_numbers_are_reproduced_on_zara1():
+    entry = pretrained_manifest()["checkpoints"]["stochastic/zara1"]
+    test = load_windows("stochastic", "zara1", "test")
+    pred = predictor.load_pretrained("stochastic/zara1").predict(test.obs, test.group, load_scene("zara1"), 20)
+    ade, fde = ade_fde(pred, test.fut)
+    assert ade.mean() == pytest.approx(entry["test"]["zara1"]["ade"], abs=1e-4)
+    assert fde.mean() == pytest.approx(entry["test"]["zara1"]["fde"], abs=1e-4)
+
+
+def test_universal_predicts_without_a_map_and_for_fewer_samples():
+    model = predictor.load_pretrained("universal")
+    obs = np.cumsum(np.full((3, 8, 2), 0.5, np.float32), axis=1)
+    pred = model.predict(obs, np.zeros(3), None, 5)
+    assert pred.shape == (3, 5, 12, 2) and np.isfinite(pred).all()
+    assert (pred[:, :, -1] - obs[:, None, -1]).mean(axis=(0, 1)) @ np.array([1.0, 1.0]) > 0  # keeps walking on
+
+
+def test_unknown_pretrained_name_lists_the_available_ones():
+    with pytest.raises(KeyError, match="stochastic/eth"):
+        predictor.load_pretrained("stochastic/mars")
