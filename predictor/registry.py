@@ -10,14 +10,17 @@ from replays.constants import TASKS
 from replays.windows import load_windows
 
 PREDICTOR_NAMES = ("cvm", "cvm-s", "linear", "singular")
+RUNS_DIR = "runs"  # trained checkpoints: runs/<task>/<scene>/best.pt
 
 
-def make_predictor(name: str, task: str, scene: str, root=None) -> Predictor:
+def make_predictor(name: str, task: str, scene: str, root=None, runs_dir: str = RUNS_DIR,
+                   train_missing: bool = False, progress: bool = True) -> Predictor:
     """The predictor ``name`` prepared for one task and scene (or domain pair).
 
-    ``cvm-s`` fits its heading noise on that task's training split; ``singular`` loads the shipped
-    checkpoint for the task and scene; any other value is a checkpoint file, or a folder holding
-    ``<task>/<scene>.pt``.
+    ``cvm-s`` fits its heading noise on that task's training split. ``singular`` uses
+    ``runs_dir/<task>/<scene>/best.pt``; without it, the shipped checkpoint (stochastic leave-one-out),
+    or, with ``train_missing``, it trains that checkpoint first (resuming an interrupted run). Any other
+    value is a checkpoint file, or a folder holding ``<task>/<scene>/best.pt``.
     """
     if name == "cvm":
         return ConstantVelocity()
@@ -28,15 +31,27 @@ def make_predictor(name: str, task: str, scene: str, root=None) -> Predictor:
         train = load_windows(task, scene, "train", root)
         sampler.fit_sigma(train.obs, train.fut, TASKS[task]["num_samples"])
         return sampler
-    from predictor.checkpoint import load, load_pretrained  # torch is only imported when needed
+    from predictor.checkpoint import load, load_pretrained, pretrained_manifest  # torch only when needed
 
     if name == "singular":
-        return load_pretrained(f"{task}/{scene}")
+        checkpoint = Path(runs_dir) / task / scene / "best.pt"
+        if checkpoint.is_file():
+            return load(checkpoint, task=task)
+        if f"{task}/{scene}" in pretrained_manifest()["checkpoints"]:
+            return load_pretrained(f"{task}/{scene}")
+        if not train_missing:
+            raise FileNotFoundError(f"no checkpoint for {task}/{scene} at {checkpoint}; pass --train-missing to "
+                                    f"train it, or `python -m predictor train --task {task} --scene {scene} "
+                                    f"--out {checkpoint.parent}`")
+        from predictor.train import TrainConfig, main
+
+        main(TrainConfig(task=task, scene=scene, out=str(checkpoint.parent), data_root=root, progress=progress))
+        return load(checkpoint, task=task)
     path = Path(name)
     if path.is_dir():
-        path = path / task / f"{scene}.pt"
+        path = path / task / scene / "best.pt"
     if not path.is_file():
         raise FileNotFoundError(
             f"predictor {name!r}: not one of {', '.join(PREDICTOR_NAMES)} and no checkpoint at {path}"
         )
-    return load(path)
+    return load(path, task=task)

@@ -17,16 +17,25 @@ def run_evaluate(args: argparse.Namespace) -> int:
     from st_sim.evaluate import evaluate_task, markdown_table
 
     def factory(task: str, scene: str):
-        return make_predictor(args.predictor, task, scene, args.data_root)
+        return make_predictor(args.predictor, task, scene, args.data_root, args.runs, args.train_missing,
+                              progress=not args.quiet)
 
-    result = evaluate_task(factory, args.task, args.scenes, momentary_from_8=args.momentary_from_8,
-                           root=args.data_root, progress=not args.quiet)
-    result["predictor"] = args.predictor
-    result["momentary_protocol"] = "from-8" if args.momentary_from_8 else "own-2-frame-windows"
-    print(markdown_table(result, args.predictor))
-    if args.json:
-        write_json_atomic(Path(args.json), result)
-        print(f"wrote {args.json}")
+    tasks = list(TASKS) if args.task == "all" else [args.task]
+    for task in tasks:
+        scenes = args.scenes if args.scenes and len(tasks) == 1 else None
+        result = evaluate_task(factory, task, scenes, momentary_from_8=args.momentary_from_8,
+                               root=args.data_root, progress=not args.quiet)
+        result["predictor"] = args.predictor
+        result["momentary_protocol"] = "from-8" if args.momentary_from_8 else "own-2-frame-windows"
+        table = markdown_table(result, args.predictor)
+        print(table + "\n")
+        if args.json and len(tasks) == 1:
+            write_json_atomic(Path(args.json), result)
+            print(f"wrote {args.json}")
+        if args.out:
+            write_json_atomic(Path(args.out) / f"{task}.json", result)
+            write_text_atomic(Path(args.out) / f"{task}.md", table + "\n")
+            print(f"wrote {args.out}/{task}.json and {task}.md")
     return 0
 
 
@@ -40,10 +49,15 @@ def run_demo(args: argparse.Namespace) -> int:
 
 def write_json_atomic(path: Path, data: dict) -> None:
     """Write JSON through a temp file and a rename, so a crash never leaves half a file."""
+    write_text_atomic(path, json.dumps(data, indent=1))
+
+
+def write_text_atomic(path: Path, text: str) -> None:
+    """Write text through a temp file and a rename."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".json.tmp")
+    fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
     with os.fdopen(fd, "w") as f:
-        json.dump(data, f, indent=1)
+        f.write(text)
     os.replace(tmp, path)
 
 
@@ -55,8 +69,8 @@ def build_parser() -> argparse.ArgumentParser:
     commands = parser.add_subparsers(dest="command", required=True)
 
     evaluate = commands.add_parser("evaluate", help="score a predictor on a benchmark task's test windows")
-    evaluate.add_argument("--task", choices=list(TASKS), default="stochastic",
-                          help="benchmark task (default: stochastic)")
+    evaluate.add_argument("--task", choices=[*TASKS, "all"], default="stochastic",
+                          help="benchmark task, or all five (default: stochastic)")
     evaluate.add_argument("--predictor", default="cvm-s",
                           help="cvm | cvm-s | linear | singular | checkpoint file or folder (default: cvm-s)")
     evaluate.add_argument("--scenes", nargs="+", default=None,
@@ -64,7 +78,11 @@ def build_parser() -> argparse.ArgumentParser:
     evaluate.add_argument("--momentary-from-8", action="store_true",
                           help="momentary task: score the 8-frame protocol's samples on their last 2 frames "
                                "(default: the loader's own 2-frame windows)")
-    evaluate.add_argument("--json", default=None, help="also write the results to this JSON file")
+    evaluate.add_argument("--json", default=None, help="also write the results to this JSON file (one task)")
+    evaluate.add_argument("--out", default=None, help="write <task>.json and <task>.md into this folder")
+    evaluate.add_argument("--runs", default="runs", help="checkpoint folder <task>/<scene>/best.pt (default: runs)")
+    evaluate.add_argument("--train-missing", action="store_true",
+                          help="singular: train any checkpoint that does not exist yet (resumes)")
     evaluate.add_argument("--data-root", default=None, help="ETH/UCY folder (default: $STCROWD_DATA or the cache)")
     evaluate.add_argument("--quiet", action="store_true", help="no progress bar")
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 import torch
@@ -52,7 +54,7 @@ def test_resume_continues_from_last_epoch(trained, tmp_path):
 
 
 def test_truncated_checkpoint_is_a_clear_error(trained, tmp_path):
-    data = open(f"{trained.out}/best.pt", "rb").read()
+    data = Path(f"{trained.out}/best.pt").read_bytes()
     bad = tmp_path / "truncated.pt"
     bad.write_bytes(data[: len(data) // 2])
     with pytest.raises(CheckpointError, match="truncated"):

@@ -1,0 +1,77 @@
+"""Environment steps per second: replay (STCrowd-Zara1-v0) and simulated (STCrowd-SimCrossing-v0), CVM in the loop.
+
+    OMP_NUM_THREADS=1 STCROWD_DATA=../shared/datasets/eth_ucy python benchmarks/bench_env.py
+
+Each configuration runs several times for a fixed number of steps with seeded random actions
+(episodes restart as they end); the figure is steps per wall-clock second, with the share of time
+spent inside the predictor's ``predict``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import time
+
+import gymnasium as gym
+import numpy as np
+
+import envs  # noqa: F401  (registers the ids)
+from predictor.baselines import ConstantVelocity
+
+CONFIGS = (  # (label, env id, extra kwargs)
+    ("replay zara1, ego", "STCrowd-Zara1-v0", {}),
+    ("replay zara1, spectator", "STCrowd-Zara1-v0", {"ego": False}),
+    ("sim crossing, ego", "STCrowd-SimCrossing-v0", {}),
+    ("sim crossing, spectator", "STCrowd-SimCrossing-v0", {"ego": False}),
+)
+
+
+class TimedPredictor(ConstantVelocity):
+    """CVM that adds up the wall-clock time spent in ``predict``."""
+
+    def __init__(self) -> None:
+        self.seconds = 0.0
+
+    def predict(self, obs, group, scene=None, num_samples=1):
+        start = time.perf_counter()
+        futures = super().predict(obs, group, scene, num_samples)
+        self.seconds += time.perf_counter() - start
+        return futures
+
+
+def timed_run(env_id: str, kwargs: dict, steps: int, seed: int) -> tuple[float, float, int]:
+    """(steps per second, share of time in predict, episodes) of one run of ``steps`` steps."""
+    model = TimedPredictor()
+    env = gym.make(env_id, predictor=model, **kwargs)
+    env.action_space.seed(seed)
+    start = time.perf_counter()
+    env.reset(seed=seed)
+    episodes = 1
+    for _ in range(steps):
+        _, _, terminated, truncated, _ = env.step(env.action_space.sample())
+        if terminated or truncated:
+            env.reset()
+            episodes += 1
+    elapsed_s = time.perf_counter() - start
+    env.close()
+    return steps / elapsed_s, model.seconds / elapsed_s, episodes
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--steps", type=int, default=1000, help="env steps per run (default: 1000)")
+    parser.add_argument("--repeats", type=int, default=3, help="runs per configuration (default: 3)")
+    args = parser.parse_args()
+    print(f"OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS', 'unset')}, {args.steps} steps x "
+          f"{args.repeats} runs, random actions, predictor cvm (stochastic task: T_obs 8, S 20)")
+    for label, env_id, kwargs in CONFIGS:
+        runs = [timed_run(env_id, kwargs, args.steps, seed) for seed in range(args.repeats)]
+        rates = np.array([r[0] for r in runs])
+        share = np.mean([r[1] for r in runs])
+        print(f"{label:26s} {rates.mean():8.0f} steps/s (runs: {', '.join(f'{r:.0f}' for r in rates)}), "
+              f"predict {100 * share:4.1f} % of the time, {sum(r[2] for r in runs)} episodes")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,153 @@
+"""What the replay and simulated crowd environments share: spaces, observation, predictions, reward, info.
+
+A subclass provides the crowd (and moves the ego) through four hooks: ``_reset_world`` (frames up to
+now, drawn from ``self.np_random``), ``_step_world`` (one 0.4 s step), ``_ego_collided`` and
+``_world_ended``. It keeps ``ego_xy_m``, ``ego_velocity_mps`` and ``goal_m`` up to date.
+"""
+
+from __future__ import annotations
+
+from typing import Any, ClassVar
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from envs.common.config import EnvConfig
+from envs.common.ego import action_to_velocity
+from envs.common.predictors import POSITION_LIMIT_M, predict_futures, resolve_predictor, task_sizes
+from envs.common.running_metrics import RunningMetrics
+from envs.common.tracks import Frame, TrackBuffer
+from replays.constants import STEP_S, T_PRED
+from replays.scenes import Scene
+
+EGO_FIELDS = ("x_m", "y_m", "vx_mps", "vy_mps", "goal_x_m", "goal_y_m")  # layout of obs["ego"]
+REWARD_PARTS = ("progress", "goal", "collision", "off_map", "time")
+
+
+class CrowdEnv(gym.Env):
+    """Base class; see ``ReplayCrowdEnv`` and ``SimCrowdEnv`` for the manual."""
+
+    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": round(1 / STEP_S, 1)}
+
+    def __init__(self, scene: Scene, n_max: int, where: str, predictor: Any = "auto",
+                 task: str = "stochastic", ego: bool = True, render_mode: str | None = None,
+                 config: EnvConfig | None = None, pretrained: str = "universal"):
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode={render_mode!r}: expected None or 'rgb_array'")
+        self.scene, self.n_max, self.where = scene, n_max, where
+        self.cfg = config or EnvConfig()
+        self.t_obs, self.num_samples = task_sizes(task)
+        self.task, self.ego, self.render_mode = task, bool(ego), render_mode
+        self.predictor = resolve_predictor(predictor, task, pretrained)
+        self.tracks = TrackBuffer(n_max, self.t_obs, where)
+        self.metrics = RunningMetrics(scene)
+
+        limit, speed = POSITION_LIMIT_M, self.cfg.max_speed_mps
+        self._ego_high = np.array([limit, limit, speed, speed, limit, limit], np.float32)  # see EGO_FIELDS
+        self.observation_space = spaces.Dict({
+            "ego": spaces.Box(-self._ego_high, self._ego_high, dtype=np.float32),
+            "history": spaces.Box(-limit, limit, (n_max, self.t_obs, 2), np.float32),
+            "history_mask": spaces.Box(0, 1, (n_max, self.t_obs), np.bool_),
+            "futures": spaces.Box(-limit, limit, (n_max, self.num_samples, T_PRED, 2), np.float32),
+            "futures_mask": spaces.Box(0, 1, (n_max,), np.bool_),
+        })
+        self.action_space = spaces.Box(-speed, speed, (2,), np.float32)
+
+        self.ego_xy_m = np.zeros(2)
+        self.ego_velocity_mps = np.zeros(2)
+        self.goal_m = np.zeros(2)
+        self._obs: dict[str, np.ndarray] | None = None
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        super().reset(seed=seed)
+        self.tracks.clear()
+        self.metrics.reset()
+        for frame in self._reset_world(options or {}):
+            self.tracks.push(frame)
+        if self.ego:
+            self.metrics.update_ego(False, self.ego_xy_m, self.tracks.now.xy_m)
+        self._obs = self._observe()
+        return self._obs, self._info(dict.fromkeys(REWARD_PARTS, 0.0))
+
+    def step(self, action: np.ndarray):
+        assert self._obs is not None, "Call reset before using step method."
+        velocity = action_to_velocity(action, self.cfg.max_speed_mps) if self.ego else None
+        previous_xy_m = self.ego_xy_m.copy()
+        self.tracks.push(self._step_world(velocity))
+        self._obs = self._observe()
+        parts = self._reward_parts(previous_xy_m) if self.ego else dict.fromkeys(REWARD_PARTS, 0.0)
+        reward = float(sum(getattr(self.cfg.reward, name) * value for name, value in parts.items()))
+        terminated = bool(parts["goal"] or parts["collision"])
+        return self._obs, reward, terminated, self._world_ended(), self._info(parts)
+
+    def render(self) -> np.ndarray | None:
+        if self.render_mode != "rgb_array":
+            return None
+        assert self._obs is not None, "Call reset before using render method."
+        from envs.common.render import draw_observation
+
+        return draw_observation(self.scene, self._obs, self.ego, self.cfg.ego_radius_m)
+
+    # hooks -------------------------------------------------------------------------------------------
+
+    def _reset_world(self, options: dict) -> list[Frame]:
+        """Start a new episode (randomness from ``self.np_random``); frames oldest first, the last is now."""
+        raise NotImplementedError
+
+    def _step_world(self, ego_velocity_mps: np.ndarray | None) -> Frame:
+        """Advance 0.4 s with the ego moving at ``ego_velocity_mps`` (None in spectator mode)."""
+        raise NotImplementedError
+
+    def _ego_collided(self, frame: Frame) -> bool:
+        """Ego touches a pedestrian (default: centre distance below the two radii)."""
+        if len(frame.xy_m) == 0:
+            return False
+        reach = self.cfg.ego_radius_m + self.cfg.pedestrian_radius_m
+        return bool(np.min(np.linalg.norm(frame.xy_m - self.ego_xy_m, axis=1)) < reach)
+
+    def _world_ended(self) -> bool:
+        """No further step possible (a recording's last frame)."""
+        return False
+
+    # helpers -----------------------------------------------------------------------------------------
+
+    def _observe(self) -> dict[str, np.ndarray]:
+        """Observation of the newest frame; runs the predictor once for every agent with T_obs frames."""
+        history, history_mask = self.tracks.history()
+        rows = self.tracks.predictable_rows()
+        predicted = predict_futures(self.predictor, history[rows], self.scene, self.num_samples)
+        self.metrics.update_predictions(self.tracks, self.tracks.row_ids[rows], predicted)
+        futures = np.zeros((self.n_max, self.num_samples, T_PRED, 2), np.float32)
+        futures[rows] = predicted
+        futures_mask = np.zeros(self.n_max, bool)
+        futures_mask[rows] = True
+        ego = np.zeros(len(EGO_FIELDS), np.float32)
+        if self.ego:
+            state = np.concatenate([self.ego_xy_m, self.ego_velocity_mps, self.goal_m])
+            ego[:] = np.clip(state, -self._ego_high, self._ego_high)
+        return {"ego": ego, "history": history, "history_mask": history_mask,
+                "futures": futures, "futures_mask": futures_mask}
+
+    def _reward_parts(self, previous_xy_m: np.ndarray) -> dict[str, float]:
+        """Named reward parts of the step from ``previous_xy_m`` (ego mode); also updates the ego metrics."""
+        frame = self.tracks.now
+        distance_m = float(np.linalg.norm(self.goal_m - self.ego_xy_m))
+        collided = self._ego_collided(frame)
+        walkable = bool(self.scene.is_walkable(self.ego_xy_m))
+        parts = {"progress": float(np.linalg.norm(self.goal_m - previous_xy_m)) - distance_m,
+                 "goal": float(distance_m <= self.cfg.goal_radius_m),
+                 "collision": float(collided), "off_map": float(not walkable), "time": 1.0}
+        self.metrics.update_ego(collided, self.ego_xy_m, frame.xy_m)
+        return parts
+
+    def _info(self, reward_parts: dict[str, float]) -> dict[str, Any]:
+        """Fresh info dict; ``agent_ids[i]``/``predicted_ids[i]`` name the agent of observation row i (-1: none)."""
+        row_ids = self.tracks.row_ids.copy()
+        return {
+            "frame": int(self.tracks.now.frame),
+            "agent_ids": row_ids,
+            "predicted_ids": np.where(self._obs["futures_mask"], row_ids, -1),
+            "reward_parts": dict(reward_parts),
+            "metrics": self.metrics.summary(),
+        }

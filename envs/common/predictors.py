@@ -1,0 +1,86 @@
+"""Which predictor runs inside an environment, and one checked, batched call per step."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from replays.constants import T_PRED, TASKS
+from replays.scenes import Scene
+
+ENV_TASKS: tuple[str, ...] = ("stochastic", "deterministic", "momentary")  # tasks an env can play
+POSITION_LIMIT_M = 1000.0  # bound of every position in the observation space [m]; predictions are clipped to it
+
+
+class PredictorUnavailableError(RuntimeError):
+    """The requested predictor cannot be loaded in this installation."""
+
+
+def task_sizes(task: str) -> tuple[int, int]:
+    """(T_obs, S) of a task: stochastic (8, 20), deterministic (8, 1), momentary (2, 20)."""
+    if task not in ENV_TASKS:
+        raise ValueError(f"task={task!r}: an environment plays one of {', '.join(ENV_TASKS)}")
+    return TASKS[task]["obs_len"], TASKS[task]["num_samples"]
+
+
+def resolve_predictor(spec: Any, task: str = "stochastic", pretrained: str = "universal") -> Any:
+    """A predictor object from a name (auto, cvm, cvm-s, linear, singular) or an object with ``predict``.
+
+    ``singular`` loads the shipped checkpoint ``pretrained`` (a replay env passes its scene's leave-one-out
+    model, ``"stochastic/<scene>"``, which never saw that scene; simulated layouts use ``"universal"``);
+    torch is only imported then. ``auto`` is ``singular`` for the stochastic and deterministic tasks and
+    ``cvm`` for momentary, for which no 2-frame model ships.
+    """
+    if spec == "auto":
+        spec = "cvm" if task == "momentary" else "singular"
+    if isinstance(spec, str):
+        from predictor.baselines import BASELINES
+
+        if spec in BASELINES:
+            return BASELINES[spec]()
+        if spec == "singular":
+            return _load_singular(pretrained)
+        raise ValueError(f"predictor={spec!r}: expected one of {', '.join([*BASELINES, 'singular'])} "
+                         "or an object with predict(obs, group, scene, num_samples)")
+    if callable(getattr(spec, "predict", None)):
+        return spec
+    raise TypeError(f"predictor must be a name or have a predict(obs, group, scene, num_samples) method, "
+                    f"got {type(spec).__name__}")
+
+
+def _load_singular(name: str) -> Any:
+    import predictor
+
+    try:
+        return predictor.load_pretrained(name)
+    except (FileNotFoundError, KeyError) as err:
+        raise PredictorUnavailableError(
+            f"predictor='singular': the shipped {name!r} SingularTrajectory checkpoint cannot be loaded ({err}); "
+            "use predictor='cvm' (or 'cvm-s') or pass an object with predict(obs, group, scene, num_samples)"
+        ) from err
+
+
+def predict_futures(model: Any, history_m: np.ndarray, scene: Scene | None, num_samples: int) -> np.ndarray:
+    """One batched call for all agents of one scene moment (they share one group id).
+
+    Args:
+        history_m: (P, T_obs, 2) float32 metres, world frame.
+
+    Returns:
+        (P, S, 12, 2) float32 metres, clipped to +-POSITION_LIMIT_M.
+
+    Raises:
+        ValueError: the predictor returned the wrong shape or NaN/inf.
+    """
+    if len(history_m) == 0:
+        return np.zeros((0, num_samples, T_PRED, 2), np.float32)
+    group = np.zeros(len(history_m), np.int64)
+    futures = np.asarray(model.predict(history_m, group, scene, num_samples), np.float32)
+    expected = (len(history_m), num_samples, T_PRED, 2)
+    name = getattr(model, "name", type(model).__name__)
+    if futures.shape != expected:
+        raise ValueError(f"predictor {name!r} returned shape {futures.shape}, expected {expected}")
+    if not np.isfinite(futures).all():
+        raise ValueError(f"predictor {name!r} returned NaN or inf positions")
+    return np.clip(futures, -POSITION_LIMIT_M, POSITION_LIMIT_M)

@@ -1,0 +1,122 @@
+"""The last few frames of a crowd: observation rows that stay with their agent, histories, run lengths."""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+
+from replays.constants import T_PRED
+
+
+class TooManyAgentsError(ValueError):
+    """A frame holds more pedestrians than the observation has rows (N_max); nothing is ever dropped."""
+
+
+@dataclass(frozen=True, eq=False)
+class Frame:
+    """The pedestrians of one moment.
+
+    Attributes:
+        frame: frame id of the recording (replays) or step count (simulation).
+        ids: (N,) int64 agent ids, unique.
+        xy_m: (N, 2) float64 positions, metres, world frame.
+    """
+
+    frame: int
+    ids: np.ndarray
+    xy_m: np.ndarray
+
+
+def lookup(sorted_ids: np.ndarray, query: np.ndarray) -> np.ndarray:
+    """(Q,) index of every ``query`` id in the sorted (M,) ``sorted_ids``, -1 where absent."""
+    if len(sorted_ids) == 0:
+        return np.full(len(query), -1, np.intp)
+    idx = np.minimum(np.searchsorted(sorted_ids, query), len(sorted_ids) - 1)
+    return np.where(sorted_ids[idx] == query, idx, -1)
+
+
+class TrackBuffer:
+    """Keeps the last ``max(T_obs, 13)`` frames and gives each present agent a fixed row in [0, N_max).
+
+    An agent keeps its row while it is present in consecutive pushed frames; a newcomer takes the lowest
+    free row. ``run`` counts consecutive pushed frames of presence up to now (1 = appeared this frame).
+    """
+
+    def __init__(self, n_max: int, t_obs: int, where: str):
+        self.n_max, self.t_obs, self.where = n_max, t_obs, where
+        self.depth = max(t_obs, T_PRED + 1)
+        self.frames: deque[Frame] = deque(maxlen=self.depth)
+        self.row_ids = np.full(n_max, -1, np.int64)
+        self._run = np.zeros(0, np.int64)  # aligned with the sorted ids of the newest frame
+
+    def clear(self) -> None:
+        self.frames.clear()
+        self.row_ids[:] = -1
+        self._run = np.zeros(0, np.int64)
+
+    def push(self, frame: Frame) -> None:
+        """Append a frame (any id order); raises ``TooManyAgentsError`` beyond N_max agents."""
+        order = np.argsort(frame.ids, kind="stable")
+        ids = np.asarray(frame.ids, np.int64)[order]
+        if len(ids) > self.n_max:
+            raise TooManyAgentsError(
+                f"{self.where}: frame {frame.frame} holds {len(ids)} pedestrians, more than N_max = {self.n_max}; "
+                "raise the scene's pedestrian limit instead of dropping agents")
+        if np.any(np.diff(ids) == 0):
+            raise ValueError(f"{self.where}: frame {frame.frame} lists an agent id twice")
+        previous = self.frames[-1].ids if self.frames else np.zeros(0, np.int64)
+        before = lookup(previous, ids)
+        run = np.ones(len(ids), np.int64)
+        run[before >= 0] += self._run[before[before >= 0]]
+        self._run = run
+        self.row_ids[~np.isin(self.row_ids, ids)] = -1
+        newcomers = ids[~np.isin(ids, self.row_ids)]
+        self.row_ids[np.flatnonzero(self.row_ids < 0)[:len(newcomers)]] = newcomers
+        self.frames.append(Frame(frame.frame, ids, np.asarray(frame.xy_m, np.float64)[order]))
+
+    @property
+    def now(self) -> Frame:
+        """The newest frame (ids sorted)."""
+        return self.frames[-1]
+
+    def run_of(self, ids: np.ndarray) -> np.ndarray:
+        """(Q,) consecutive frames of presence up to now of each id (0 if absent now)."""
+        idx = lookup(self.now.ids, ids)
+        return np.where(idx >= 0, self._run[idx], 0)
+
+    def history(self) -> tuple[np.ndarray, np.ndarray]:
+        """Observed positions of the present agents, one row per agent (see ``row_ids``).
+
+        Returns:
+            xy_m: (N_max, T_obs, 2) float32 metres, oldest step first, last column = now; 0 where unobserved.
+            mask: (N_max, T_obs) bool, True where the agent was present in that frame.
+        """
+        xy = np.zeros((self.n_max, self.t_obs, 2), np.float32)
+        mask = np.zeros((self.n_max, self.t_obs), bool)
+        rows = np.flatnonzero(self.row_ids >= 0)
+        ids = self.row_ids[rows]
+        recent = list(self.frames)[-self.t_obs:]
+        for col, frame in enumerate(recent, start=self.t_obs - len(recent)):
+            idx = lookup(frame.ids, ids)
+            seen = idx >= 0
+            xy[rows[seen], col] = frame.xy_m[idx[seen]]
+            mask[rows[seen], col] = True
+        return xy, mask
+
+    def predictable_rows(self) -> np.ndarray:
+        """(P,) rows whose agent has been present for at least T_obs consecutive frames."""
+        rows = np.flatnonzero(self.row_ids >= 0)
+        return rows[self.run_of(self.row_ids[rows]) >= self.t_obs]
+
+    def recent_path(self, ids: np.ndarray, steps: int) -> np.ndarray:
+        """(Q, steps, 2) float64 positions of ``ids`` over the last ``steps`` frames; ids must be present in all."""
+        frames = list(self.frames)[-steps:]
+        assert len(frames) == steps, f"only {len(frames)} frames kept, {steps} asked"
+        path = np.empty((len(ids), steps, 2))
+        for col, frame in enumerate(frames):
+            idx = lookup(frame.ids, ids)
+            assert (idx >= 0).all(), "recent_path asked for an agent absent from a kept frame"
+            path[:, col] = frame.xy_m[idx]
+        return path

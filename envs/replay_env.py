@@ -1,0 +1,159 @@
+"""Replay of one ETH/UCY scene: the pedestrians walk exactly as recorded, an ego robot walks among them."""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from functools import cache
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from envs.common.config import EnvConfig
+from envs.common.crowd_env import CrowdEnv
+from envs.common.ego import spawn_start_goal, walkable_points
+from envs.common.tracks import Frame
+from replays.constants import COORD_DECIMALS, STEP_S
+from replays.data_root import data_root
+from replays.recording import read_recording
+from replays.scenes import load_scene, scene_info
+
+MIN_REPLAY_STEPS = 50  # a random start leaves at least this many steps (20 s) of recording
+
+
+@dataclass(frozen=True, eq=False)
+class Replay:
+    """A recording on its grid of listed frames (frame gaps ignored, as the benchmark windows do).
+
+    Attributes:
+        path: the recording file.
+        frames: (F,) int64 frame ids.  agents: (A,) int64 agent ids.
+        xy_m: (F, A, 2) float64 metres rounded to 4 decimals (as the windows are), NaN where absent.
+        present: (F, A) bool.
+    """
+
+    path: Path
+    frames: np.ndarray
+    agents: np.ndarray
+    xy_m: np.ndarray
+    present: np.ndarray
+
+    def frame(self, index: int) -> Frame:
+        """The pedestrians of listed frame ``index``."""
+        cols = np.flatnonzero(self.present[index])
+        return Frame(int(self.frames[index]), self.agents[cols], self.xy_m[index, cols])
+
+
+@cache
+def load_replay(path: Path) -> Replay:
+    """Read a recording once per process and lay it on its frame grid."""
+    recording = read_recording(path)
+    xy_m, present = recording.dense()
+    return Replay(path, recording.frames, recording.agents, np.round(xy_m, COORD_DECIMALS), present)
+
+
+class ReplayCrowdEnv(CrowdEnv):
+    """Replay one ETH/UCY test recording; the ego robot walks among the recorded pedestrians.
+
+    ## Description
+    One step is one listed frame of the recording (0.4 s; frame gaps are ignored, as the benchmark
+    windows ignore them). Every pedestrian of the current frame is in the observation; one with T_obs
+    consecutive listed frames up to now also gets S predicted futures (one batched predictor call per
+    step, all agents in one group). The ego is a point robot of radius 0.3 m that moves at the commanded
+    velocity and cannot leave the arena (recorded area + 1 m); pedestrians do not react to it.
+
+    ## Action Space
+    Box(-1.5, 1.5, (2,), float32): ego velocity (vx, vy) [m/s], world frame; scaled down to
+    ``config.max_speed_mps`` (1.5) if faster. NaN/inf actions raise ValueError. Ignored when ``ego=False``.
+
+    ## Observation Space
+    Dict, all positions in metres, world frame, N_max = most pedestrians in one frame of the scene's
+    recordings (ETH 27, HOTEL 18, UNIV 75, ZARA1/2 20):
+    - "ego": (6,) float32 x, y [m], vx, vy [m/s], goal x, y [m]; zeros when ``ego=False``.
+    - "history": (N_max, T_obs, 2) float32, oldest first, last column = now; 0 where unobserved.
+    - "history_mask": (N_max, T_obs) bool, agent present in that frame.
+    - "futures": (N_max, S, 12, 2) float32 predicted positions, 12 steps of 0.4 s; 0 where not predicted.
+    - "futures_mask": (N_max,) bool, row has predictions.
+    Row i belongs to agent ``info["agent_ids"][i]`` (-1: empty row); an agent keeps its row while present.
+
+    ## Rewards
+    Weighted sum of ``info["reward_parts"]`` (weights in ``config.reward``): progress to the goal [m] x 1,
+    goal reached x 10, collision x -10, off the walkable map x -1 per step, time x -0.1 per step.
+    All zero when ``ego=False``.
+
+    ## Starting State
+    A listed frame drawn from ``np_random`` (at least T_obs - 1 frames in, 50 before the end) or
+    ``options["start_index"]``; histories are filled from the recording's earlier frames. The ego starts
+    at a walkable point at least 1 m from every pedestrian, its goal at least half the arena diagonal away.
+
+    ## Episode End
+    Terminated when the ego reaches its goal (0.5 m) or touches a pedestrian (centre distance < 0.55 m).
+    Truncated at the recording's last frame, or by the registered time limit (200 steps).
+
+    ## Info
+    frame (recording frame id), agent_ids and predicted_ids (N_max,) int64 (-1 where none),
+    reward_parts, metrics (running ADE/FDE of matured predictions, map violation, ego collisions and
+    least ego-pedestrian distance; see ``envs.common.running_metrics``).
+
+    ## Arguments
+    scene (eth, hotel, univ, zara1, zara2), recording (univ: students001 (default) or students003),
+    predictor ("auto" (default): SingularTrajectory's leave-one-out checkpoint of this scene, which never
+    saw it, or "cvm" for momentary; "cvm", "cvm-s", "linear", "singular" or an object with ``predict``),
+    task (stochastic:
+    T_obs 8, S 20; deterministic: 8, 1; momentary: 2, 20), ego, render_mode ("rgb_array"), config
+    (``EnvConfig``), root: the ETH/UCY data root (default $STCROWD_DATA or the user cache).
+
+    ## Version History
+    - v0: initial version.
+    """
+
+    def __init__(self, scene: str = "zara1", recording: str | None = None, predictor: Any = "auto",
+                 task: str = "stochastic", ego: bool = True, render_mode: str | None = None,
+                 config: EnvConfig | None = None, root: str | os.PathLike | None = None):
+        info = scene_info(scene)
+        root = data_root(root)
+        recording = recording or info.recordings[0]
+        if recording not in info.recordings:
+            raise ValueError(f"recording={recording!r}: scene {info.name} has {', '.join(info.recordings)}")
+        replays = {name: load_replay(root / info.name / "test" / f"{name}.txt") for name in info.recordings}
+        self.replay = replays[recording]
+        n_max = max(int(r.present.sum(axis=1).max()) for r in replays.values())
+        super().__init__(load_scene(info.name, root), n_max, str(self.replay.path), predictor, task, ego,
+                         render_mode, config, pretrained=f"stochastic/{info.name}")
+        observed = self.replay.xy_m[self.replay.present]
+        margin = self.cfg.arena_margin_m
+        self.arena_low_m, self.arena_high_m = observed.min(axis=0) - margin, observed.max(axis=0) + margin
+        self.candidates_m = walkable_points(self.scene, (*self.arena_low_m, *self.arena_high_m))
+        self.index = 0
+
+    def _reset_world(self, options: dict) -> list[Frame]:
+        last = len(self.replay.frames) - 1
+        if "start_index" in options:
+            self.index = int(options["start_index"])
+            if not 0 <= self.index < last:
+                raise ValueError(f"{self.replay.path}: start_index {self.index} outside [0, {last - 1}]")
+        else:
+            low = min(self.t_obs - 1, last - 1)
+            self.index = int(self.np_random.integers(low, max(low, last - MIN_REPLAY_STEPS) + 1))
+        now = self.replay.frame(self.index)
+        if self.ego:
+            diagonal_m = float(np.linalg.norm(self.arena_high_m - self.arena_low_m))
+            self.ego_xy_m, self.goal_m = spawn_start_goal(
+                self.candidates_m, now.xy_m, self.cfg.spawn_clearance_m,
+                self.cfg.goal_min_fraction * diagonal_m, self.np_random)
+            self.ego_velocity_mps = np.zeros(2)
+        first = max(0, self.index - self.t_obs + 1)
+        return [self.replay.frame(i) for i in range(first, self.index + 1)]
+
+    def _step_world(self, ego_velocity_mps: np.ndarray | None) -> Frame:
+        assert not self._world_ended(), "The recording has ended; call reset before stepping again."
+        self.index += 1
+        if ego_velocity_mps is not None:
+            moved = np.clip(self.ego_xy_m + ego_velocity_mps * STEP_S, self.arena_low_m, self.arena_high_m)
+            self.ego_velocity_mps = (moved - self.ego_xy_m) / STEP_S
+            self.ego_xy_m = moved
+        return self.replay.frame(self.index)
+
+    def _world_ended(self) -> bool:
+        return self.index >= len(self.replay.frames) - 1

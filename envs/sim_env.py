@@ -1,0 +1,117 @@
+"""A pymunk-simulated crowd in a synthetic layout or a real scene's geometry, with an ego robot among it."""
+
+from __future__ import annotations
+
+import os
+from functools import cache
+from typing import Any
+
+import numpy as np
+
+from envs.common.config import EnvConfig
+from envs.common.crowd_env import CrowdEnv
+from envs.common.tracks import Frame
+from replays.data_root import data_root
+from replays.scenes import SCENES, load_scene
+from st_sim.sim import CrowdConfig, CrowdSim, EgoConfig, Layout, layout_from_scene, make_layout
+
+SYNTHETIC_LAYOUTS: tuple[str, ...] = ("crossing", "corridor", "bottleneck")
+
+
+@cache
+def _scene_layout(name: str, root: os.PathLike) -> Layout:
+    """A real scene's layout, built once per process (contour tracing is the slow part)."""
+    return layout_from_scene(load_scene(name, root))
+
+
+def build_layout(name: str, root: str | os.PathLike | None = None) -> Layout:
+    """Simulator layout by name: a synthetic one (no data needed) or an ETH/UCY scene's geometry."""
+    if name in SYNTHETIC_LAYOUTS:
+        return make_layout(name)
+    if name in SCENES:
+        return _scene_layout(name, data_root(root))
+    raise ValueError(f"layout={name!r}: expected one of {', '.join(SYNTHETIC_LAYOUTS + tuple(SCENES))}")
+
+
+def population_cap(crowd: CrowdConfig, layout: Layout) -> int:
+    """Most pedestrians the simulator admits at once (its ``max_pedestrians``), known before it is built."""
+    if crowd.density_per_m2 is None:
+        return int(crowd.max_pedestrians)
+    return round(crowd.density_per_m2 * layout.walkable_area_m2())
+
+
+class SimCrowdEnv(CrowdEnv):
+    """A pymunk crowd walking between entries and exits of a layout; the ego robot crosses it.
+
+    ## Description
+    Pedestrians (discs of 0.25 m, social-force steering, pymunk contacts; ``st_sim.sim.CrowdSim``) enter
+    at the layout's entries and leave at its exits; one step is 0.4 s. The ego is a heavy disc of radius
+    0.3 m whose velocity follows the action within an acceleration limit; pedestrians react to it as to
+    any body. Every pedestrian present is in the observation; one with T_obs consecutive steps of
+    presence also gets S predicted futures (one batched predictor call per step, one group).
+
+    ## Action Space
+    Box(-1.5, 1.5, (2,), float32): commanded ego velocity (vx, vy) [m/s], world frame; scaled down to
+    ``config.max_speed_mps`` (1.5) if faster. NaN/inf actions raise ValueError. Ignored when ``ego=False``.
+
+    ## Observation Space
+    As ``ReplayCrowdEnv`` (ego, history, history_mask, futures, futures_mask; metres, world frame), with
+    N_max = the simulator's population cap (``crowd.max_pedestrians``, 40 by default).
+
+    ## Rewards
+    As ``ReplayCrowdEnv``: progress to the goal [m] x 1, goal reached x 10, collision (the ego touched a
+    pedestrian or a wall) x -10, off the walkable map x -1 per step, time x -0.1 per step.
+
+    ## Starting State
+    A fresh crowd drawn from ``np_random`` that has walked T_obs - 1 steps (so histories are full at
+    reset) with the ego standing at the layout's start; the goal is the layout's ego goal.
+
+    ## Episode End
+    Terminated when the ego reaches its goal (0.5 m) or collides. Truncated by the registered time limit
+    (200 steps); the crowd itself never ends.
+
+    ## Info
+    As ``ReplayCrowdEnv``; ``frame`` is the simulator's step count.
+
+    ## Arguments
+    layout (crossing, corridor, bottleneck, or eth, hotel, univ, zara1, zara2 for a real scene's walls and
+    openings, which needs the data root), predictor ("auto" (default): the universal SingularTrajectory
+    checkpoint, "cvm" for momentary; or as ``ReplayCrowdEnv``), task, ego, render_mode, config (``EnvConfig``; its
+    ego radius and speed limit go to the simulator), crowd (``st_sim.sim.CrowdConfig``), root (data root).
+
+    ## Version History
+    - v0: initial version.
+    """
+
+    def __init__(self, layout: str = "crossing", predictor: Any = "auto", task: str = "stochastic",
+                 ego: bool = True, render_mode: str | None = None, config: EnvConfig | None = None,
+                 crowd: CrowdConfig | None = None, root: str | os.PathLike | None = None):
+        self.layout = build_layout(layout, root)
+        self.crowd_cfg = crowd or CrowdConfig()
+        super().__init__(self.layout.scene, population_cap(self.crowd_cfg, self.layout), f"sim layout {layout}",
+                         predictor, task, ego, render_mode, config)
+        self.sim: CrowdSim | None = None
+
+    def _reset_world(self, options: dict) -> list[Frame]:
+        ego_cfg = EgoConfig(radius_m=self.cfg.ego_radius_m, max_speed_mps=self.cfg.max_speed_mps) if self.ego else None
+        self.sim = CrowdSim(self.layout, self.crowd_cfg, self.np_random, ego=ego_cfg)
+        frames = [self._sim_frame()]
+        for _ in range(self.t_obs - 1):  # warm-up: the ego stands still while the crowd gets going
+            self.sim.step(None)
+            frames.append(self._sim_frame())
+        self.goal_m = np.array(self.layout.ego_goal_m, dtype=np.float64)
+        return frames
+
+    def _step_world(self, ego_velocity_mps: np.ndarray | None) -> Frame:
+        self.sim.step(ego_velocity_mps)
+        return self._sim_frame()
+
+    def _ego_collided(self, frame: Frame) -> bool:
+        return bool(self.sim.ego_collided)
+
+    def _sim_frame(self) -> Frame:
+        """The simulator's pedestrians now; also refreshes the ego state."""
+        if self.ego:
+            self.ego_xy_m = self.sim.ego_position_m
+            self.ego_velocity_mps = self.sim.ego_velocity_mps
+        return Frame(int(self.sim.step_count), self.sim.ids, self.sim.positions_m)

@@ -1,0 +1,160 @@
+"""Who is in the crowd: per-body arrays in pymunk's body order, and where new pedestrians may appear."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+from st_sim.sim.config import CrowdConfig
+from st_sim.sim.layout import MIN_ROUTE_M, Region
+from st_sim.sim.navigation import NavigationField
+
+CANDIDATES_PER_SPAWN = 16  # random points tried per new pedestrian before giving up for this step
+MIN_LATTICE_GAP_M = 0.01  # closest initial packing: gap between neighbouring bodies [m]
+LATTICE_TRIES = 8  # lattice spacings tried when placing the initial crowd
+PROGRESS_M = 0.5  # coming this much closer to one's exit counts as progress [m]
+
+
+@dataclass
+class Roster:
+    """One row per pymunk body (pedestrians and, if present, the ego), in pymunk's iteration order.
+
+    Attributes:
+        body_id: (K,) int64 pymunk body ids.
+        ped_id: (K,) int64 pedestrian ids (stable, never reused); -1 for the ego.
+        exit_idx: (K,) int64 index of the exit each pedestrian heads to (0 for the ego).
+        speed_mps: (K,) preferred speeds [m/s] (0 for the ego).
+        radius_m: (K,) body radii [m].
+        best_to_exit_m: (K,) shortest walking distance to the exit reached so far [m].
+        progress_step: (K,) int64 step at which best_to_exit_m last dropped by PROGRESS_M.
+    """
+
+    body_id: np.ndarray
+    ped_id: np.ndarray
+    exit_idx: np.ndarray
+    speed_mps: np.ndarray
+    radius_m: np.ndarray
+    best_to_exit_m: np.ndarray
+    progress_step: np.ndarray
+
+    @classmethod
+    def of(cls, body_id: np.ndarray, ped_id: np.ndarray, exit_idx: np.ndarray, speed_mps: np.ndarray,
+           radius_m: np.ndarray, step: int) -> Roster:
+        """New rows (M,) that have made no progress yet, as of step."""
+        return cls(np.asarray(body_id, np.int64), np.asarray(ped_id, np.int64), np.asarray(exit_idx, np.int64),
+                   np.asarray(speed_mps, np.float64), np.asarray(radius_m, np.float64),
+                   np.full(len(body_id), np.inf), np.full(len(body_id), step, np.int64))
+
+    @classmethod
+    def empty(cls) -> Roster:
+        return cls.of(np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0), 0)
+
+    def __len__(self) -> int:
+        return len(self.body_id)
+
+    def take(self, index: np.ndarray) -> Roster:
+        """Rows selected by an index or bool array."""
+        return Roster(*(getattr(self, f.name)[index] for f in fields(self)))
+
+    def extend(self, other: Roster) -> Roster:
+        """Rows of self followed by rows of other."""
+        return Roster(*(np.concatenate([getattr(self, f.name), getattr(other, f.name)]) for f in fields(self)))
+
+    def reorder(self, body_ids: np.ndarray) -> Roster:
+        """Rows rearranged to follow body_ids (K,), pymunk's current order."""
+        slot_of = {b: k for k, b in enumerate(self.body_id.tolist())}
+        return self.take(np.fromiter((slot_of[b] for b in body_ids.tolist()), np.intp, len(body_ids)))
+
+
+def preferred_speeds(cfg: CrowdConfig, n: int, rng: np.random.Generator) -> np.ndarray:
+    """(n,) preferred speeds ~ N(mean, std) clipped to cfg.preferred_speed_range_mps [m/s]."""
+    low, high = cfg.preferred_speed_range_mps
+    return np.clip(rng.normal(cfg.preferred_speed_mean_mps, cfg.preferred_speed_std_mps, n), low, high)
+
+
+def choose_exits(nav: NavigationField, xy_m: np.ndarray, allowed: np.ndarray,
+                 rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """Pick, for each point, an allowed exit reachable from it and not right there, uniformly at random.
+
+    Args:
+        xy_m: (M, 2) start points [m].  allowed: (E,) bool mask of permitted exits.
+
+    Returns:
+        exit_idx: (M,) int64 chosen exits.  ok: (M,) bool, False where no exit qualifies.
+    """
+    dist = nav.distance_at(xy_m)  # (E, M)
+    valid = np.isfinite(dist) & (dist > MIN_ROUTE_M) & allowed[:, None]
+    keys = np.where(valid, rng.random(dist.shape), -1.0)
+    return np.argmax(keys, axis=0).astype(np.int64), valid.any(axis=0)
+
+
+def _lattice_sites(nav: NavigationField, spacing_m: float, blocked_m: np.ndarray,
+                   blocked_gap_m: np.ndarray) -> np.ndarray:
+    """(M, 2) sites of a hexagonal lattice with spacing_m on free cells, away from blocked_m (B, 2) [m]."""
+    (xmin, ymin), (xmax, ymax) = nav.origin_m, nav.origin_m + nav.cell_m * np.array(nav.free.shape[::-1])
+    rows, cols = np.meshgrid(np.arange(ymin, ymax, spacing_m * np.sqrt(3) / 2), np.arange(xmin, xmax, spacing_m),
+                             indexing="ij")
+    cols = cols + (np.arange(rows.shape[0]) % 2)[:, None] * spacing_m / 2
+    sites = np.stack([cols.ravel(), rows.ravel()], axis=-1)
+    ok = nav.free_at(sites)
+    for point, gap in zip(blocked_m, blocked_gap_m, strict=True):
+        ok &= np.linalg.norm(sites - point, axis=1) >= gap
+    return sites[ok]
+
+
+def lattice_positions(nav: NavigationField, n: int, diameter_m: float, max_gap_m: float, blocked_m: np.ndarray,
+                      blocked_gap_m: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """Up to n non-overlapping positions: random sites of a hexagonal lattice on free cells, jittered.
+
+    The lattice gap (spacing minus diameter) is the largest of LATTICE_TRIES values from max_gap_m down to
+    MIN_LATTICE_GAP_M that offers n sites; each site then moves by up to half the gap.
+
+    Args:
+        diameter_m: body diameter [m].  max_gap_m: widest gap between neighbouring bodies [m].
+        blocked_m: (B, 2) points to keep away from (e.g. the ego) [m]; blocked_gap_m: (B,) distances [m].
+
+    Returns:
+        (min(n, available sites), 2) positions [m]; fewer than n when the layout is full.
+    """
+    for gap in np.linspace(max_gap_m, MIN_LATTICE_GAP_M, LATTICE_TRIES):
+        sites = _lattice_sites(nav, diameter_m + gap, blocked_m, blocked_gap_m)
+        if len(sites) >= n:
+            break
+    chosen = sites[rng.permutation(len(sites))[:n]]
+    angle = rng.uniform(0.0, 2 * np.pi, len(chosen))
+    reach = 0.5 * gap * np.sqrt(rng.random(len(chosen)))
+    moved = chosen + reach[:, None] * np.stack([np.cos(angle), np.sin(angle)], axis=-1)
+    return np.where(nav.free_at(moved)[:, None], moved, chosen)
+
+
+def spawn_point(region: Region, allowed: np.ndarray, nav: NavigationField, others_m: np.ndarray,
+                others_heading: np.ndarray, clearance_m: float, lane_m: float,
+                rng: np.random.Generator) -> tuple[np.ndarray, int] | None:
+    """A random free point of region and an exit for a new pedestrian there, or None if there is no room.
+
+    A point qualifies if it is at least clearance_m from every body present and no oncoming body (heading
+    more than 90 degrees off) stands in the new pedestrian's path closer than lane_m: people do not step
+    out right in front of others.
+
+    Args:
+        allowed: (E,) bool mask of the exits this entry leads to.
+        others_m: (K, 2) positions of the bodies present [m].  others_heading: (K, 2) their desired directions.
+        clearance_m: required centre distance to every body [m].  lane_m: free path length required [m].
+
+    Returns:
+        (position (2,) [m], exit index) or None.
+    """
+    lo, hi = region.polygon_m.min(axis=0), region.polygon_m.max(axis=0)
+    candidates = lo + rng.random((CANDIDATES_PER_SPAWN, 2)) * (hi - lo)
+    exit_idx, reachable = choose_exits(nav, candidates, allowed, rng)
+    ok = reachable & region.contains(candidates) & nav.free_at(candidates)
+    heading = nav.direction_at(exit_idx, candidates)  # (C, 2)
+    offset = others_m[None, :, :] - candidates[:, None, :]  # (C, K, 2)
+    ahead = np.einsum("ckx,cx->ck", offset, heading)
+    across = np.abs(offset[..., 0] * heading[:, None, 1] - offset[..., 1] * heading[:, None, 0])
+    oncoming = (others_heading @ heading.T).T < 0  # (C, K)
+    in_path = oncoming & (ahead > 0) & (ahead < lane_m) & (across < clearance_m)
+    ok &= (np.hypot(offset[..., 0], offset[..., 1]) >= clearance_m).all(axis=1) & ~in_path.any(axis=1)
+    hits = np.flatnonzero(ok)
+    return (candidates[hits[0]], int(exit_idx[hits[0]])) if hits.size else None

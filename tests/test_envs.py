@@ -1,0 +1,123 @@
+"""Every registered environment: Gymnasium API, determinism, action checks, observation invariants."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import warnings
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import envs
+from envs import STCROWD_IDS
+from envs.common.ego import action_to_velocity
+
+ROLLOUT_STEPS = 30
+ACTION_SPACE_ADVICE = ".*symmetric and normalized.*"  # the action is a velocity in m/s, on purpose
+
+
+@pytest.mark.parametrize("env_id", STCROWD_IDS, ids=STCROWD_IDS)
+def test_env_passes_check_env(env_id: str) -> None:
+    env = gym.make(env_id, render_mode="rgb_array")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        warnings.filterwarnings("ignore", message=ACTION_SPACE_ADVICE)
+        check_env(env.unwrapped)
+    env.close()
+
+
+@pytest.mark.parametrize("env_id", STCROWD_IDS, ids=STCROWD_IDS)
+def test_env_same_seed_gives_same_rollout(env_id: str) -> None:
+    env_a, env_b = gym.make(env_id), gym.make(env_id)
+    (obs_a, _), (obs_b, _) = env_a.reset(seed=3), env_b.reset(seed=3)
+    env_a.action_space.seed(3)
+    for t in range(ROLLOUT_STEPS):
+        for key in obs_a:
+            assert np.array_equal(obs_a[key], obs_b[key]), f"[step {t}] {key} differs"
+        action = env_a.action_space.sample()
+        obs_a, reward_a, term_a, trunc_a, info_a = env_a.step(action)
+        obs_b, reward_b, term_b, trunc_b, info_b = env_b.step(action)
+        assert reward_a == reward_b, f"[step {t}] rewards {reward_a} != {reward_b}"
+        assert np.array_equal(info_a["agent_ids"], info_b["agent_ids"]), f"[step {t}] agent ids differ"
+        if term_a or trunc_a:
+            assert (term_a, trunc_a) == (term_b, trunc_b), f"[step {t}] episode ends differ"
+            (obs_a, _), (obs_b, _) = env_a.reset(), env_b.reset()
+
+
+@pytest.mark.parametrize("env_id", STCROWD_IDS, ids=STCROWD_IDS)
+def test_env_observation_is_consistent_with_info(env_id: str) -> None:
+    env = gym.make(env_id)
+    obs, info = env.reset(seed=1)
+    env.action_space.seed(1)
+    for t in range(ROLLOUT_STEPS):
+        present = info["agent_ids"] >= 0
+        assert np.array_equal(obs["history_mask"][:, -1], present), f"[step {t}] mask != rows in use"
+        assert np.array_equal(info["predicted_ids"] >= 0, obs["futures_mask"]), f"[step {t}] predicted ids"
+        assert obs["history_mask"][obs["futures_mask"]].all(), f"[step {t}] predicted without full history"
+        assert not obs["history"][~obs["history_mask"]].any(), f"[step {t}] values in unobserved slots"
+        assert not obs["futures"][~obs["futures_mask"]].any(), f"[step {t}] futures in unpredicted rows"
+        obs, _, terminated, truncated, info = env.step(env.action_space.sample())
+        if terminated or truncated:
+            obs, info = env.reset()
+
+
+FUZZ_IDS = ("STCrowd-Zara1-v0", "STCrowd-SimCorridor-v0")
+
+
+@pytest.fixture(scope="module")
+def fuzz_envs() -> dict[str, gym.Env]:
+    """One env per fuzzed id, shared by this module's tests that only reset and step them."""
+    made = {env_id: gym.make(env_id) for env_id in FUZZ_IDS}
+    yield made
+    for env in made.values():
+        env.close()
+
+
+@pytest.mark.parametrize("env_id", FUZZ_IDS, ids=FUZZ_IDS)
+@settings(max_examples=30, deadline=None)
+@given(vx=st.floats(allow_nan=True, allow_infinity=True), vy=st.floats(allow_nan=True, allow_infinity=True))
+def test_env_action_is_clipped_or_rejected(fuzz_envs: dict[str, gym.Env], env_id: str, vx: float, vy: float) -> None:
+    env = fuzz_envs[env_id]
+    env.reset(seed=0)
+    action = np.array([vx, vy])
+    if not np.isfinite(action).all():
+        with pytest.raises(ValueError, match="finite"):
+            env.step(action)
+        return
+    obs, reward, *_ = env.step(action)
+    for key, value in obs.items():
+        assert np.isfinite(value).all(), f"{key} not finite after action {action}"
+    assert np.hypot(*obs["ego"][2:4]) <= env.unwrapped.cfg.max_speed_mps + 1e-5, f"speed not clipped: {obs['ego']}"
+    assert np.isfinite(reward)
+
+
+@settings(max_examples=200, deadline=None)
+@given(vx=st.floats(allow_nan=False, allow_infinity=False), vy=st.floats(allow_nan=False, allow_infinity=False))
+def test_action_to_velocity_keeps_direction_within_speed_limit(vx: float, vy: float) -> None:
+    velocity = action_to_velocity(np.array([vx, vy]), max_speed_mps=1.5)
+    assert np.isfinite(velocity).all() and np.hypot(*velocity) <= 1.5 + 1e-9
+    if np.hypot(vx, vy) <= 1.5:
+        assert velocity.tolist() == [vx, vy]
+    else:
+        direction = np.array([vx, vy]) / max(abs(vx), abs(vy))
+        assert np.allclose(velocity / 1.5, direction / np.hypot(*direction), rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("env_id", FUZZ_IDS, ids=FUZZ_IDS)
+def test_env_wrong_action_shape_is_rejected(fuzz_envs: dict[str, gym.Env], env_id: str) -> None:
+    fuzz_envs[env_id].reset(seed=0)
+    with pytest.raises(ValueError, match="shape"):
+        fuzz_envs[env_id].step(np.zeros(3))
+
+
+def test_env_registration_imports_no_env_code() -> None:
+    code = "import sys, envs; print(sorted(m for m in sys.modules if m.startswith(('envs.', 'st_sim', 'predictor'))))"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]", f"importing envs imported {out.strip()}"
+    assert len(set(STCROWD_IDS)) == 13
+    assert all(gym.spec(env_id).max_episode_steps == envs.MAX_EPISODE_STEPS for env_id in STCROWD_IDS)
