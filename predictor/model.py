@@ -36,7 +36,9 @@ class ModelConfig:
     world_features: bool = True
     """feed world-frame offset from the window centroid and velocity (False = agent-frame inputs only)"""
     slow_speed_m: float = 0.3
-    """agents slower than this [m per 0.4 s step] form the slow population (own space, no scaling)"""
+    """agents slower than this [m per 0.4 s step] form the slow population (own space and anchors)"""
+    slow_scale_floor_m: float = 0.0
+    """0: slow agents are not scaled; > 0: scaled by max(speed, this) [m per step]"""
     adapt_anchors: bool = True
     """bend prototype paths onto walkable pixels (False = fixed prototype anchors)"""
     dim: int = 256
@@ -96,7 +98,7 @@ class SingularTrajectory:
     def prepare(self, obs: np.ndarray, group: np.ndarray, scenes: list[Scene | None],
                 scene_index: np.ndarray) -> Inputs:
         """Features for N agents; agent i lies on ``scenes[scene_index[i]]``."""
-        frames = agent_frames(obs, self.cfg.scale_by_speed, self.cfg.slow_speed_m)
+        frames = agent_frames(obs, self.cfg.scale_by_speed, self.cfg.slow_speed_m, self.cfg.slow_scale_floor_m)
         population = frames.slow.astype(np.int64)
         history_local = frames.to_agent(obs.astype(np.float64))  # (N, T_obs, 2)
         history_coef = np.zeros((len(obs), self.cfg.k))

@@ -47,11 +47,13 @@ def _rotate(xy: np.ndarray, angle: np.ndarray) -> np.ndarray:
     return np.stack([c * xy[..., 0] - s * xy[..., 1], s * xy[..., 0] + c * xy[..., 1]], axis=-1)
 
 
-def agent_frames(obs_m: np.ndarray, scale: bool = True, slow_speed_m: float = SLOW_SPEED_M) -> AgentFrame:
+def agent_frames(obs_m: np.ndarray, scale: bool = True, slow_speed_m: float = SLOW_SPEED_M,
+                 slow_scale_floor_m: float = 0.0) -> AgentFrame:
     """Frames for observed paths (N, T_obs, 2) metres.
 
     Heading: last minus third-last point (last minus second-last when T_obs = 2). Scale: mean step
     length over that span, for agents at or above ``slow_speed_m`` per step when ``scale`` is set.
+    With ``slow_scale_floor_m`` > 0, slow agents are scaled too, by max(speed, floor) [m per step].
     """
     obs_m = np.asarray(obs_m, dtype=np.float64)
     back = 2 if obs_m.shape[1] >= 3 else 1
@@ -60,4 +62,6 @@ def agent_frames(obs_m: np.ndarray, scale: bool = True, slow_speed_m: float = SL
     angle = np.where(speed > MIN_HEADING_M, np.arctan2(step[:, 1], step[:, 0]), 0.0)
     slow = speed < slow_speed_m
     scale_m = np.where(slow | (not scale), 1.0, speed)
+    if scale and slow_scale_floor_m > 0:
+        scale_m = np.where(slow, np.maximum(speed, slow_scale_floor_m), scale_m)
     return AgentFrame(obs_m[:, -1].copy(), angle, scale_m, slow)

@@ -61,6 +61,8 @@ class TrainConfig:
     """map-adaptive anchors (False = fixed prototypes)"""
     slow_speed_m: float = 0.3
     """slow-population threshold [m per 0.4 s step]"""
+    slow_scale_floor_m: float = 0.0
+    """0: slow agents unscaled; > 0: slow agents scaled by max(speed, this) [m per step]"""
     world_features: bool = True
     """world-frame inputs (centroid offset, velocity); False = orientation-invariant inputs"""
     init_noise: float = 1.0
@@ -90,8 +92,9 @@ def fit_model(cfg: TrainConfig, train: Windows) -> SingularTrajectory:
     task = TASKS[cfg.task]
     model_cfg = ModelConfig(task=cfg.task, obs_len=task["obs_len"], num_samples=task["num_samples"], k=cfg.k,
                             adapt_anchors=cfg.adapt_anchors, dim=cfg.dim, steps=cfg.steps, init_noise=cfg.init_noise,
-                            slow_speed_m=cfg.slow_speed_m, world_features=cfg.world_features)
-    frames = agent_frames(train.obs, model_cfg.scale_by_speed, model_cfg.slow_speed_m)
+                            slow_speed_m=cfg.slow_speed_m, world_features=cfg.world_features,
+                            slow_scale_floor_m=cfg.slow_scale_floor_m)
+    frames = agent_frames(train.obs, model_cfg.scale_by_speed, model_cfg.slow_speed_m, model_cfg.slow_scale_floor_m)
     futures = frames.to_agent(train.fut.astype(np.float64))
     spaces, anchors, coef_scale, residual_scale = [], [], [], []
     for population in (~frames.slow, frames.slow):  # 0 = moving, 1 = slow
