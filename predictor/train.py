@@ -26,6 +26,8 @@ from replays.data_root import data_root, expected_sums
 from replays.scenes import load_scene, scene_of_recording
 from replays.windows import Windows, load_windows, split_files
 
+SINGLE_SAMPLE_SCALE_FLOOR_M = 0.05  # slow agents' speed-scale floor for S = 1 (measured: RESULTS.md)
+
 
 @dataclass(frozen=True)
 class TrainConfig:
@@ -61,8 +63,9 @@ class TrainConfig:
     """map-adaptive anchors (False = fixed prototypes)"""
     slow_speed_m: float = 0.3
     """slow-population threshold [m per 0.4 s step]"""
-    slow_scale_floor_m: float = 0.0
-    """0: slow agents unscaled; > 0: slow agents scaled by max(speed, this) [m per step]"""
+    slow_scale_floor_m: float | None = None
+    """0: slow agents unscaled; > 0: scaled by max(speed, this) [m per step]; None: 0.05 for single-sample
+    tasks (deterministic, domain: one mean anchor must follow each agent's own speed) and 0 otherwise"""
     world_features: bool = True
     """world-frame inputs (centroid offset, velocity); False = orientation-invariant inputs"""
     init_noise: float = 1.0
@@ -90,10 +93,13 @@ def split_scenes(windows: Windows, root) -> tuple[list, np.ndarray]:
 def fit_model(cfg: TrainConfig, train: Windows) -> SingularTrajectory:
     """Singular spaces, prototype anchors and coefficient scales from the training windows; fresh refiner."""
     task = TASKS[cfg.task]
+    floor_m = cfg.slow_scale_floor_m
+    if floor_m is None:
+        floor_m = SINGLE_SAMPLE_SCALE_FLOOR_M if task["num_samples"] == 1 else 0.0
     model_cfg = ModelConfig(task=cfg.task, obs_len=task["obs_len"], num_samples=task["num_samples"], k=cfg.k,
                             adapt_anchors=cfg.adapt_anchors, dim=cfg.dim, steps=cfg.steps, init_noise=cfg.init_noise,
                             slow_speed_m=cfg.slow_speed_m, world_features=cfg.world_features,
-                            slow_scale_floor_m=cfg.slow_scale_floor_m)
+                            slow_scale_floor_m=floor_m)
     frames = agent_frames(train.obs, model_cfg.scale_by_speed, model_cfg.slow_speed_m, model_cfg.slow_scale_floor_m)
     futures = frames.to_agent(train.fut.astype(np.float64))
     spaces, anchors, coef_scale, residual_scale = [], [], [], []

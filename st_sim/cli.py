@@ -47,6 +47,34 @@ def run_demo(args: argparse.Namespace) -> int:
     return 0
 
 
+def run_plot(args: argparse.Namespace) -> int:
+    """PNG of one test window: photo, map overlay, histories, futures, anchors before/after adaptation, truth."""
+    from predictor.registry import make_predictor
+    from replays.scenes import load_scene
+    from replays.windows import load_windows
+    from st_sim.plot import plot_prediction
+
+    windows = load_windows(args.task, args.scene, "test", args.data_root)
+    if not 0 <= args.step < windows.num_groups:
+        raise SystemExit(f"--step must be a window index in 0..{windows.num_groups - 1} for {args.scene}")
+    keep = windows.group == args.step
+    scene = load_scene(args.scene, args.data_root)
+    model = make_predictor(args.predictor, args.task, args.scene, args.data_root, args.runs)
+    num_samples = TASKS[args.task]["num_samples"]
+    if hasattr(model, "predict_detailed"):
+        detail = model.predict_detailed(windows.obs[keep], windows.group[keep], scene, num_samples)
+        futures, prototype, adapted = detail.futures, detail.prototype_anchors, detail.adapted_anchors
+    else:
+        futures = model.predict(windows.obs[keep], windows.group[keep], scene, num_samples)
+        prototype = adapted = None
+    frame = int(windows.frame[keep][0])
+    path = plot_prediction(scene, windows.obs[keep], futures, args.out, gt_m=windows.fut[keep],
+                           prototype_anchors_m=prototype, adapted_anchors_m=adapted,
+                           title=f"{args.scene} {args.task}, window {args.step} (frame {frame}), {args.predictor}")
+    print(f"wrote {path}")
+    return 0
+
+
 def write_json_atomic(path: Path, data: dict) -> None:
     """Write JSON through a temp file and a rename, so a crash never leaves half a file."""
     write_text_atomic(path, json.dumps(data, indent=1))
@@ -61,7 +89,7 @@ def write_text_atomic(path: Path, text: str) -> None:
     os.replace(tmp, path)
 
 
-COMMANDS = {"evaluate": run_evaluate, "demo": run_demo}
+COMMANDS = {"evaluate": run_evaluate, "demo": run_demo, "plot": run_plot}
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -85,6 +113,15 @@ def build_parser() -> argparse.ArgumentParser:
                           help="singular: train any checkpoint that does not exist yet (resumes)")
     evaluate.add_argument("--data-root", default=None, help="ETH/UCY folder (default: $STCROWD_DATA or the cache)")
     evaluate.add_argument("--quiet", action="store_true", help="no progress bar")
+
+    plot = commands.add_parser("plot", help="PNG of one test window with predictions and anchors")
+    plot.add_argument("--scene", default="zara1", help="scene (default: zara1)")
+    plot.add_argument("--step", type=int, default=0, help="window index in the test split (default: 0)")
+    plot.add_argument("--task", choices=list(TASKS), default="stochastic", help="task (default: stochastic)")
+    plot.add_argument("--predictor", default="singular", help="predictor name or checkpoint (default: singular)")
+    plot.add_argument("--runs", default="runs", help="checkpoint folder for singular (default: runs)")
+    plot.add_argument("--out", default="stcrowd_plot.png", help="PNG path (default: stcrowd_plot.png)")
+    plot.add_argument("--data-root", default=None, help="ETH/UCY folder (default: $STCROWD_DATA or the cache)")
 
     demo = commands.add_parser("demo", help="simulated crossing with an ego robot and predictions (no data needed)")
     demo.add_argument("--steps", type=int, default=150, help="env steps of 0.4 s (default: 150)")

@@ -34,3 +34,12 @@ def test_evaluate_cli_out_folder_gets_json_and_markdown(tmp_path, capsys):
     assert result["scenes"]["zara1"]["samples"] == 2253  # the 8-frame protocol's samples, scored on 2 frames
     assert result["momentary_protocol"] == "from-8"
     assert "| zara1 | 2253 |" in (tmp_path / "momentary.md").read_text()
+
+
+def test_plot_cli_writes_a_png(tmp_path):
+    import cv2
+
+    out = tmp_path / "fig.png"
+    assert main(["plot", "--scene", "hotel", "--step", "3", "--predictor", "cvm-s", "--out", str(out)]) == 0
+    image = cv2.imread(str(out))
+    assert image is not None and image.shape[0] >= 576
