@@ -15,6 +15,7 @@ runs STCrowd alone. Its defaults are kept except: 0.4 s steps, no groups, walls 
 from __future__ import annotations
 
 import argparse
+import logging
 import tempfile
 import time
 from dataclasses import dataclass
@@ -78,6 +79,7 @@ def bench_stcrowd(n: int, steps: int, warmup: int, seed: int) -> Figures:
 
 def bench_pysocialforce(n: int, steps: int, seed: int) -> Figures | None:
     """Run PySocialForce from the same initial crowd as CrowdSim; None if it is not installed."""
+    logging.getLogger("numba").setLevel(logging.WARNING)  # PySocialForce turns on DEBUG logging for everything
     try:
         import pysocialforce
     except ImportError as err:

@@ -11,7 +11,6 @@ wall; a few over-relaxed Jacobi sweeps settle bodies with several neighbours. py
 from __future__ import annotations
 
 import numpy as np
-from scipy.sparse import csr_matrix
 
 from st_sim.sim.config import WALL_RADIUS_M
 from st_sim.sim.steering import Neighbours, dot
@@ -59,23 +58,22 @@ def keep_apart(velocity_mps: np.ndarray, radius_m: np.ndarray, movable: np.ndarr
     unit = np.concatenate([unit, walls.to_wall[body, slot]])
     allowed = allowed_closing_mps(np.concatenate([gap, wall_gap[body, slot]]), dt_s)
     relax = np.concatenate([np.full(len(gap), OMEGA), np.ones(len(body))])  # walls: exact, no overshoot
-    # sparse operators over the flat velocity vector (vx of bodies 0..n, then vy): closing speed of every
-    # constraint, velocity change per unit of excess, and which bodies a constraint touches
-    c = np.arange(len(i))
-    rows, size = np.concatenate([c, c, c, c]), 2 * (n + 1)
-    cols = np.concatenate([i, i + n + 1, j, j + n + 1])
-    closing = csr_matrix((np.concatenate([unit[:, 0], unit[:, 1], -unit[:, 0], -unit[:, 1]]), (rows, cols)),
-                         shape=(len(c), size))
-    push = csr_matrix((np.concatenate([-share_i * unit[:, 0], -share_i * unit[:, 1], share_j * unit[:, 0],
-                                       share_j * unit[:, 1]]), (cols, rows)), shape=(size, len(c)))
-    touches = csr_matrix((np.ones(2 * len(c)), (np.concatenate([i, j]), np.concatenate([c, c]))),
-                         shape=(n + 1, len(c)))
-    v = np.concatenate([velocity_mps[:, 0], [0.0], velocity_mps[:, 1], [0.0]])
+    # every constraint touches 4 entries of the flat velocity vector (vx of bodies 0..n, then vy): i's and
+    # j's x and y; closing speed = sum of coef x those entries, a unit of excess changes them by push
+    padded = np.concatenate([velocity_mps, np.zeros((1, 2))])
+    excess = np.maximum(dot(padded[i] - padded[j], unit) - allowed, 0.0)
+    if not excess.any():
+        return velocity_mps.copy()  # the common case in free flow: nothing to trim
+    size = 2 * (n + 1)
+    slots = np.stack([i, i + n + 1, j, j + n + 1], axis=1).ravel()
+    coef = np.stack([unit[:, 0], unit[:, 1], -unit[:, 0], -unit[:, 1]], axis=1)
+    v = np.concatenate([padded[:, 0], padded[:, 1]])
+    push = -np.stack([share_i, share_i, share_j, share_j], axis=1) * coef * relax[:, None]  # i back, j ahead
+    bodies = np.stack([i, j], axis=1).ravel()
     for _ in range(SWEEPS):
-        excess = np.maximum(closing @ v - allowed, 0.0)
-        active = excess > 0
-        if not active.any():
+        load = np.maximum(np.bincount(bodies, np.repeat(excess > 0, 2), minlength=n + 1), 1.0)
+        v += np.bincount(slots, (push * excess[:, None]).ravel(), minlength=size) / np.tile(load, 2)
+        excess = np.maximum((v[slots].reshape(-1, 4) * coef).sum(axis=1) - allowed, 0.0)
+        if not excess.any():
             break
-        load = np.maximum(touches @ active.astype(np.float64), 1.0)
-        v += (push @ (relax * excess)) * np.tile(1.0 / load, 2)
     return np.stack([v[:n], v[n + 1: 2 * n + 1]], axis=-1)
