@@ -2,8 +2,9 @@
 
 Both engines run the bidirectional corridor (20 m x 8 m, closed walls, gates at both ends) with the same
 initial crowd (positions, goals, preferred speeds from ``CrowdSim``), 0.4 s steps. Only ``step`` is
-timed; after every step the script measures the deepest overlap of two 0.25 m discs, the deepest intrusion
-into a wall and the pedestrians whose centre left the walkable map ("escapes").
+timed, by the wall clock and by the process's CPU time (the machine may be shared); after every step the
+script measures the deepest overlap of two 0.25 m discs, the deepest intrusion into a wall, the
+pedestrians whose centre left the walkable map ("escapes"), the number present and their mean speed.
 
     OMP_NUM_THREADS=1 python benchmarks/bench_sim.py            # 50, 200, 500 pedestrians
     OMP_NUM_THREADS=1 python benchmarks/bench_sim.py --sizes 200 --steps 300 --no-psf
@@ -18,15 +19,17 @@ import argparse
 import logging
 import tempfile
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from st_sim.sim import CrowdConfig, CrowdSim, make_layout
+from st_sim.sim import CrowdConfig, CrowdSim, Layout, make_layout
 from st_sim.sim.diagnostics import escaped, max_overlap_m, wall_penetration_m
 
 RADIUS_M = 0.25  # disc radius of every overlap figure [m]
+SPAWN_RATE_HZ = 10.0  # per gate: refills the corridor as fast as there is room, to hold the population
 PSF_CONFIG = """
 [scene]
 enable_group = false
@@ -42,39 +45,64 @@ class Figures:
     n_pedestrians: int
     steps: int
     steps_per_s: float
+    cpu_steps_per_s: float
+    mean_present: float
     max_overlap_m: float
     max_wall_intrusion_m: float
     escapes: int
     mean_speed_mps: float
 
     def row(self) -> str:
-        return (f"{self.engine:<14}{self.n_pedestrians:>6}{self.steps:>7}{self.steps_per_s:>10.1f}"
-                f"{100 * self.max_overlap_m:>13.2f}{100 * self.max_wall_intrusion_m:>14.2f}{self.escapes:>9}"
-                f"{self.mean_speed_mps:>11.2f}")
+        return (f"{self.engine:<14}{self.n_pedestrians:>6}{self.mean_present:>9.0f}{self.steps:>7}"
+                f"{self.steps_per_s:>10.1f}{self.cpu_steps_per_s:>10.1f}{100 * self.max_overlap_m:>13.2f}"
+                f"{100 * self.max_wall_intrusion_m:>14.2f}{self.escapes:>9}{self.mean_speed_mps:>11.2f}")
 
 
-HEADER = (f"{'engine':<14}{'peds':>6}{'steps':>7}{'steps/s':>10}{'overlap cm':>13}{'wall int. cm':>14}"
-          f"{'escapes':>9}{'speed m/s':>11}")
+HEADER = (f"{'engine':<14}{'peds':>6}{'present':>9}{'steps':>7}{'steps/s':>10}{'cpu st/s':>10}{'overlap cm':>13}"
+          f"{'wall int. cm':>14}{'escapes':>9}{'speed m/s':>11}")
+
+
+class Meter:
+    """Times the steps (wall clock and process CPU) and checks the crowd after each one."""
+
+    def __init__(self, layout: Layout):
+        self.layout = layout
+        self.wall_s = self.cpu_s = self.overlap_m = self.intrusion_m = 0.0
+        self.present: list[int] = []
+        self.speeds: list[float] = []
+        self.escaped: set[int] = set()
+
+    def timed(self, step: Callable[[], object]) -> None:
+        wall, cpu = time.perf_counter(), time.process_time()
+        step()
+        self.wall_s += time.perf_counter() - wall
+        self.cpu_s += time.process_time() - cpu
+
+    def check(self, ids: np.ndarray, xy_m: np.ndarray, v_mps: np.ndarray) -> None:
+        self.overlap_m = max(self.overlap_m, max_overlap_m(xy_m, RADIUS_M))
+        self.intrusion_m = max(self.intrusion_m, wall_penetration_m(self.layout, xy_m, RADIUS_M))
+        self.escaped |= set(ids[escaped(self.layout, xy_m)].tolist())
+        self.present.append(len(ids))
+        self.speeds.append(float(np.linalg.norm(v_mps, axis=1).mean()) if len(ids) else 0.0)
+
+    def figures(self, engine: str, n: int) -> Figures:
+        steps = len(self.present)
+        return Figures(engine, n, steps, steps / self.wall_s, steps / self.cpu_s, float(np.mean(self.present)),
+                       self.overlap_m, self.intrusion_m, len(self.escaped), float(np.mean(self.speeds)))
 
 
 def bench_stcrowd(n: int, steps: int, warmup: int, seed: int) -> Figures:
-    """Run CrowdSim with n pedestrians (kept at n by spawning) and time ``step``."""
+    """Run CrowdSim with n pedestrians (kept near n by brisk spawning) and time ``step``."""
     layout = make_layout("corridor")
-    cfg = CrowdConfig(max_pedestrians=n, spawn_rate_hz=2.0)
-    sim = CrowdSim(layout, cfg, np.random.default_rng(seed), n_initial=n)
+    sim = CrowdSim(layout, CrowdConfig(max_pedestrians=n, spawn_rate_hz=SPAWN_RATE_HZ), np.random.default_rng(seed),
+                   n_initial=n)
     for _ in range(warmup):
         sim.step()
-    elapsed, overlap, intrusion, speeds, gone = 0.0, 0.0, 0.0, [], set()
+    meter = Meter(layout)
     for _ in range(steps):
-        start = time.perf_counter()
-        sim.step()
-        elapsed += time.perf_counter() - start
-        xy = sim.positions_m
-        overlap = max(overlap, max_overlap_m(xy, RADIUS_M))
-        intrusion = max(intrusion, wall_penetration_m(layout, xy, RADIUS_M))
-        gone |= set(sim.ids[escaped(layout, xy)].tolist())
-        speeds.append(np.linalg.norm(sim.velocities_mps, axis=1).mean())
-    return Figures("stcrowd", n, steps, steps / elapsed, overlap, intrusion, len(gone), float(np.mean(speeds)))
+        meter.timed(sim.step)
+        meter.check(sim.ids, sim.positions_m, sim.velocities_mps)
+    return meter.figures("stcrowd", n)
 
 
 def bench_pysocialforce(n: int, steps: int, seed: int) -> Figures | None:
@@ -94,17 +122,12 @@ def bench_pysocialforce(n: int, steps: int, seed: int) -> Figures | None:
         config.write_text(PSF_CONFIG)
         psf = pysocialforce.Simulator(state, groups=None, obstacles=walls, config_file=str(config))
     psf.step(2)  # numba compiles on the first calls
-    elapsed, overlap, intrusion, speeds, gone = 0.0, 0.0, 0.0, [], set()
+    meter = Meter(layout)
+    ids = np.arange(n)
     for _ in range(steps):
-        start = time.perf_counter()
-        psf.step(1)
-        elapsed += time.perf_counter() - start
-        xy = psf.peds.pos()
-        overlap = max(overlap, max_overlap_m(xy, RADIUS_M))
-        intrusion = max(intrusion, wall_penetration_m(layout, xy, RADIUS_M))
-        gone |= set(np.flatnonzero(escaped(layout, xy)).tolist())
-        speeds.append(np.linalg.norm(psf.peds.vel(), axis=1).mean())
-    return Figures("pysocialforce", n, steps, steps / elapsed, overlap, intrusion, len(gone), float(np.mean(speeds)))
+        meter.timed(lambda: psf.step(1))
+        meter.check(ids, psf.peds.pos(), psf.peds.vel())
+    return meter.figures("pysocialforce", n)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -14,7 +14,7 @@ from envs.common.config import EnvConfig
 from envs.common.crowd_env import CrowdEnv
 from envs.common.ego import spawn_start_goal, walkable_points
 from envs.common.tracks import Frame
-from replays.constants import COORD_DECIMALS, STEP_S
+from replays.constants import COORD_DECIMALS, MIN_AGENTS_PER_WINDOW, STEP_S, T_PRED
 from replays.data_root import data_root
 from replays.recording import read_recording
 from replays.scenes import load_scene, scene_info
@@ -102,7 +102,9 @@ class ReplayCrowdEnv(CrowdEnv):
     saw it, or "cvm" for momentary; "cvm", "cvm-s", "linear", "singular" or an object with ``predict``),
     task (stochastic:
     T_obs 8, S 20; deterministic: 8, 1; momentary: 2, 20), ego, render_mode ("rgb_array"), config
-    (``EnvConfig``), root: the ETH/UCY data root (default $STCROWD_DATA or the user cache).
+    (``EnvConfig``), root: the ETH/UCY data root (default $STCROWD_DATA or the user cache),
+    benchmark_windows (spectator only: predict exactly the agents of each benchmark window, as the
+    offline evaluation does, instead of every agent with T_obs frames).
 
     ## Version History
     - v0: initial version.
@@ -110,7 +112,11 @@ class ReplayCrowdEnv(CrowdEnv):
 
     def __init__(self, scene: str = "zara1", recording: str | None = None, predictor: Any = "auto",
                  task: str = "stochastic", ego: bool = True, render_mode: str | None = None,
-                 config: EnvConfig | None = None, root: str | os.PathLike | None = None):
+                 config: EnvConfig | None = None, root: str | os.PathLike | None = None,
+                 benchmark_windows: bool = False):
+        if benchmark_windows and ego:
+            raise ValueError("benchmark_windows=True is a spectator mode: pass ego=False")
+        self.benchmark_windows = benchmark_windows
         info = scene_info(scene)
         root = data_root(root)
         recording = recording or info.recordings[0]
@@ -157,3 +163,20 @@ class ReplayCrowdEnv(CrowdEnv):
 
     def _world_ended(self) -> bool:
         return self.index >= len(self.replay.frames) - 1
+
+    def _predicted_rows(self) -> np.ndarray:
+        """In benchmark mode, only the agents forming a Social-GAN window that ends its observation now.
+
+        Those are agents with T_obs observed frames that the recording keeps for the next 12 frames, and
+        only when at least two qualify. The replay knows the future, and the benchmark protocol uses it
+        to pick its samples, so the stream sees exactly the samples and groups of ``load_windows``.
+        """
+        rows = self.tracks.predictable_rows()
+        if not self.benchmark_windows or len(rows) == 0:
+            return rows
+        future = self.replay.present[self.index + 1:self.index + 1 + T_PRED]
+        if len(future) < T_PRED:
+            return rows[:0]
+        columns = np.searchsorted(self.replay.agents, self.tracks.row_ids[rows])
+        kept = rows[future[:, columns].all(axis=0)]
+        return kept if len(kept) >= MIN_AGENTS_PER_WINDOW else rows[:0]

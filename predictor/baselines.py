@@ -40,8 +40,9 @@ class ConstantVelocity:
 class ConstantVelocitySampler:
     """CVM-S: the last displacement rotated by a heading drawn from N(0, sigma^2), one per sample.
 
-    The noise comes from a generator seeded with ``seed`` at every call, so the same input gives the
-    same output.
+    The S headings are one seeded draw shared by every agent, so an agent's futures never depend on which
+    other agents are in the same call (stream and offline evaluation agree) and the same input always
+    gives the same output.
     """
 
     sigma_rad: float = 0.25
@@ -55,7 +56,7 @@ class ConstantVelocitySampler:
         """(N, T_obs, 2) metres -> (N, S, 12, 2) float32 metres."""
         obs, group = check_inputs(obs, group, num_samples)
         rng = np.random.default_rng(self.seed)
-        angles = rng.normal(0.0, self.sigma_rad, size=(len(obs), num_samples))  # (N, S) rad
+        angles = np.broadcast_to(rng.normal(0.0, self.sigma_rad, size=(1, num_samples)), (len(obs), num_samples))
         velocity = rotate((obs[:, -1] - obs[:, -2])[:, None], angles)  # (N, S, 2)
         paths = obs[:, None, None, -1] + FUTURE_STEPS[None, None, :, None] * velocity[:, :, None]
         return paths.astype(np.float32)

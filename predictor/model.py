@@ -155,8 +155,7 @@ class SingularTrajectory:
             return Prediction(empty, empty, empty)
         inputs = self.prepare(obs, group, [scene], np.zeros(len(obs), np.int64))
         t = self.tensors(inputs)
-        generator = torch.Generator().manual_seed(self.seed)
-        noise = self.cfg.init_noise * torch.randn(t["anchors"].shape, generator=generator)
+        noise = self.sampler_noise().expand_as(t["anchors"])
         order = torch.argsort(t["group"], stable=True)  # windows contiguous, so chunks keep them whole
         local = torch.empty(len(obs), self.cfg.num_samples, T_WIN, 2)
         for chunk in window_batches(t["group"][order], BATCH_AGENTS, None):
@@ -169,6 +168,15 @@ class SingularTrajectory:
         keep = slice(0, num_samples)  # anchors are ordered by cluster size: the first are the likeliest
         return Prediction(futures[:, keep], inputs.anchor_paths_m[0][:, keep].astype(np.float32),
                           inputs.anchor_paths_m[1][:, keep].astype(np.float32))
+
+    def sampler_noise(self) -> torch.Tensor:
+        """(1, S, K) starting noise x_M, one fixed draw per sample shared by every agent.
+
+        Shared, so an agent's futures depend only on its own window, never on which other agents happen to
+        be in the same call (the stream and the offline evaluation then agree exactly).
+        """
+        generator = torch.Generator().manual_seed(self.seed)
+        return self.cfg.init_noise * torch.randn((1, self.cfg.num_samples, self.cfg.k), generator=generator)
 
     def predict(self, obs: np.ndarray, group: np.ndarray, scene: Scene | None = None,
                 num_samples: int | None = None) -> np.ndarray:

@@ -135,13 +135,20 @@ def split_tensors(model: SingularTrajectory, windows: Windows, root) -> dict[str
     return tensors
 
 
-def rollout(model: SingularTrajectory, t: dict[str, torch.Tensor], idx: torch.Tensor, noise_seed: int,
+def rollout(model: SingularTrajectory, t: dict[str, torch.Tensor], idx: torch.Tensor, noise_seed: int | None,
             steps: int | None = None) -> torch.Tensor:
-    """Agent-frame predictions in metres (B, S, 12, 2) for samples ``idx`` through the full DDIM chain."""
+    """Agent-frame predictions in metres (B, S, 12, 2) for samples ``idx`` through the full DDIM chain.
+
+    ``noise_seed``: fresh starting noise per agent (training); None: the model's fixed sampler noise.
+    """
     refiner = model.refiner
     anchors = t["anchors"][idx]
     ctx = refiner.context(t["history"][idx], anchors, t["group"][idx])
-    noise = model.cfg.init_noise * torch.randn(anchors.shape, generator=torch.Generator().manual_seed(noise_seed))
+    if noise_seed is None:
+        noise = model.sampler_noise().expand_as(anchors)
+    else:
+        generator = torch.Generator().manual_seed(noise_seed)
+        noise = model.cfg.init_noise * torch.randn(anchors.shape, generator=generator)
     residual = refiner.sample(anchors, ctx, noise, steps)
     return model.paths_local(anchors, residual, t["population"][idx]) * t["scale_m"][idx][:, None, None, None]
 
@@ -158,7 +165,7 @@ def validate(model: SingularTrajectory, t: dict[str, torch.Tensor], batch_agents
     model.refiner.eval()
     ade, fde = [], []
     for idx in window_batches(t["group"], batch_agents, None):
-        a, f = best_of_s(rollout(model, t, idx, noise_seed=model.seed), t["truth_m"][idx])
+        a, f = best_of_s(rollout(model, t, idx, noise_seed=None), t["truth_m"][idx])
         ade.append(a)
         fde.append(f)
     return float(torch.cat(ade).mean()), float(torch.cat(fde).mean())

@@ -40,6 +40,10 @@ class SceneResult:
     wall_s: float
     paper_ade: float | None = None
     paper_fde: float | None = None
+    stream_samples: int | None = None
+    """samples scored through the spectator environment (None: not run)"""
+    stream_ade: float | None = None
+    stream_fde: float | None = None
 
 
 def score_predictions(pred: np.ndarray, windows: Windows, scene: Scene) -> dict[str, float]:
@@ -58,14 +62,20 @@ def target_scene(task: str, scene: str) -> str:
     return scene_info(scene.upper().split("2")[1]).name if task == "domain" else scene_info(scene).name
 
 
+STREAM_TOLERANCE_M = 1e-6  # stream and offline ADE/FDE must agree to this
+
+
 def evaluate_scene(predictor: Predictor, task: str, scene: str, num_samples: int | None = None,
-                   momentary_from_8: bool = False, root=None, steps: int | None = None) -> SceneResult:
+                   momentary_from_8: bool = False, root=None, steps: int | None = None,
+                   stream: bool = False) -> SceneResult:
     """Score ``predictor`` on the test split of one scene (or domain pair ``"A2B"``).
 
     Args:
         momentary_from_8: for the momentary task, score the 8-frame protocol's samples using only their
             last 2 observed frames instead of the loader's own 2-frame windows.
         steps: DDIM steps for predictors that take them (ablation); None = as trained.
+        stream: also replay the test recordings in the spectator environment and score the streamed
+            predictions; raises if they disagree with the offline windows (count, or ADE/FDE by > 1e-6 m).
     """
     start = time.perf_counter()
     if task == "momentary" and momentary_from_8:
@@ -80,12 +90,24 @@ def evaluate_scene(predictor: Predictor, task: str, scene: str, num_samples: int
         pred = predictor.predict(windows.obs, windows.group, map_scene, samples)
     scores = score_predictions(pred, windows, map_scene)
     paper = paper_numbers(task, scene.upper() if task == "domain" else scene)
-    return SceneResult(scene=scene, samples=len(windows), **scores, wall_s=time.perf_counter() - start,
-                       paper_ade=paper[0] if paper else None, paper_fde=paper[1] if paper else None)
+    result = SceneResult(scene=scene, samples=len(windows), **scores, wall_s=time.perf_counter() - start,
+                         paper_ade=paper[0] if paper else None, paper_fde=paper[1] if paper else None)
+    if stream and not momentary_from_8 and steps is None:
+        from st_sim.stream_eval import evaluate_stream
+
+        streamed = evaluate_stream(predictor, task, target_scene(task, scene), root)
+        result.stream_samples, result.stream_ade, result.stream_fde = (
+            streamed["samples"], streamed["ade"], streamed["fde"])
+        if (streamed["samples"] != result.samples or abs(streamed["ade"] - result.ade) > STREAM_TOLERANCE_M
+                or abs(streamed["fde"] - result.fde) > STREAM_TOLERANCE_M):
+            raise AssertionError(f"{task}/{scene}: stream {streamed} disagrees with offline "
+                                 f"({result.samples}, {result.ade}, {result.fde})")
+        result.wall_s = time.perf_counter() - start
+    return result
 
 
 def evaluate_task(make_predictor: Callable[[str, str], Predictor], task: str, scenes: list[str] | None = None,
-                  momentary_from_8: bool = False, root=None, progress: bool = True) -> dict:
+                  momentary_from_8: bool = False, root=None, progress: bool = True, stream: bool = False) -> dict:
     """Evaluate every scene (or domain pair) of a task.
 
     Args:
@@ -98,7 +120,8 @@ def evaluate_task(make_predictor: Callable[[str, str], Predictor], task: str, sc
     scenes = scenes or list(DOMAIN_PAIRS if task == "domain" else SCENE_NAMES)
     results = {}
     for scene in tqdm(scenes, desc=f"{task}", unit="scene", disable=not progress):
-        results[scene] = evaluate_scene(make_predictor(task, scene), task, scene, None, momentary_from_8, root)
+        results[scene] = evaluate_scene(make_predictor(task, scene), task, scene, None, momentary_from_8, root,
+                                        stream=stream)
     avg = {"ade": float(np.mean([r.ade for r in results.values()])),
            "fde": float(np.mean([r.fde for r in results.values()]))}
     paper_avg = paper_numbers(task, "avg")
@@ -115,8 +138,9 @@ def markdown_table(result: dict, predictor_name: str) -> str:
     """A markdown table of ``evaluate_task``'s result with the paper's numbers and the delta."""
     lines = [
         f"**{result['task']}** — predictor `{predictor_name}` (ADE / FDE in metres)", "",
-        "| scene | samples | ADE / FDE | paper | delta | map-viol. pred (paths) | map-viol. GT | collisions |",
-        "|---|---|---|---|---|---|---|---|",
+        "| scene | samples | ADE / FDE | paper | delta | map-viol. pred (paths) | map-viol. GT | collisions "
+        "| stream = offline |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for name, r in result["scenes"].items():
         paper = _pair(r["paper_ade"], r["paper_fde"]) if r["paper_ade"] is not None else "–"
@@ -125,11 +149,12 @@ def markdown_table(result: dict, predictor_name: str) -> str:
         lines.append(
             f"| {name} | {r['samples']} | {_pair(r['ade'], r['fde'])} | {paper} | {delta} | "
             f"{100 * r['map_violation']:.2f}% ({100 * r['path_map_violation']:.1f}%) | "
-            f"{100 * r['gt_map_violation']:.2f}% | {100 * r['collision_rate']:.2f}% |"
+            f"{100 * r['gt_map_violation']:.2f}% | {100 * r['collision_rate']:.2f}% | "
+            f"{'yes' if r['stream_samples'] is not None else 'not run'} |"
         )
     avg = result["avg"]
     paper = _pair(avg["paper_ade"], avg["paper_fde"]) if "paper_ade" in avg else "–"
     delta = (f"{avg['ade'] - avg['paper_ade']:+.3f} / {avg['fde'] - avg['paper_fde']:+.3f}"
              if "paper_ade" in avg else "–")
-    lines.append(f"| **AVG** | | **{_pair(avg['ade'], avg['fde'])}** | {paper} | {delta} | | | |")
+    lines.append(f"| **AVG** | | **{_pair(avg['ade'], avg['fde'])}** | {paper} | {delta} | | | | |")
     return "\n".join(lines)

@@ -110,12 +110,16 @@ class CrowdEnv(gym.Env):
         """No further step possible (a recording's last frame)."""
         return False
 
+    def _predicted_rows(self) -> np.ndarray:
+        """Observation rows that get predictions this step (default: every agent with T_obs frames)."""
+        return self.tracks.predictable_rows()
+
     # helpers -----------------------------------------------------------------------------------------
 
     def _observe(self) -> dict[str, np.ndarray]:
         """Observation of the newest frame; runs the predictor once for every agent with T_obs frames."""
         history, history_mask = self.tracks.history()
-        rows = self.tracks.predictable_rows()
+        rows = self._predicted_rows()
         predicted = predict_futures(self.predictor, history[rows], self.scene, self.num_samples)
         self.metrics.update_predictions(self.tracks, self.tracks.row_ids[rows], predicted)
         futures = np.zeros((self.n_max, self.num_samples, T_PRED, 2), np.float32)

@@ -25,7 +25,7 @@ class CrowdConfig:
     """preferred speeds are clipped to this range [m/s]"""
     max_speed_factor: float = 1.3
     """a pedestrian's speed is capped at this multiple of its preferred speed [-]"""
-    n_substeps: int = 4
+    n_substeps: int = 3
     """pymunk steps per 0.4 s env step [-]"""
     max_pedestrians: int = 40
     """most pedestrians present at once; spawning stops at this count [-]"""
@@ -34,7 +34,7 @@ class CrowdConfig:
     spawn_rate_hz: float = 0.5
     """Poisson rate of new pedestrians per entry region [1/s]"""
     spawn_gap_m: float = 0.15
-    """free space required between a new pedestrian and any body or wall [m]"""
+    """free space required between a new pedestrian and any body present; widest gap of the initial lattice [m]"""
     spawn_lane_m: float = 3.0
     """a new pedestrian does not appear with an oncoming one less than this far ahead in its path [m]"""
     patience_s: float = 20.0
@@ -66,7 +66,7 @@ class CrowdConfig:
     wall_range_m: float = 0.2
     """decay length of the wall repulsion [m]"""
     wall_cutoff_m: float = 1.0
-    """walls farther than this from a body's centre neither push it nor are checked for contact [m]"""
+    """walls farther than this from a pedestrian's centre do not push it [m]"""
     nav_cell_m: float = 0.2
     """cell size of the navigation fields that lead pedestrians to their exits [m]"""
     solver_iterations: int = 10

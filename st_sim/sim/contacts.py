@@ -23,6 +23,11 @@ SKIN_M = 0.1  # ... plus this much, for bodies at rest that a correction may set
 OVERLAP_OPENING = 0.5  # share of an existing overlap opened per substep [-]
 
 
+def contact_reach_m(radius_m: float, speed_mps: float, dt_s: float) -> float:
+    """Farthest wall (centre-line distance) [m] that a body of radius_m at speed_mps may need as a constraint."""
+    return radius_m + WALL_RADIUS_M + SKIN_M + REACH_FACTOR * dt_s * speed_mps
+
+
 def allowed_closing_mps(gap_m: np.ndarray, dt_s: float) -> np.ndarray:
     """Closing speed [m/s] that just closes gap_m within dt_s; for overlaps (gap < 0) a share opens."""
     return np.where(gap_m > 0, gap_m, OVERLAP_OPENING * gap_m) / dt_s

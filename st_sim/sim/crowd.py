@@ -20,7 +20,7 @@ from replays.constants import FRAME_STRIDE, STEP_S
 from replays.recording import Recording, write_recording
 from st_sim.sim import physics
 from st_sim.sim.config import EGO_MASS_KG, PED_MASS_KG, WALL_RADIUS_M, CrowdConfig, EgoConfig
-from st_sim.sim.contacts import keep_apart
+from st_sim.sim.contacts import contact_reach_m, keep_apart
 from st_sim.sim.layout import Layout
 from st_sim.sim.navigation import NavigationField
 from st_sim.sim.population import (
@@ -29,7 +29,7 @@ from st_sim.sim.population import (
     choose_exits,
     lattice_positions,
     preferred_speeds,
-    spawn_point,
+    spawn_points,
 )
 from st_sim.sim.steering import Neighbours, cap_speed, steer
 from st_sim.sim.walls import WallGrid
@@ -46,7 +46,8 @@ class CrowdSim:
         cfg: crowd tunables.
         rng: the only source of randomness (speeds, placement, spawning, exits).
         ego: ego robot settings; None = no ego.
-        n_initial: pedestrians placed at the start; None = the population cap (fewer if they do not fit).
+        n_initial: pedestrians placed at the start, at most the population cap; None = the cap (fewer if they
+            do not fit).
 
     Attributes:
         step_count: steps taken since construction.
@@ -60,8 +61,10 @@ class CrowdSim:
         self.max_pedestrians = (cfg.max_pedestrians if cfg.density_per_m2 is None
                                 else round(cfg.density_per_m2 * layout.walkable_area_m2()))
         self._dt_s = STEP_S / cfg.n_substeps
-        self._walls = layout.derived(("walls", cfg.nav_cell_m, cfg.wall_cutoff_m), lambda: WallGrid(
-            layout.walls_m, layout.bounds_m, cfg.nav_cell_m, cfg.wall_cutoff_m))
+        wall_reach_m = max(cfg.wall_cutoff_m, contact_reach_m(max(cfg.radius_m, ego.radius_m if ego else 0.0),
+                                                              self._top_speed_mps(), self._dt_s))
+        self._walls = layout.derived(("walls", cfg.nav_cell_m, wall_reach_m), lambda: WallGrid(
+            layout.walls_m, layout.bounds_m, cfg.nav_cell_m, wall_reach_m))
         clearance_m = cfg.radius_m + WALL_RADIUS_M + NAV_SLACK_M
         self.nav = layout.derived(("navigation", clearance_m, cfg.nav_cell_m), lambda: NavigationField(
             layout, self._walls, clearance_m, cfg.nav_cell_m))
@@ -81,9 +84,15 @@ class CrowdSim:
             self._admit(Roster.of([self._ego_body.id], [-1], [0], [0.0], [ego.radius_m], 0), [self._ego_body])
             self.space.on_collision(physics.EGO_TYPE, None, pre_solve=self._on_ego_contact)
             keep_clear_m = start[None]
-        self._place_initial(self.max_pedestrians if n_initial is None else n_initial, keep_clear_m)
+        self._place_initial(self.max_pedestrians if n_initial is None else min(n_initial, self.max_pedestrians),
+                            keep_clear_m)
         self._settle_order()
         self._history: list[tuple[np.ndarray, np.ndarray]] = [(self.ids, self.positions_m)]
+
+    def _top_speed_mps(self) -> float:
+        """Fastest any body may move [m/s]: a pedestrian at its cap, or the ego."""
+        pedestrian = self.cfg.max_speed_factor * self.cfg.preferred_speed_range_mps[1]
+        return max(pedestrian, self.ego_cfg.max_speed_mps if self.ego_cfg else 0.0)
 
     def __repr__(self) -> str:
         ego = "" if self._ego_body is None else " + ego"
@@ -157,9 +166,10 @@ class CrowdSim:
             self.space.step(self._dt_s)
             self._ego_collided |= self._ego_touches_wall()
         self.step_count += 1
-        self._reroute_stuck()
-        self._remove_arrived()
-        self._spawn()
+        xy_m, _ = self._batch.read()  # rows follow the roster: nothing was added or removed during the step
+        self._reroute_stuck(xy_m)
+        stay = self._remove_arrived(xy_m)
+        self._spawn(xy_m[stay])
         self._settle_order()
         self._history.append((self.ids, self.positions_m))
 
@@ -198,10 +208,13 @@ class CrowdSim:
         exit_idx, ok = choose_exits(self.nav, xy_m, np.ones(len(self.layout.exits), bool), self.rng)
         self._add_pedestrians(xy_m[ok], exit_idx[ok])
 
-    def _reroute_stuck(self) -> None:
-        """Pedestrians that came no closer to their exit for cfg.patience_s head for another exit."""
-        xy_m, _ = self._batch.read()
-        rows = self._roster  # still in pymunk's order: nothing was added or removed during the step
+    def _reroute_stuck(self, xy_m: np.ndarray) -> None:
+        """Pedestrians that came no closer to their exit for cfg.patience_s head for another exit.
+
+        Args:
+            xy_m: (K, 2) positions of the roster's bodies [m].
+        """
+        rows = self._roster
         iy, ix = self.nav.cells(xy_m)
         to_exit = self.nav.distance_m[rows.exit_idx, iy, ix]
         better = to_exit < rows.best_to_exit_m - PROGRESS_M
@@ -215,10 +228,16 @@ class CrowdSim:
             rows.best_to_exit_m[stuck] = np.inf
             rows.progress_step[stuck] = self.step_count
 
-    def _remove_arrived(self) -> None:
-        """Remove pedestrians standing inside the exit they head to."""
-        xy_m, _ = self._batch.read()
-        rows = self._rows_now()
+    def _remove_arrived(self, xy_m: np.ndarray) -> np.ndarray:
+        """Remove pedestrians standing inside the exit they head to.
+
+        Args:
+            xy_m: (K, 2) positions of the roster's bodies [m].
+
+        Returns:
+            (K,) bool, True for the bodies that stay (the roster keeps only those, in the same order).
+        """
+        rows = self._roster
         gone = np.zeros(len(rows), bool)
         is_ped = rows.ped_id >= 0
         for e in np.unique(rows.exit_idx[is_ped]):
@@ -228,37 +247,36 @@ class CrowdSim:
             body = self._bodies.pop(body_id)
             self.space.remove(body, *body.shapes)
         self._roster = rows.take(~gone)
+        return ~gone
 
-    def _spawn(self) -> None:
-        """Poisson arrivals at every entry, while below the cap and where there is room."""
+    def _spawn(self, xy_m: np.ndarray) -> None:
+        """Poisson arrivals at every entry, while below the cap and where there is room.
+
+        Args:
+            xy_m: (K, 2) positions of the roster's bodies [m].
+        """
         counts = self.rng.poisson(self.cfg.spawn_rate_hz * STEP_S, len(self.layout.entries))
-        room = self.max_pedestrians - int(np.count_nonzero(self._roster.ped_id >= 0))
-        xy_m, _ = self._batch.read()
-        rows = self._rows_now()
+        rows = self._roster
+        room = self.max_pedestrians - int(np.count_nonzero(rows.ped_id >= 0))
         heading = self.nav.direction_at(rows.exit_idx, xy_m) * (rows.ped_id >= 0)[:, None]
-        clearance = self.cfg.radius_m + self._roster.radius_m.max(initial=self.cfg.radius_m) + self.cfg.spawn_gap_m
-        new_xy, new_exit = [], []
+        clearance = self.cfg.radius_m + rows.radius_m.max(initial=self.cfg.radius_m) + self.cfg.spawn_gap_m
         for entry, count in enumerate(counts.tolist()):
+            count = min(count, room)
+            if count <= 0:
+                continue
             allowed = np.zeros(len(self.layout.exits), bool)
             allowed[list(self.layout.routes[entry])] = True
-            for _ in range(min(count, room - len(new_xy))):
-                found = spawn_point(self.layout.entries[entry], allowed, self.nav, xy_m, heading, clearance,
-                                    self.cfg.spawn_lane_m, self.rng)
-                if found is not None:
-                    new_xy.append(found[0])
-                    new_exit.append(found[1])
-                    xy_m = np.concatenate([xy_m, found[0][None]])
-                    heading = np.concatenate([heading, self.nav.direction_at(np.array([found[1]]), found[0][None])])
-        if new_xy:
-            self._add_pedestrians(np.array(new_xy), np.array(new_exit, np.int64))
-
-    def _rows_now(self) -> Roster:
-        """The roster in pymunk's current body order."""
-        return self._roster.reorder(self._batch.body_ids())
+            new_xy, new_exit = spawn_points(self.layout.entries[entry], count, allowed, self.nav, xy_m, heading,
+                                            clearance, self.cfg.spawn_lane_m, self.rng)
+            if len(new_xy):
+                self._add_pedestrians(new_xy, new_exit)
+                room -= len(new_xy)
+                xy_m = np.concatenate([xy_m, new_xy])
+                heading = np.concatenate([heading, self.nav.direction_at(new_exit, new_xy)])
 
     def _settle_order(self) -> None:
         """Align the roster with pymunk's body order and cache positions, velocities and the id order."""
-        self._roster = self._rows_now()
+        self._roster = self._roster.reorder(self._batch.body_ids())
         self._xy_m, self._v_mps = self._batch.read()
         is_ped = self._roster.ped_id >= 0
         peds = np.flatnonzero(is_ped)

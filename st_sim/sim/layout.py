@@ -118,31 +118,25 @@ def polygon_edges(polygon_m: np.ndarray) -> np.ndarray:
     return np.stack([polygon_m, np.roll(polygon_m, -1, axis=0)], axis=1)
 
 
-def rasterise(name: str, free_polygons_m: list[np.ndarray], obstacle_polygons_m: list[np.ndarray],
+def rasterise(name: str, free_polygon_m: np.ndarray,
               bounds_m: tuple[float, float, float, float]) -> tuple[Scene, np.ndarray]:
     """Walkability raster and walls of a synthetic layout.
 
     Args:
-        free_polygons_m: (P, 2) polygons of walkable space [m].
-        obstacle_polygons_m: (P, 2) polygons cut out of the walkable space [m].
+        free_polygon_m: (P, 2) polygon of the walkable space [m]; its edges are the walls.
         bounds_m: (xmin, ymin, xmax, ymax) of the raster [m]; row 0 is at ymax (north up).
 
     Returns:
         scene: MAP_PX_M metres per pixel; walls (capsules of radius WALL_RADIUS_M) are not walkable.
-        walls_m: (W, 2, 2) every polygon edge.
+        walls_m: (P, 2, 2) the polygon's edges.
     """
     import cv2
 
     xmin, ymin, xmax, ymax = bounds_m
     H = np.array([[MAP_PX_M, 0.0, xmin], [0.0, -MAP_PX_M, ymax], [0.0, 0.0, 1.0]])
     width, height = int(np.ceil((xmax - xmin) / MAP_PX_M)) + 1, int(np.ceil((ymax - ymin) / MAP_PX_M)) + 1
-    scene = Scene(name, H, np.zeros((height, width), bool))
+    outline_px = np.rint(Scene(name, H, np.zeros((1, 1), bool)).world_to_pixel(free_polygon_m)).astype(np.int32)
     raster = np.zeros((height, width), np.uint8)
-    to_px = [np.rint(scene.world_to_pixel(p)).astype(np.int32) for p in (*free_polygons_m, *obstacle_polygons_m)]
-    cv2.fillPoly(raster, to_px[: len(free_polygons_m)], 1)
-    if obstacle_polygons_m:
-        cv2.fillPoly(raster, to_px[len(free_polygons_m):], 0)
-    thickness_px = max(1, round(2 * WALL_RADIUS_M / MAP_PX_M))
-    cv2.polylines(raster, to_px, isClosed=True, color=0, thickness=thickness_px)
-    walls_m = np.concatenate([polygon_edges(p) for p in (*free_polygons_m, *obstacle_polygons_m)])
-    return Scene(name, H, raster.astype(bool)), walls_m
+    cv2.fillPoly(raster, [outline_px], 1)
+    cv2.polylines(raster, [outline_px], isClosed=True, color=0, thickness=max(1, round(2 * WALL_RADIUS_M / MAP_PX_M)))
+    return Scene(name, H, raster.astype(bool)), polygon_edges(free_polygon_m)

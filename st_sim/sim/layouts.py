@@ -19,7 +19,7 @@ def _build(name: str, free_polygon_m: np.ndarray, entries: list[Region], exits: 
            ego_start_m: tuple[float, float], ego_goal_m: tuple[float, float]) -> Layout:
     lo, hi = free_polygon_m.min(axis=0) - MARGIN_M, free_polygon_m.max(axis=0) + MARGIN_M
     bounds_m = (float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1]))
-    scene, walls_m = rasterise(name, [free_polygon_m], [], bounds_m)
+    scene, walls_m = rasterise(name, free_polygon_m, bounds_m)
     return Layout(name=name, walls_m=walls_m, entries=entries, exits=exits, bounds_m=bounds_m,
                   scene=scene, ego_start_m=np.array(ego_start_m), ego_goal_m=np.array(ego_goal_m))
 

@@ -10,7 +10,7 @@ from st_sim.sim.config import CrowdConfig
 from st_sim.sim.layout import MIN_ROUTE_M, Region
 from st_sim.sim.navigation import NavigationField
 
-CANDIDATES_PER_SPAWN = 16  # random points tried per new pedestrian before giving up for this step
+CANDIDATES_PER_SPAWN = 8  # random points tried per new pedestrian before giving up for this step
 MIN_LATTICE_GAP_M = 0.01  # closest initial packing: gap between neighbouring bodies [m]
 LATTICE_TRIES = 8  # lattice spacings tried when placing the initial crowd
 PROGRESS_M = 0.5  # coming this much closer to one's exit counts as progress [m]
@@ -63,8 +63,10 @@ class Roster:
 
     def reorder(self, body_ids: np.ndarray) -> Roster:
         """Rows rearranged to follow body_ids (K,), pymunk's current order."""
-        slot_of = {b: k for k, b in enumerate(self.body_id.tolist())}
-        return self.take(np.fromiter((slot_of[b] for b in body_ids.tolist()), np.intp, len(body_ids)))
+        by_id = np.argsort(self.body_id)
+        rows = by_id[np.minimum(np.searchsorted(self.body_id, body_ids, sorter=by_id), len(by_id) - 1)]
+        assert np.array_equal(self.body_id[rows], body_ids), "roster and pymunk hold different bodies"
+        return self.take(rows)
 
 
 def preferred_speeds(cfg: CrowdConfig, n: int, rng: np.random.Generator) -> np.ndarray:
@@ -128,33 +130,43 @@ def lattice_positions(nav: NavigationField, n: int, diameter_m: float, max_gap_m
     return np.where(nav.free_at(moved)[:, None], moved, chosen)
 
 
-def spawn_point(region: Region, allowed: np.ndarray, nav: NavigationField, others_m: np.ndarray,
-                others_heading: np.ndarray, clearance_m: float, lane_m: float,
-                rng: np.random.Generator) -> tuple[np.ndarray, int] | None:
-    """A random free point of region and an exit for a new pedestrian there, or None if there is no room.
+def spawn_points(region: Region, count: int, allowed: np.ndarray, nav: NavigationField, others_m: np.ndarray,
+                 others_heading: np.ndarray, clearance_m: float, lane_m: float,
+                 rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """Up to count random free points of region, with exits, for new pedestrians where there is room.
 
-    A point qualifies if it is at least clearance_m from every body present and no oncoming body (heading
-    more than 90 degrees off) stands in the new pedestrian's path closer than lane_m: people do not step
-    out right in front of others.
+    A point qualifies if it is at least clearance_m from every body present (and from the other new points)
+    and no oncoming body (heading more than 90 degrees off) stands in the new pedestrian's path closer than
+    lane_m: people do not step out right in front of others.
 
     Args:
+        count: pedestrians wanted; CANDIDATES_PER_SPAWN random points are tried for each.
         allowed: (E,) bool mask of the exits this entry leads to.
         others_m: (K, 2) positions of the bodies present [m].  others_heading: (K, 2) their desired directions.
         clearance_m: required centre distance to every body [m].  lane_m: free path length required [m].
 
     Returns:
-        (position (2,) [m], exit index) or None.
+        xy_m: (M, 2) positions [m], M <= count.  exit_idx: (M,) int64 exits.
     """
     lo, hi = region.polygon_m.min(axis=0), region.polygon_m.max(axis=0)
-    candidates = lo + rng.random((CANDIDATES_PER_SPAWN, 2)) * (hi - lo)
+    candidates = lo + rng.random((count * CANDIDATES_PER_SPAWN, 2)) * (hi - lo)
+    candidates = candidates[region.contains(candidates) & nav.free_at(candidates)]
     exit_idx, reachable = choose_exits(nav, candidates, allowed, rng)
-    ok = reachable & region.contains(candidates) & nav.free_at(candidates)
+    candidates, exit_idx = candidates[reachable], exit_idx[reachable]
+    reach = lane_m + clearance_m  # only bodies this close to the region can object
+    near = np.all((others_m > lo - reach) & (others_m < hi + reach), axis=1)
+    others_m, others_heading = others_m[near], others_heading[near]
     heading = nav.direction_at(exit_idx, candidates)  # (C, 2)
     offset = others_m[None, :, :] - candidates[:, None, :]  # (C, K, 2)
     ahead = np.einsum("ckx,cx->ck", offset, heading)
     across = np.abs(offset[..., 0] * heading[:, None, 1] - offset[..., 1] * heading[:, None, 0])
-    oncoming = (others_heading @ heading.T).T < 0  # (C, K)
-    in_path = oncoming & (ahead > 0) & (ahead < lane_m) & (across < clearance_m)
-    ok &= (np.hypot(offset[..., 0], offset[..., 1]) >= clearance_m).all(axis=1) & ~in_path.any(axis=1)
-    hits = np.flatnonzero(ok)
-    return (candidates[hits[0]], int(exit_idx[hits[0]])) if hits.size else None
+    in_path = (heading @ others_heading.T < 0) & (ahead > 0) & (ahead < lane_m) & (across < clearance_m)
+    roomy = (np.hypot(offset[..., 0], offset[..., 1]) >= clearance_m).all(axis=1) & ~in_path.any(axis=1)
+    candidates, exit_idx = candidates[roomy], exit_idx[roomy]
+    apart = np.linalg.norm(candidates[:, None] - candidates[None], axis=-1) >= clearance_m
+    chosen, open_ = [], np.ones(len(candidates), bool)
+    while open_.any() and len(chosen) < count:  # first come, first served among the new ones
+        first = int(np.argmax(open_))
+        chosen.append(first)
+        open_ &= apart[first]
+    return candidates[chosen].reshape(-1, 2), exit_idx[chosen]
