@@ -104,7 +104,8 @@ class ReplayCrowdEnv(CrowdEnv):
     T_obs 8, S 20; deterministic: 8, 1; momentary: 2, 20), ego, render_mode ("rgb_array"), config
     (``EnvConfig``), root: the ETH/UCY data root (default $STCROWD_DATA or the user cache),
     benchmark_windows (spectator only: predict exactly the agents of each benchmark window, as the
-    offline evaluation does, instead of every agent with T_obs frames).
+    offline evaluation does, instead of every agent with T_obs frames), rerun (a .rrd path or "spawn": log
+    every step, with predictions and SingularTrajectory's anchors, to Rerun).
 
     ## Version History
     - v0: initial version.
@@ -113,7 +114,7 @@ class ReplayCrowdEnv(CrowdEnv):
     def __init__(self, scene: str = "zara1", recording: str | None = None, predictor: Any = "auto",
                  task: str = "stochastic", ego: bool = True, render_mode: str | None = None,
                  config: EnvConfig | None = None, root: str | os.PathLike | None = None,
-                 benchmark_windows: bool = False):
+                 benchmark_windows: bool = False, rerun: str | None = None):
         if benchmark_windows and ego:
             raise ValueError("benchmark_windows=True is a spectator mode: pass ego=False")
         self.benchmark_windows = benchmark_windows
@@ -126,7 +127,7 @@ class ReplayCrowdEnv(CrowdEnv):
         self.replay = replays[recording]
         n_max = max(int(r.present.sum(axis=1).max()) for r in replays.values())
         super().__init__(load_scene(info.name, root), n_max, str(self.replay.path), predictor, task, ego,
-                         render_mode, config, pretrained=f"stochastic/{info.name}")
+                         render_mode, config, pretrained=f"stochastic/{info.name}", rerun=rerun)
         observed = self.replay.xy_m[self.replay.present]
         margin = self.cfg.arena_margin_m
         self.arena_low_m, self.arena_high_m = observed.min(axis=0) - margin, observed.max(axis=0) + margin

@@ -77,7 +77,8 @@ class SimCrowdEnv(CrowdEnv):
     layout (crossing, corridor, bottleneck, or eth, hotel, univ, zara1, zara2 for a real scene's walls and
     openings, which needs the data root), predictor ("auto" (default): the universal SingularTrajectory
     checkpoint, "cvm" for momentary; or as ``ReplayCrowdEnv``), task, ego, render_mode, config (``EnvConfig``; its
-    ego radius and speed limit go to the simulator), crowd (``st_sim.sim.CrowdConfig``), root (data root).
+    ego radius and speed limit go to the simulator), crowd (``st_sim.sim.CrowdConfig``), root (data root),
+    rerun (a .rrd path or "spawn": log every step to Rerun).
 
     ## Version History
     - v0: initial version.
@@ -85,11 +86,12 @@ class SimCrowdEnv(CrowdEnv):
 
     def __init__(self, layout: str = "crossing", predictor: Any = "auto", task: str = "stochastic",
                  ego: bool = True, render_mode: str | None = None, config: EnvConfig | None = None,
-                 crowd: CrowdConfig | None = None, root: str | os.PathLike | None = None):
+                 crowd: CrowdConfig | None = None, root: str | os.PathLike | None = None,
+                 rerun: str | None = None):
         self.layout = build_layout(layout, root)
         self.crowd_cfg = crowd or CrowdConfig()
         super().__init__(self.layout.scene, population_cap(self.crowd_cfg, self.layout), f"sim layout {layout}",
-                         predictor, task, ego, render_mode, config)
+                         predictor, task, ego, render_mode, config, rerun=rerun)
         self.sim: CrowdSim | None = None
 
     def _reset_world(self, options: dict) -> list[Frame]:

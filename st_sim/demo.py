@@ -65,28 +65,6 @@ def goal_seeking_action(obs: dict[str, np.ndarray], max_speed_mps: float, contac
     return candidates[int(np.argmin(cost))]
 
 
-def _open_logger(rerun_path: str | None, scene):
-    """A RerunLogger for the run, or None (no path, or Rerun logging unavailable)."""
-    if rerun_path is None:
-        return None
-    try:
-        from st_sim.rerun_log import RerunLogger
-    except ImportError as err:
-        print(f"note: Rerun logging skipped ({err})")
-        return None
-    return RerunLogger(rerun_path, scene)
-
-
-def _log_step(logger, step: int, obs: dict[str, np.ndarray], info: dict, reward: float) -> None:
-    present = info["agent_ids"] >= 0
-    predicted = obs["futures_mask"]
-    metrics = {name: float(value) for name, value in info["metrics"].items() if np.isfinite(value)}
-    logger.log_step(step, obs["history"][present, -1], info["agent_ids"][present],
-                    trails=obs["history"][present], trail_mask=obs["history_mask"][present],
-                    predictions=obs["futures"][predicted], prediction_ids=info["predicted_ids"][predicted],
-                    ego_xy_m=obs["ego"][:2], ego_goal_m=obs["ego"][4:6], metrics={**metrics, "reward": reward})
-
-
 def _episode_summary(index: int, steps: int, episode_return: float, truncated: bool, info: dict) -> dict:
     parts = info["reward_parts"]
     outcome = ("goal" if parts["goal"] else "collision" if parts["collision"] else
@@ -106,11 +84,10 @@ def run_demo(steps: int = 150, rerun_path: str | None = None, seed: int = 0) -> 
         {"env_id", "steps", "seed", "episodes": [per-episode dict: steps, outcome, return and the env's
         metrics], "steps_per_s"}.
     """
-    env = gym.make(ENV_ID)  # the shipped universal SingularTrajectory model predicts every pedestrian
+    env = gym.make(ENV_ID, rerun=rerun_path)  # the shipped universal SingularTrajectory model predicts
     cfg, scene = env.unwrapped.cfg, env.unwrapped.scene
     contact_m = cfg.ego_radius_m + env.unwrapped.crowd_cfg.radius_m
     obs, info = env.reset(seed=seed)
-    logger = _open_logger(rerun_path, scene)
     episodes: list[dict] = []
     episode_steps, episode_return = 0, 0.0
     start = time.perf_counter()
@@ -118,17 +95,14 @@ def run_demo(steps: int = 150, rerun_path: str | None = None, seed: int = 0) -> 
         action = goal_seeking_action(obs, cfg.max_speed_mps, contact_m, scene)
         obs, reward, terminated, truncated, info = env.step(action)
         episode_steps, episode_return = episode_steps + 1, episode_return + reward
-        if logger is not None:
-            _log_step(logger, step, obs, info, reward)
         if terminated or truncated or step == steps - 1:
             episodes.append(_episode_summary(len(episodes), episode_steps, episode_return, truncated, info))
             if step < steps - 1:
                 obs, info = env.reset()
                 episode_steps, episode_return = 0, 0.0
     elapsed_s = time.perf_counter() - start
-    if logger is not None:
-        logger.close()
-        print(f"wrote {rerun_path}")
     env.close()
+    if rerun_path is not None:
+        print(f"wrote {rerun_path}")
     return {"env_id": ENV_ID, "steps": steps, "seed": seed, "episodes": episodes,
             "steps_per_s": steps / elapsed_s if elapsed_s > 0 else float("inf")}

@@ -32,7 +32,7 @@ class CrowdEnv(gym.Env):
 
     def __init__(self, scene: Scene, n_max: int, where: str, predictor: Any = "auto",
                  task: str = "stochastic", ego: bool = True, render_mode: str | None = None,
-                 config: EnvConfig | None = None, pretrained: str = "universal"):
+                 config: EnvConfig | None = None, pretrained: str = "universal", rerun: str | None = None):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode={render_mode!r}: expected None or 'rgb_array'")
         self.scene, self.n_max, self.where = scene, n_max, where
@@ -58,6 +58,8 @@ class CrowdEnv(gym.Env):
         self.ego_velocity_mps = np.zeros(2)
         self.goal_m = np.zeros(2)
         self._obs: dict[str, np.ndarray] | None = None
+        self.anchors: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # (ids, prototype, adapted)
+        self.rerun_target, self._rerun, self._rerun_step = rerun, None, 0
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
@@ -68,7 +70,9 @@ class CrowdEnv(gym.Env):
         if self.ego:
             self.metrics.update_ego(False, self.ego_xy_m, self.tracks.now.xy_m)
         self._obs = self._observe()
-        return self._obs, self._info(dict.fromkeys(REWARD_PARTS, 0.0))
+        info = self._info(dict.fromkeys(REWARD_PARTS, 0.0))
+        self._log_rerun(info, 0.0)
+        return self._obs, info
 
     def step(self, action: np.ndarray):
         assert self._obs is not None, "Call reset before using step method."
@@ -79,7 +83,14 @@ class CrowdEnv(gym.Env):
         parts = self._reward_parts(previous_xy_m) if self.ego else dict.fromkeys(REWARD_PARTS, 0.0)
         reward = float(sum(getattr(self.cfg.reward, name) * value for name, value in parts.items()))
         terminated = bool(parts["goal"] or parts["collision"])
-        return self._obs, reward, terminated, self._world_ended(), self._info(parts)
+        info = self._info(parts)
+        self._log_rerun(info, reward)
+        return self._obs, reward, terminated, self._world_ended(), info
+
+    def close(self) -> None:
+        if self._rerun is not None:
+            self._rerun.close()
+            self._rerun = None
 
     def render(self) -> np.ndarray | None:
         if self.render_mode != "rgb_array":
@@ -120,7 +131,8 @@ class CrowdEnv(gym.Env):
         """Observation of the newest frame; runs the predictor once for every agent with T_obs frames."""
         history, history_mask = self.tracks.history()
         rows = self._predicted_rows()
-        predicted = predict_futures(self.predictor, history[rows], self.scene, self.num_samples)
+        predicted, anchors = predict_futures(self.predictor, history[rows], self.scene, self.num_samples)
+        self.anchors = None if anchors is None else (self.tracks.row_ids[rows], *anchors)
         self.metrics.update_predictions(self.tracks, self.tracks.row_ids[rows], predicted)
         futures = np.zeros((self.n_max, self.num_samples, T_PRED, 2), np.float32)
         futures[rows] = predicted
@@ -144,6 +156,28 @@ class CrowdEnv(gym.Env):
                  "collision": float(collided), "off_map": float(not walkable), "time": 1.0}
         self.metrics.update_ego(collided, self.ego_xy_m, frame.xy_m)
         return parts
+
+    def _log_rerun(self, info: dict[str, Any], reward: float) -> None:
+        """Append this step to the Rerun recording (``rerun=`` path or "spawn"); one recording per env."""
+        if self.rerun_target is None:
+            return
+        if self._rerun is None:
+            from st_sim.rerun_log import RerunLogger
+
+            self._rerun = RerunLogger(self.rerun_target, self.scene)
+        obs, present = self._obs, info["agent_ids"] >= 0
+        predicted = obs["futures_mask"]
+        metrics = {name: float(value) for name, value in info["metrics"].items() if np.isfinite(value)}
+        prototype = adapted = None
+        if self.anchors is not None:
+            prototype, adapted = self.anchors[1], self.anchors[2]
+        self._rerun.log_step(
+            self._rerun_step, obs["history"][present, -1], info["agent_ids"][present],
+            trails=obs["history"][present], trail_mask=obs["history_mask"][present],
+            predictions=obs["futures"][predicted], prediction_ids=info["predicted_ids"][predicted],
+            ego_xy_m=obs["ego"][:2] if self.ego else None, ego_goal_m=obs["ego"][4:6] if self.ego else None,
+            metrics={**metrics, "reward": reward}, prototype_anchors=prototype, adapted_anchors=adapted)
+        self._rerun_step += 1
 
     def _info(self, reward_parts: dict[str, float]) -> dict[str, Any]:
         """Fresh info dict; ``agent_ids[i]``/``predicted_ids[i]`` name the agent of observation row i (-1: none)."""

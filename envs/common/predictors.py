@@ -61,26 +61,34 @@ def _load_singular(name: str) -> Any:
         ) from err
 
 
-def predict_futures(model: Any, history_m: np.ndarray, scene: Scene | None, num_samples: int) -> np.ndarray:
+def predict_futures(model: Any, history_m: np.ndarray, scene: Scene | None, num_samples: int
+                    ) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray] | None]:
     """One batched call for all agents of one scene moment (they share one group id).
 
     Args:
         history_m: (P, T_obs, 2) float32 metres, world frame.
 
     Returns:
-        (P, S, 12, 2) float32 metres, clipped to +-POSITION_LIMIT_M.
+        futures: (P, S, 12, 2) float32 metres, clipped to +-POSITION_LIMIT_M.
+        anchors: (prototype, adapted), each (P, S, 12, 2) metres, for predictors with
+            ``predict_detailed`` (SingularTrajectory); None otherwise.
 
     Raises:
         ValueError: the predictor returned the wrong shape or NaN/inf.
     """
     if len(history_m) == 0:
-        return np.zeros((0, num_samples, T_PRED, 2), np.float32)
+        return np.zeros((0, num_samples, T_PRED, 2), np.float32), None
     group = np.zeros(len(history_m), np.int64)
-    futures = np.asarray(model.predict(history_m, group, scene, num_samples), np.float32)
+    anchors = None
+    if callable(getattr(model, "predict_detailed", None)):
+        detail = model.predict_detailed(history_m, group, scene, num_samples)
+        futures, anchors = np.asarray(detail.futures, np.float32), (detail.prototype_anchors, detail.adapted_anchors)
+    else:
+        futures = np.asarray(model.predict(history_m, group, scene, num_samples), np.float32)
     expected = (len(history_m), num_samples, T_PRED, 2)
     name = getattr(model, "name", type(model).__name__)
     if futures.shape != expected:
         raise ValueError(f"predictor {name!r} returned shape {futures.shape}, expected {expected}")
     if not np.isfinite(futures).all():
         raise ValueError(f"predictor {name!r} returned NaN or inf positions")
-    return np.clip(futures, -POSITION_LIMIT_M, POSITION_LIMIT_M)
+    return np.clip(futures, -POSITION_LIMIT_M, POSITION_LIMIT_M), anchors

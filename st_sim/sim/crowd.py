@@ -258,6 +258,8 @@ class CrowdSim:
         counts = self.rng.poisson(self.cfg.spawn_rate_hz * STEP_S, len(self.layout.entries))
         rows = self._roster
         room = self.max_pedestrians - int(np.count_nonzero(rows.ped_id >= 0))
+        if room <= 0 or not counts.any():
+            return
         heading = self.nav.direction_at(rows.exit_idx, xy_m) * (rows.ped_id >= 0)[:, None]
         clearance = self.cfg.radius_m + rows.radius_m.max(initial=self.cfg.radius_m) + self.cfg.spawn_gap_m
         for entry, count in enumerate(counts.tolist()):

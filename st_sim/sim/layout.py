@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import TypeVar
 
 import numpy as np
@@ -15,7 +16,7 @@ T = TypeVar("T")
 MIN_ROUTE_M = 2.0  # an entry's pedestrians head only to exits whose centre is farther than this [m]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Region:
     """A polygon where pedestrians appear (entry) or leave (exit).
 
@@ -35,11 +36,15 @@ class Region:
         """(2,) vertex mean [m]."""
         return self.polygon_m.mean(axis=0)
 
+    @cached_property
+    def _edges(self) -> tuple[np.ndarray, np.ndarray]:
+        """Start and end points (1, P, 2) of the polygon's edges."""
+        return self.polygon_m[None], np.roll(self.polygon_m, -1, axis=0)[None]
+
     def contains(self, xy_m: np.ndarray) -> np.ndarray:
         """(M, 2) metres -> (M,) bool, True inside the polygon (even-odd rule)."""
         xy_m = np.asarray(xy_m, dtype=np.float64).reshape(-1, 2)
-        a = self.polygon_m[None, :, :]
-        b = np.roll(self.polygon_m, -1, axis=0)[None, :, :]
+        a, b = self._edges
         x, y = xy_m[:, 0:1], xy_m[:, 1:2]
         straddles = (a[..., 1] > y) != (b[..., 1] > y)
         with np.errstate(divide="ignore", invalid="ignore"):

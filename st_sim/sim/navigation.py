@@ -26,7 +26,7 @@ class NavigationField:
         cell_m: grid spacing [m].
         free: (Gy, Gx) bool, cells whose centre is walkable and at least clearance_m from every wall.
         distance_m: (E, Gy, Gx) float32 geodesic distance to exit e [m]; inf if unreachable or not free.
-        direction: (E, Gy, Gx, 2) float32 unit vectors toward exit e (zero where no path exists).
+        direction: (E, Gy, Gx, 2) float64 unit vectors toward exit e (zero where no path exists).
     """
 
     def __init__(self, layout: Layout, walls: WallGrid, clearance_m: float, cell_m: float):
@@ -40,7 +40,7 @@ class NavigationField:
         self.free = layout.scene.is_walkable(centres) & (wall_gap_m >= clearance_m)
         graph = _grid_graph(self.free, cell_m)
         self.distance_m = np.full((len(layout.exits), *shape), np.inf, np.float32)
-        self.direction = np.zeros((len(layout.exits), *shape, 2), np.float32)
+        self.direction = np.zeros((len(layout.exits), *shape, 2))
         flat_free = np.flatnonzero(self.free)
         for e, region in enumerate(layout.exits):
             sources = flat_free[region.contains(centres.reshape(-1, 2)[flat_free])]
@@ -58,7 +58,7 @@ class NavigationField:
     def direction_at(self, exit_idx: np.ndarray, xy_m: np.ndarray) -> np.ndarray:
         """Unit direction (N, 2) toward exit exit_idx[i] (N,) at xy_m (N, 2) [m]."""
         iy, ix = self.cells(xy_m)
-        return self.direction[exit_idx, iy, ix].astype(np.float64)
+        return self.direction[exit_idx, iy, ix]
 
     def distance_at(self, xy_m: np.ndarray) -> np.ndarray:
         """Geodesic distance (E, N) from xy_m (N, 2) to every exit [m]; inf where unreachable."""
@@ -121,4 +121,4 @@ def _descent_directions(dist: np.ndarray, free: np.ndarray, centres: np.ndarray,
     norm = np.linalg.norm(smooth, axis=-1, keepdims=True)
     unit = np.where(norm > 1e-6, smooth / np.maximum(norm, 1e-9), 0.0)
     nearest = ndimage.distance_transform_edt(~free, return_distances=False, return_indices=True)
-    return unit[nearest[0], nearest[1]].astype(np.float32)
+    return unit[nearest[0], nearest[1]]

@@ -15,9 +15,9 @@ MAX_WALLS_PER_CELL = 8  # a cell keeps at most this many walls, the nearest ones
 
 def point_segment(xy_m: np.ndarray, a_m: np.ndarray, b_m: np.ndarray) -> np.ndarray:
     """Nearest points (..., 2) [m] of segments a_m-b_m (..., 2) to points xy_m (..., 2)."""
-    ab = b_m - a_m
-    t = np.einsum("...k,...k->...", xy_m - a_m, ab) / np.maximum(np.einsum("...k,...k->...", ab, ab), 1e-12)
-    return a_m + np.clip(t, 0.0, 1.0)[..., None] * ab
+    ab, ap = b_m - a_m, xy_m - a_m
+    t = (ap[..., 0] * ab[..., 0] + ap[..., 1] * ab[..., 1]) / np.maximum(ab[..., 0] ** 2 + ab[..., 1] ** 2, 1e-12)
+    return a_m + np.minimum(np.maximum(t, 0.0), 1.0)[..., None] * ab
 
 
 @dataclass(frozen=True)
@@ -74,7 +74,7 @@ class WallGrid:
         walls = self.cell_walls[iy, ix]  # (N, K)
         seg = self.walls_m[np.maximum(walls, 0)]  # (N, K, 2, 2)
         offset = point_segment(xy_m[:, None, :], seg[..., 0, :], seg[..., 1, :]) - xy_m[:, None, :]
-        dist = np.sqrt(np.einsum("nkc,nkc->nk", offset, offset))
+        dist = np.sqrt(offset[..., 0] ** 2 + offset[..., 1] ** 2)
         dist[walls < 0] = np.inf
         return NearbyWalls(offset / np.maximum(dist, 1e-9)[..., None], dist)
 

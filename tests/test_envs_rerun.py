@@ -1,0 +1,27 @@
+"""An environment with rerun= writes one recording with agents, predictions, both anchor sets and metrics."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import rerun as rr
+
+import envs  # noqa: F401
+
+
+def entity_paths(path) -> set[str]:
+    return {str(chunk.entity_path) for chunk in rr.chunk.RrdReader(str(path)).stream()}
+
+
+def test_replay_env_rerun_recording_holds_predictions_and_anchors(tmp_path):
+    out = tmp_path / "zara1.rrd"
+    env = gym.make("STCrowd-Zara1-v0", ego=False, rerun=str(out))
+    env.reset(seed=0, options={"start_index": 20})
+    for _ in range(5):
+        env.step(np.zeros(2, np.float32))
+    env.close()
+    paths = entity_paths(out)
+    for expected in ("/world/agents", "/world/trails", "/world/anchors/prototype", "/world/anchors/adapted",
+                     "/world/scene/photo", "/metrics/ade_m"):
+        assert expected in paths, (expected, sorted(paths))
+    assert any(p.startswith("/world/predictions/") for p in paths)
