@@ -24,7 +24,8 @@ def run_evaluate(args: argparse.Namespace) -> int:
     for task in tasks:
         scenes = args.scenes if args.scenes and len(tasks) == 1 else None
         result = evaluate_task(factory, task, scenes, momentary_from_8=args.momentary_from_8,
-                               root=args.data_root, progress=not args.quiet, stream=not args.no_stream)
+                               root=args.data_root, progress=not args.quiet, stream=not args.no_stream,
+                               rerun_path=args.rerun)
         result["predictor"] = args.predictor
         result["momentary_protocol"] = "from-8" if args.momentary_from_8 else "own-2-frame-windows"
         table = markdown_table(result, args.predictor)
@@ -115,6 +116,8 @@ def build_parser() -> argparse.ArgumentParser:
     evaluate.add_argument("--no-stream", action="store_true",
                           help="skip the replay through the spectator env (default: run it and check that it "
                                "agrees with the offline windows)")
+    evaluate.add_argument("--rerun", default=None,
+                          help="write the stream replay to Rerun: FILE.rrd -> FILE_<task>_<scene>_<recording>.rrd")
     evaluate.add_argument("--quiet", action="store_true", help="no progress bar")
 
     plot = commands.add_parser("plot", help="PNG of one test window with predictions and anchors")

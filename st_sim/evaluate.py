@@ -5,6 +5,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
+from pathlib import Path
 
 import numpy as np
 from tqdm import tqdm
@@ -67,7 +68,7 @@ STREAM_TOLERANCE_M = 1e-6  # stream and offline ADE/FDE must agree to this
 
 def evaluate_scene(predictor: Predictor, task: str, scene: str, num_samples: int | None = None,
                    momentary_from_8: bool = False, root=None, steps: int | None = None,
-                   stream: bool = False) -> SceneResult:
+                   stream: bool = False, rerun_path: str | None = None) -> SceneResult:
     """Score ``predictor`` on the test split of one scene (or domain pair ``"A2B"``).
 
     Args:
@@ -76,6 +77,7 @@ def evaluate_scene(predictor: Predictor, task: str, scene: str, num_samples: int
         steps: DDIM steps for predictors that take them (ablation); None = as trained.
         stream: also replay the test recordings in the spectator environment and score the streamed
             predictions; raises if they disagree with the offline windows (count, or ADE/FDE by > 1e-6 m).
+        rerun_path: with ``stream``, write the replay to Rerun (see ``evaluate_stream``).
     """
     start = time.perf_counter()
     if task == "momentary" and momentary_from_8:
@@ -95,7 +97,7 @@ def evaluate_scene(predictor: Predictor, task: str, scene: str, num_samples: int
     if stream and not momentary_from_8 and steps is None:
         from st_sim.stream_eval import evaluate_stream
 
-        streamed = evaluate_stream(predictor, task, target_scene(task, scene), root)
+        streamed = evaluate_stream(predictor, task, target_scene(task, scene), root, rerun_path)
         result.stream_samples, result.stream_ade, result.stream_fde = (
             streamed["samples"], streamed["ade"], streamed["fde"])
         if (streamed["samples"] != result.samples or abs(streamed["ade"] - result.ade) > STREAM_TOLERANCE_M
@@ -107,7 +109,8 @@ def evaluate_scene(predictor: Predictor, task: str, scene: str, num_samples: int
 
 
 def evaluate_task(make_predictor: Callable[[str, str], Predictor], task: str, scenes: list[str] | None = None,
-                  momentary_from_8: bool = False, root=None, progress: bool = True, stream: bool = False) -> dict:
+                  momentary_from_8: bool = False, root=None, progress: bool = True, stream: bool = False,
+                  rerun_path: str | None = None) -> dict:
     """Evaluate every scene (or domain pair) of a task.
 
     Args:
@@ -120,8 +123,10 @@ def evaluate_task(make_predictor: Callable[[str, str], Predictor], task: str, sc
     scenes = scenes or list(DOMAIN_PAIRS if task == "domain" else SCENE_NAMES)
     results = {}
     for scene in tqdm(scenes, desc=f"{task}", unit="scene", disable=not progress):
+        rerun = None if rerun_path is None else str(Path(rerun_path).with_name(f"{Path(rerun_path).stem}_{task}"
+                                                                                   f"_{scene}.rrd"))
         results[scene] = evaluate_scene(make_predictor(task, scene), task, scene, None, momentary_from_8, root,
-                                        stream=stream)
+                                        stream=stream, rerun_path=rerun)
     avg = {"ade": float(np.mean([r.ade for r in results.values()])),
            "fde": float(np.mean([r.fde for r in results.values()]))}
     paper_avg = paper_numbers(task, "avg")

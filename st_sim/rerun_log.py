@@ -132,6 +132,7 @@ class RerunLogger:
             self._rec.spawn(default_blueprint=blueprint)
         else:
             self._path = Path(target)
+            self._path.parent.mkdir(parents=True, exist_ok=True)
             self._tmp = self._path.with_name(f".{self._path.name}.part")
             self._rec.save(self._tmp, default_blueprint=blueprint)
         self._live: set[str] = set()  # per-step entities logged at the previous step

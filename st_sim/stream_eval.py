@@ -4,6 +4,8 @@ each prediction once its 12-step ground truth has unfolded. It must agree with t
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import gymnasium as gym
 import numpy as np
 
@@ -15,11 +17,13 @@ ENV_TASK = {"stochastic": "stochastic", "deterministic": "deterministic", "momen
             "fewshot": "stochastic", "domain": "deterministic"}  # the env protocol with the same T_obs and S
 
 
-def evaluate_stream(predictor: Predictor, task: str, test_scene: str, root=None) -> dict[str, float | int]:
+def evaluate_stream(predictor: Predictor, task: str, test_scene: str, root=None,
+                    rerun_path: str | None = None) -> dict[str, float | int]:
     """Best-of-S ADE/FDE of ``predictor`` over every benchmark window of the scene's test recordings.
 
     Args:
         test_scene: the scene whose recordings are replayed (for a domain pair, its target).
+        rerun_path: ``run.rrd`` -> one recording per replayed file, ``run_<recording>.rrd``.
 
     Returns:
         {"samples", "ade", "fde"}: matured predictions and their mean errors in metres.
@@ -30,8 +34,12 @@ def evaluate_stream(predictor: Predictor, task: str, test_scene: str, root=None)
     t_obs = TASKS[task]["obs_len"]
     samples, ade_sum, fde_sum = 0, 0.0, 0.0
     for recording in info.recordings:
+        rerun = None
+        if rerun_path is not None:
+            base = Path(rerun_path)
+            rerun = str(base.with_name(f"{base.stem}_{recording}{base.suffix or '.rrd'}"))
         env = gym.make(f"STCrowd-{info.name.capitalize()}-v0", recording=recording, predictor=predictor,
-                       task=ENV_TASK[task], ego=False, benchmark_windows=True, root=root,
+                       task=ENV_TASK[task], ego=False, benchmark_windows=True, root=root, rerun=rerun,
                        max_episode_steps=10**7, disable_env_checker=True)
         env.reset(seed=0, options={"start_index": t_obs - 1})
         action = np.zeros(2, np.float32)

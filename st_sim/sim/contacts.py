@@ -5,7 +5,8 @@ pymunk detects a contact only once two shapes overlap, so two pedestrians closin
 ahead instead: for every pair (and every body and each wall near it) it removes the part of the closing speed
 that would overrun the gap. Overlapping pairs may not close further and open at half their overlap per
 substep. The correction is split equally between two pedestrians, or taken wholly by a pedestrian at a
-wall; a few over-relaxed Jacobi sweeps settle bodies with several neighbours. pymunk resolves the rest.
+wall; a few over-relaxed Jacobi sweeps settle bodies with several neighbours, and bodies that still close
+a gap after them stand still for the substep. pymunk resolves the rest.
 """
 
 from __future__ import annotations
@@ -18,6 +19,8 @@ from st_sim.sim.walls import NearbyWalls
 
 SWEEPS = 20  # most Jacobi sweeps over all constraints per substep
 OMEGA = 1.5  # over-relaxation of the averaged Jacobi corrections between bodies [-]
+FREEZE_PASSES = 4  # rounds of stopping the bodies that the sweeps left closing a gap
+FREEZE_TOLERANCE_MPS = 0.01  # closing speed beyond the allowed one that counts as closing [m/s]
 REACH_FACTOR = 2.0  # constraints cover gaps up to this multiple of the distance the bodies could close [-]
 SKIN_M = 0.1  # ... plus this much, for bodies at rest that a correction may set moving [m]
 OVERLAP_OPENING = 0.5  # share of an existing overlap opened per substep [-]
@@ -81,4 +84,15 @@ def keep_apart(velocity_mps: np.ndarray, radius_m: np.ndarray, movable: np.ndarr
         excess = np.maximum((v[slots].reshape(-1, 4) * coef).sum(axis=1) - allowed, 0.0)
         if not excess.any():
             break
+    # safety net where the sweeps did not settle (dense jams): whoever would still close a gap stands still,
+    # which can only relieve its neighbours' constraints, except those of followers; repeat for them
+    no_closer = np.maximum(allowed, 0.0) + FREEZE_TOLERANCE_MPS
+    for _ in range(FREEZE_PASSES):
+        stuck = (v[slots].reshape(-1, 4) * coef).sum(axis=1) > no_closer
+        if not stuck.any():
+            break
+        frozen = np.zeros(n + 1, bool)
+        frozen[bodies.reshape(-1, 2)[stuck].ravel()] = True
+        frozen[n] = False
+        v[np.tile(frozen, 2)] = 0.0
     return np.stack([v[:n], v[n + 1: 2 * n + 1]], axis=-1)
