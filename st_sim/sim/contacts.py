@@ -17,9 +17,9 @@ from st_sim.sim.config import WALL_RADIUS_M
 from st_sim.sim.steering import Neighbours, dot
 from st_sim.sim.walls import NearbyWalls
 
-SWEEPS = 20  # most Jacobi sweeps over all constraints per substep
+SWEEPS = 12  # most Jacobi sweeps over all constraints per substep
 OMEGA = 1.5  # over-relaxation of the averaged Jacobi corrections between bodies [-]
-FREEZE_PASSES = 4  # rounds of stopping the bodies that the sweeps left closing a gap
+FREEZE_PASSES = 50  # most rounds of stopping the bodies left closing a gap (one round per follower in a queue)
 FREEZE_TOLERANCE_MPS = 0.01  # closing speed beyond the allowed one that counts as closing [m/s]
 REACH_FACTOR = 2.0  # constraints cover gaps up to this multiple of the distance the bodies could close [-]
 SKIN_M = 0.1  # ... plus this much, for bodies at rest that a correction may set moving [m]

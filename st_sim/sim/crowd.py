@@ -81,7 +81,8 @@ class CrowdSim:
         if ego is not None:
             start = layout.ego_start_m if ego.start_m is None else np.asarray(ego.start_m, dtype=np.float64)
             self._ego_body = physics.add_ego(self.space, start, ego.radius_m)
-            self._admit(Roster.of([self._ego_body.id], [-1], [0], [0.0], [ego.radius_m], 0), [self._ego_body])
+            self._admit(Roster.of([self._ego_body.id], [-1], [0], [0.0], [ego.radius_m], np.zeros(2), 0),
+                        [self._ego_body])
             self.space.on_collision(physics.EGO_TYPE, None, pre_solve=self._on_ego_contact)
             keep_clear_m = start[None]
         self._place_initial(self.max_pedestrians if n_initial is None else min(n_initial, self.max_pedestrians),
@@ -111,8 +112,8 @@ class CrowdSim:
 
     @property
     def velocities_mps(self) -> np.ndarray:
-        """(N, 2) float64 pedestrian velocities [m/s], rows aligned with ``ids``."""
-        return self._v_mps[self._order]
+        """(N, 2) float64 velocities [m/s] the pedestrians moved with in the last substep, aligned with ``ids``."""
+        return self._roster.moved_mps[self._order]
 
     @property
     def goals_m(self) -> np.ndarray:
@@ -127,8 +128,8 @@ class CrowdSim:
 
     @property
     def ego_velocity_mps(self) -> np.ndarray | None:
-        """(2,) ego velocity [m/s] after the last step, or None without an ego."""
-        return None if self._ego_slot is None else self._v_mps[self._ego_slot].copy()
+        """(2,) velocity [m/s] the ego moved with in the last substep, or None without an ego."""
+        return None if self._ego_slot is None else self._roster.moved_mps[self._ego_slot].copy()
 
     @property
     def ego_collided(self) -> bool:
@@ -165,6 +166,7 @@ class CrowdSim:
             self._batch.write(safe_v, mass_kg * (wanted_v - safe_v) / self._dt_s)
             self.space.step(self._dt_s)
             self._ego_collided |= self._ego_touches_wall()
+            roster.moved_mps[:] = safe_v
         self.step_count += 1
         xy_m, _ = self._batch.read()  # rows follow the roster: nothing was added or removed during the step
         self._reroute_stuck(xy_m)
@@ -198,7 +200,7 @@ class CrowdSim:
         ped_id = self._next_ped_id + np.arange(len(xy_m), dtype=np.int64)
         self._next_ped_id += len(xy_m)
         self._admit(Roster.of([b.id for b in bodies], ped_id, exit_idx, speed, np.full(len(xy_m), self.cfg.radius_m),
-                              self.step_count), bodies)
+                              velocity, self.step_count), bodies)
 
     def _place_initial(self, n: int, keep_clear_m: np.ndarray) -> None:
         """Place up to n pedestrians on free lattice sites, away from the points keep_clear_m (B, 2) [m]."""
@@ -279,7 +281,7 @@ class CrowdSim:
     def _settle_order(self) -> None:
         """Align the roster with pymunk's body order and cache positions, velocities and the id order."""
         self._roster = self._roster.reorder(self._batch.body_ids())
-        self._xy_m, self._v_mps = self._batch.read()
+        self._xy_m, _ = self._batch.read()
         is_ped = self._roster.ped_id >= 0
         peds = np.flatnonzero(is_ped)
         self._order = peds[np.argsort(self._roster.ped_id[peds], kind="stable")]

@@ -28,6 +28,7 @@ class Roster:
         radius_m: (K,) body radii [m].
         best_to_exit_m: (K,) shortest walking distance to the exit reached so far [m].
         progress_step: (K,) int64 step at which best_to_exit_m last dropped by PROGRESS_M.
+        moved_mps: (K, 2) velocity each body last moved with [m/s] (pymunk's body velocity is the one asked for).
     """
 
     body_id: np.ndarray
@@ -37,18 +38,20 @@ class Roster:
     radius_m: np.ndarray
     best_to_exit_m: np.ndarray
     progress_step: np.ndarray
+    moved_mps: np.ndarray
 
     @classmethod
     def of(cls, body_id: np.ndarray, ped_id: np.ndarray, exit_idx: np.ndarray, speed_mps: np.ndarray,
-           radius_m: np.ndarray, step: int) -> Roster:
+           radius_m: np.ndarray, moved_mps: np.ndarray, step: int) -> Roster:
         """New rows (M,) that have made no progress yet, as of step."""
         return cls(np.asarray(body_id, np.int64), np.asarray(ped_id, np.int64), np.asarray(exit_idx, np.int64),
                    np.asarray(speed_mps, np.float64), np.asarray(radius_m, np.float64),
-                   np.full(len(body_id), np.inf), np.full(len(body_id), step, np.int64))
+                   np.full(len(body_id), np.inf), np.full(len(body_id), step, np.int64),
+                   np.asarray(moved_mps, np.float64).reshape(-1, 2))
 
     @classmethod
     def empty(cls) -> Roster:
-        return cls.of(np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0), 0)
+        return cls.of(np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0), np.zeros((0, 2)), 0)
 
     def __len__(self) -> int:
         return len(self.body_id)
