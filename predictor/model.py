@@ -93,6 +93,7 @@ class SingularTrajectory:
         self.refiner = refiner.eval()
         self.seed = seed
         self.bases = torch.tensor(np.stack([s.basis for s in spaces]), dtype=torch.float32)  # (2, 24, K)
+        self._noise: torch.Tensor | None = None
 
     # ---------------------------------------------------------------- inputs
     def prepare(self, obs: np.ndarray, group: np.ndarray, scenes: list[Scene | None],
@@ -156,10 +157,13 @@ class SingularTrajectory:
         inputs = self.prepare(obs, group, [scene], np.zeros(len(obs), np.int64))
         t = self.tensors(inputs)
         noise = self.sampler_noise().expand_as(t["anchors"])
-        order = torch.argsort(t["group"], stable=True)  # windows contiguous, so chunks keep them whole
+        if len(obs) <= BATCH_AGENTS:
+            chunks = [torch.arange(len(obs))]
+        else:
+            order = torch.argsort(t["group"], stable=True)  # windows contiguous, so chunks keep them whole
+            chunks = [order[chunk] for chunk in window_batches(t["group"][order], BATCH_AGENTS, None)]
         local = torch.empty(len(obs), self.cfg.num_samples, T_WIN, 2)
-        for chunk in window_batches(t["group"][order], BATCH_AGENTS, None):
-            idx = order[chunk]
+        for idx in chunks:
             ctx = self.refiner.context(t["history"][idx], t["anchors"][idx], t["group"][idx])
             residual = self.refiner.sample(t["anchors"][idx], ctx, noise[idx], steps)
             local[idx] = self.paths_local(t["anchors"][idx], residual, t["population"][idx])
@@ -175,8 +179,10 @@ class SingularTrajectory:
         Shared, so an agent's futures depend only on its own window, never on which other agents happen to
         be in the same call (the stream and the offline evaluation then agree exactly).
         """
-        generator = torch.Generator().manual_seed(self.seed)
-        return self.cfg.init_noise * torch.randn((1, self.cfg.num_samples, self.cfg.k), generator=generator)
+        if self._noise is None:
+            generator = torch.Generator().manual_seed(self.seed)
+            self._noise = self.cfg.init_noise * torch.randn((1, self.cfg.num_samples, self.cfg.k), generator=generator)
+        return self._noise
 
     def predict(self, obs: np.ndarray, group: np.ndarray, scene: Scene | None = None,
                 num_samples: int | None = None) -> np.ndarray:

@@ -77,9 +77,18 @@ class Refiner(nn.Module):
 
     def predict_x0(self, x_m: torch.Tensor, m: torch.Tensor, anchors: torch.Tensor, ctx: torch.Tensor) -> torch.Tensor:
         """Clean residual (B, S, K) from noisy residual x_m (B, S, K) at steps m (B,)."""
-        h = self.embed_residual(torch.cat([x_m.flatten(1), anchors.flatten(1)], dim=1))
-        h = h + ctx + self.embed_step(self.step_table[m])
-        return self.denoise(h).view_as(x_m)
+        return self._denoise(x_m, self._step_invariant(anchors, ctx) + self.embed_step(self.step_table[m]))
+
+    def _step_invariant(self, anchors: torch.Tensor, ctx: torch.Tensor) -> torch.Tensor:
+        """(B, dim): the anchors' share of the residual embedding plus the context (same at every step)."""
+        sk = anchors[0].numel()
+        weight, bias = self.embed_residual.weight, self.embed_residual.bias
+        return torch.nn.functional.linear(anchors.flatten(1), weight[:, sk:], bias) + ctx
+
+    def _denoise(self, x_m: torch.Tensor, condition: torch.Tensor) -> torch.Tensor:
+        """Clean residual from x_m (B, S, K) and the summed conditions (B or 1, dim)."""
+        weight = self.embed_residual.weight[:, :x_m[0].numel()]
+        return self.denoise(torch.nn.functional.linear(x_m.flatten(1), weight) + condition).view_as(x_m)
 
     def sample(self, anchors: torch.Tensor, ctx: torch.Tensor, noise: torch.Tensor, steps: int | None = None
                ) -> torch.Tensor:
@@ -90,9 +99,11 @@ class Refiner(nn.Module):
         total = self.cfg.steps
         schedule = torch.linspace(total, 0, (steps or total) + 1).round().long().tolist()
         x = noise
+        invariant = self._step_invariant(anchors, ctx)  # computed once for all M steps
+        step_bias = self.embed_step(self.step_table)  # (M + 1, dim), one row per step, shared by all agents
         for m, m_next in itertools.pairwise(schedule):
             a, a_next = self.alpha_bar[m], self.alpha_bar[m_next]
-            x0 = self.predict_x0(x, torch.full((len(x),), m), anchors, ctx)
+            x0 = self._denoise(x, invariant + step_bias[m])
             eps = (x - a.sqrt() * x0) / (1 - a).sqrt()
             x = a_next.sqrt() * x0 + (1 - a_next).sqrt() * eps if m_next > 0 else x0
         return x

@@ -6,7 +6,7 @@ the B-spline length adapter C_T, so histories (2 or 8 steps) and futures (12) sh
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -27,6 +27,7 @@ class SingularSpace:
 
     basis: np.ndarray
     singular_values: np.ndarray
+    _projections: dict[int, np.ndarray] = field(default_factory=dict, repr=False, compare=False)
 
     @property
     def k(self) -> int:
@@ -44,7 +45,9 @@ class SingularSpace:
         flat = paths.reshape(len(paths), 2 * steps)
         if steps == T_WIN:
             return flat @ self.basis
-        return flat @ np.linalg.pinv(self.basis_at(steps)).T
+        if steps not in self._projections:  # (2 steps, K) least-squares projector, computed once per length
+            self._projections[steps] = np.linalg.pinv(self.basis_at(steps)).T
+        return flat @ self._projections[steps]
 
     def reconstruct(self, coefficients: np.ndarray, steps: int = T_WIN) -> np.ndarray:
         """(..., K) coefficients -> (..., steps, 2) agent-frame paths."""

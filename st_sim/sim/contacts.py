@@ -17,7 +17,7 @@ from st_sim.sim.config import WALL_RADIUS_M
 from st_sim.sim.steering import Neighbours, dot
 from st_sim.sim.walls import NearbyWalls
 
-SWEEPS = 12  # most Jacobi sweeps over all constraints per substep
+SWEEPS = 8  # most Jacobi sweeps over all constraints per substep
 OMEGA = 1.5  # over-relaxation of the averaged Jacobi corrections between bodies [-]
 FREEZE_PASSES = 50  # most rounds of stopping the bodies left closing a gap (one round per follower in a queue)
 FREEZE_TOLERANCE_MPS = 0.01  # closing speed beyond the allowed one that counts as closing [m/s]
