@@ -1,7 +1,7 @@
 """Speculative contacts: trim velocities so that bodies do not sink into each other or into walls.
 
 pymunk detects a contact only once two shapes overlap, so two pedestrians closing at 2.6 m/s would sink
-26 cm into each other during a 0.1 s substep before pymunk pushed back. ``keep_apart`` looks one substep
+some 35 cm into each other during one 0.13 s substep before pymunk pushed back. ``keep_apart`` looks one substep
 ahead instead: for every pair (and every body and each wall near it) it removes the part of the closing speed
 that would overrun the gap. Overlapping pairs may not close further and open at half their overlap per
 substep. The correction is split equally between two pedestrians, or taken wholly by a pedestrian at a
