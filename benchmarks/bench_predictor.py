@@ -1,11 +1,11 @@
 """SingularTrajectory speed on this machine: inference latency and (with --train) time to a trained model.
 
-    OMP_NUM_THREADS=1 STCROWD_DATA=../shared/datasets/eth_ucy python benchmarks/bench_predictor.py [--train]
+    OMP_NUM_THREADS=1 STCROWD_DATA=../shared/datasets/eth_ucy python benchmarks/bench_predictor.py [--train univ zara1]
 
 Inference: 50 agents x 20 samples x 12 steps on one core (target <= 10 ms), split into input preparation
 (agent frames, Singular-space projection, map-adaptive anchors) and the 10-step refiner; the constant-velocity
-baseline is timed in the same run for a ratio. Training: one stochastic ZARA1 model with the default
-configuration, then its test ADE/FDE beside the paper's (target: within 0.005 m in <= 10 min).
+baseline is timed in the same run for a ratio. Training: one stochastic model per named scene with the
+default configuration, then its test ADE/FDE beside the paper's (target: within 0.005 m in <= 10 min).
 """
 
 from __future__ import annotations
@@ -53,34 +53,37 @@ def inference(model, repeats: int) -> None:
     print(f"  constant velocity          {med(cvm):7.2f} ms   ratio {med(full) / med(cvm):.0f}x")
 
 
-def training() -> None:
+def training(scene: str) -> None:
     from predictor.checkpoint import load
     from predictor.train import TrainConfig, main
     from st_sim.evaluate import evaluate_scene
 
     with tempfile.TemporaryDirectory() as out:
         start = time.perf_counter()
-        best = main(TrainConfig(task="stochastic", scene="zara1", out=out, progress=False))
+        best = main(TrainConfig(task="stochastic", scene=scene, out=out, progress=False))
         wall = time.perf_counter() - start
-        r = evaluate_scene(load(best), "stochastic", "zara1")
-    print(f"training stochastic/zara1 (default config, 1 thread): {wall:.0f} s wall including data preparation")
+        r = evaluate_scene(load(best), "stochastic", scene)
+    within = abs(r.ade - r.paper_ade) <= 0.005 and abs(r.fde - r.paper_fde) <= 0.005
+    print(f"training stochastic/{scene} (default config, 1 thread): {wall:.0f} s wall including data preparation")
     print(f"  test ADE {r.ade:.4f}  FDE {r.fde:.4f}   paper {r.paper_ade} / {r.paper_fde}   "
-          f"delta {r.ade - r.paper_ade:+.4f} / {r.fde - r.paper_fde:+.4f}")
+          f"delta {r.ade - r.paper_ade:+.4f} / {r.fde - r.paper_fde:+.4f}   "
+          f"{'within' if within else 'NOT within'} 0.005 m of the paper, {'in' if wall <= 600 else 'over'} 10 min")
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--checkpoint", default=None, help="checkpoint to time (default: shipped stochastic/zara1)")
     parser.add_argument("--repeats", type=int, default=50, help="timed calls (default: 50)")
-    parser.add_argument("--train", action="store_true", help="also train one ZARA1 model and score it")
+    parser.add_argument("--train", nargs="*", default=[], metavar="SCENE",
+                        help="also train one stochastic model per scene and score it (default: none)")
     args = parser.parse_args()
     torch.set_num_threads(1)
     import predictor
 
     model = predictor.load(args.checkpoint) if args.checkpoint else predictor.load_pretrained("stochastic/zara1")
     inference(model, args.repeats)
-    if args.train:
-        training()
+    for scene in args.train:
+        training(scene)
 
 
 if __name__ == "__main__":

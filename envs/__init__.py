@@ -25,21 +25,12 @@ for _scene in REPLAY_SCENES:
         max_episode_steps=MAX_EPISODE_STEPS,
     )
 
-# Simulated: pymunk crowds in synthetic layouts (no data needed)
-for _layout in SIM_LAYOUTS:
+# Simulated: pymunk crowds in synthetic layouts (no data needed) or in a real scene's geometry (data root)
+for _layout in SIM_LAYOUTS + REPLAY_SCENES:
     register(
         id=f"STCrowd-Sim{_layout}-v0",
         entry_point="envs.sim_env:SimCrowdEnv",
         kwargs={"layout": _layout.lower()},
-        max_episode_steps=MAX_EPISODE_STEPS,
-    )
-
-# Simulated: pymunk crowds in a real scene's geometry (needs the data root)
-for _scene in REPLAY_SCENES:
-    register(
-        id=f"STCrowd-Sim{_scene}-v0",
-        entry_point="envs.sim_env:SimCrowdEnv",
-        kwargs={"layout": _scene.lower()},
         max_episode_steps=MAX_EPISODE_STEPS,
     )
 

@@ -18,9 +18,9 @@ def make_predictor(name: str, task: str, scene: str, root=None, runs_dir: str = 
     """The predictor ``name`` prepared for one task and scene (or domain pair).
 
     ``cvm-s`` fits its heading noise on that task's training split. ``singular`` uses
-    ``runs_dir/<task>/<scene>/best.pt``; without it, the shipped checkpoint (stochastic leave-one-out),
-    or, with ``train_missing``, it trains that checkpoint first (resuming an interrupted run). Any other
-    value is a checkpoint file, or a folder holding ``<task>/<scene>/best.pt``.
+    ``runs_dir/<task>/<scene>/best.pt``. If that is missing, ``train_missing`` trains it (resuming an
+    interrupted run); otherwise the shipped checkpoint is used where one exists (stochastic
+    leave-one-out). Any other value is a checkpoint file, or a folder holding ``<task>/<scene>/best.pt``.
     """
     if name == "cvm":
         return ConstantVelocity()
@@ -35,18 +35,17 @@ def make_predictor(name: str, task: str, scene: str, root=None, runs_dir: str = 
 
     if name == "singular":
         checkpoint = Path(runs_dir) / task / scene / "best.pt"
+        if not checkpoint.is_file() and train_missing:
+            from predictor.train import TrainConfig, main
+
+            main(TrainConfig(task=task, scene=scene, out=str(checkpoint.parent), data_root=root, progress=progress))
         if checkpoint.is_file():
             return load(checkpoint, task=task)
         if f"{task}/{scene}" in pretrained_manifest()["checkpoints"]:
             return load_pretrained(f"{task}/{scene}")
-        if not train_missing:
-            raise FileNotFoundError(f"no checkpoint for {task}/{scene} at {checkpoint}; pass --train-missing to "
-                                    f"train it, or `python -m predictor train --task {task} --scene {scene} "
-                                    f"--out {checkpoint.parent}`")
-        from predictor.train import TrainConfig, main
-
-        main(TrainConfig(task=task, scene=scene, out=str(checkpoint.parent), data_root=root, progress=progress))
-        return load(checkpoint, task=task)
+        raise FileNotFoundError(f"no checkpoint for {task}/{scene} at {checkpoint}; pass --train-missing to "
+                                f"train it, or `python -m predictor train --task {task} --scene {scene} "
+                                f"--out {checkpoint.parent}`")
     path = Path(name)
     if path.is_dir():
         path = path / task / scene / "best.pt"

@@ -68,7 +68,7 @@ STREAM_TOLERANCE_M = 1e-6  # stream and offline ADE/FDE must agree to this
 
 def evaluate_scene(predictor: Predictor, task: str, scene: str, num_samples: int | None = None,
                    momentary_from_8: bool = False, root=None, steps: int | None = None,
-                   stream: bool = False, rerun_path: str | None = None) -> SceneResult:
+                   stream: bool = False, rerun_path: str | None = None, progress: bool = False) -> SceneResult:
     """Score ``predictor`` on the test split of one scene (or domain pair ``"A2B"``).
 
     Args:
@@ -97,7 +97,7 @@ def evaluate_scene(predictor: Predictor, task: str, scene: str, num_samples: int
     if stream and not momentary_from_8 and steps is None:
         from st_sim.stream_eval import evaluate_stream
 
-        streamed = evaluate_stream(predictor, task, target_scene(task, scene), root, rerun_path)
+        streamed = evaluate_stream(predictor, task, target_scene(task, scene), root, rerun_path, progress)
         result.stream_samples, result.stream_ade, result.stream_fde = (
             streamed["samples"], streamed["ade"], streamed["fde"])
         if (streamed["samples"] != result.samples or abs(streamed["ade"] - result.ade) > STREAM_TOLERANCE_M
@@ -126,7 +126,7 @@ def evaluate_task(make_predictor: Callable[[str, str], Predictor], task: str, sc
         rerun = None if rerun_path is None else str(Path(rerun_path).with_name(f"{Path(rerun_path).stem}_{task}"
                                                                                    f"_{scene}.rrd"))
         results[scene] = evaluate_scene(make_predictor(task, scene), task, scene, None, momentary_from_8, root,
-                                        stream=stream, rerun_path=rerun)
+                                        stream=stream, rerun_path=rerun, progress=progress)
     avg = {"ade": float(np.mean([r.ade for r in results.values()])),
            "fde": float(np.mean([r.fde for r in results.values()]))}
     paper_avg = paper_numbers(task, "avg")

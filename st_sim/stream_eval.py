@@ -8,6 +8,7 @@ from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
+from tqdm import tqdm
 
 from predictor.protocol import Predictor
 from replays.constants import TASKS
@@ -18,12 +19,13 @@ ENV_TASK = {"stochastic": "stochastic", "deterministic": "deterministic", "momen
 
 
 def evaluate_stream(predictor: Predictor, task: str, test_scene: str, root=None,
-                    rerun_path: str | None = None) -> dict[str, float | int]:
+                    rerun_path: str | None = None, progress: bool = False) -> dict[str, float | int]:
     """Best-of-S ADE/FDE of ``predictor`` over every benchmark window of the scene's test recordings.
 
     Args:
         test_scene: the scene whose recordings are replayed (for a domain pair, its target).
         rerun_path: ``run.rrd`` -> one recording per replayed file, ``run_<recording>.rrd``.
+        progress: show a progress bar over the replayed steps.
 
     Returns:
         {"samples", "ade", "fde"}: matured predictions and their mean errors in metres.
@@ -43,7 +45,8 @@ def evaluate_stream(predictor: Predictor, task: str, test_scene: str, root=None,
                        max_episode_steps=10**7, disable_env_checker=True)
         env.reset(seed=0, options={"start_index": t_obs - 1})
         action = np.zeros(2, np.float32)
-        while True:
+        total = len(env.unwrapped.replay.frames) - t_obs
+        for _ in tqdm(range(total), desc=f"stream {recording}", unit="step", leave=False, disable=not progress):
             _, _, terminated, truncated, info_step = env.step(action)
             if terminated or truncated:
                 break
