@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from predictor.normalize import rotate
 from predictor.protocol import check_inputs
 from replays.constants import T_PRED
 from replays.scenes import Scene
@@ -13,13 +14,6 @@ from replays.scenes import Scene
 FUTURE_STEPS = np.arange(1, T_PRED + 1, dtype=np.float32)  # (12,) steps ahead of the last observation
 SIGMA_GRID_RAD = np.linspace(0.0, 1.0, 41)  # CVM-S heading-noise candidates [rad]
 FIT_MAX_SAMPLES = 4000  # sigma is fitted on at most this many training samples (fixed subset)
-
-
-def rotate(vectors: np.ndarray, angles_rad: np.ndarray) -> np.ndarray:
-    """Rotate (..., 2) vectors by (...) angles [rad]."""
-    c, s = np.cos(angles_rad), np.sin(angles_rad)
-    x, y = vectors[..., 0], vectors[..., 1]
-    return np.stack([c * x - s * y, s * x + c * y], axis=-1)
 
 
 class ConstantVelocity:

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 import os
-import tempfile
 from dataclasses import asdict
 from importlib import resources
 from pathlib import Path
@@ -13,8 +12,9 @@ import numpy as np
 import torch
 
 from predictor.model import ModelConfig, SingularTrajectory
-from predictor.refiner import Refiner, RefinerConfig
+from predictor.refiner import Refiner
 from predictor.singular_space import SingularSpace
+from replays.atomic import atomic_path
 
 FORMAT = "stcrowd-singular-trajectory/1"
 PRETRAINED_DIR = "pretrained"
@@ -43,8 +43,7 @@ def model_state(model: SingularTrajectory, half: bool = False) -> dict:
 def model_from_state(state: dict) -> SingularTrajectory:
     """Rebuild a predictor from ``model_state``'s output."""
     cfg = ModelConfig(**state["config"])
-    refiner = Refiner(RefinerConfig(history_dim=cfg.history_dim, num_samples=cfg.num_samples, k=cfg.k,
-                                    dim=cfg.dim, heads=cfg.heads, layers=cfg.layers, steps=cfg.steps))
+    refiner = Refiner(cfg.refiner_config())
     refiner.load_state_dict({k: v.float() for k, v in state["weights"].items()})
     spaces = [SingularSpace(b.double().numpy(), sv.double().numpy())
               for b, sv in zip(state["bases"], state["singular_values"], strict=True)]
@@ -54,17 +53,9 @@ def model_from_state(state: dict) -> SingularTrajectory:
 
 def save_atomic(obj: dict, path: Path) -> Path:
     """torch.save through a temp file in the same folder and a rename (never a half-written file)."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp")
-    os.close(fd)
-    try:
+    with atomic_path(path) as tmp:
         torch.save(obj, tmp)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-    return path
+    return Path(path)
 
 
 def read_checkpoint(path: str | os.PathLike) -> dict:

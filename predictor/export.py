@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import json
 import os
-import tempfile
 from importlib import resources
 from pathlib import Path
 
 from predictor.checkpoint import PRETRAINED_DIR, load, model_state, read_checkpoint, save_atomic
+from replays.atomic import write_text_atomic
 from replays.scenes import SCENE_NAMES
 
 
@@ -52,8 +52,5 @@ def export_checkpoint(checkpoint: str | os.PathLike, name: str, root=None) -> di
     manifest_path = pretrained_dir() / "manifest.json"
     manifest = json.loads(manifest_path.read_text()) if manifest_path.is_file() else {"checkpoints": {}}
     manifest["checkpoints"][name] = entry
-    fd, tmp = tempfile.mkstemp(dir=manifest_path.parent, suffix=".json.tmp")
-    with os.fdopen(fd, "w") as f:
-        json.dump(manifest, f, indent=1, sort_keys=True)
-    os.replace(tmp, manifest_path)
+    write_text_atomic(manifest_path, json.dumps(manifest, indent=1, sort_keys=True))
     return entry

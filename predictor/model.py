@@ -12,9 +12,9 @@ import numpy as np
 import torch
 
 from predictor.anchors import adaptive_anchors
-from predictor.normalize import AgentFrame, agent_frames
+from predictor.normalize import AgentFrame, agent_frames, rotate
 from predictor.protocol import check_inputs, empty_prediction
-from predictor.refiner import Refiner
+from predictor.refiner import Refiner, RefinerConfig
 from predictor.singular_space import T_WIN, SingularSpace
 from replays.scenes import Scene
 
@@ -51,6 +51,11 @@ class ModelConfig:
     """M, DDIM steps"""
     init_noise: float = 1.0
     """scale of the starting noise x_M of the sampler"""
+
+    def refiner_config(self) -> RefinerConfig:
+        """The refiner's architecture for this model."""
+        return RefinerConfig(history_dim=self.history_dim, num_samples=self.num_samples, k=self.k, dim=self.dim,
+                             heads=self.heads, layers=self.layers, steps=self.steps)
 
     @property
     def history_dim(self) -> int:
@@ -110,9 +115,9 @@ class SingularTrajectory:
         anchors, anchor_paths = np.zeros((n, s, k)), np.zeros((2, n, s, T_WIN, 2))
         for i, scene in enumerate(scenes):
             mask = scene_index == i
-            sub = AgentFrame(*(getattr(frames, f)[mask] for f in ("origin_m", "angle_rad", "scale_m", "slow")))
             anchors[mask], anchor_paths[:, mask] = adaptive_anchors(
-                self.anchors, sub, self.spaces, population[mask], scene if self.cfg.adapt_anchors else None)
+                self.anchors, frames.subset(mask), self.spaces, population[mask],
+                scene if self.cfg.adapt_anchors else None)
         history = np.concatenate([
             history_local.reshape(n, -1), history_coef / self.coef_scale[population][:, None],
             np.log(frames.scale_m)[:, None], frames.slow[:, None],
@@ -220,8 +225,7 @@ def _interaction_features(obs: np.ndarray, group: np.ndarray, frames: AgentFrame
     sums = np.zeros((len(counts), 2))
     np.add.at(sums, inverse, last)
     offset = last - (sums / counts[:, None])[inverse]  # metres from the window centroid
-    c, s = np.cos(-frames.angle_rad), np.sin(-frames.angle_rad)
-    offset_local = np.stack([c * offset[:, 0] - s * offset[:, 1], s * offset[:, 0] + c * offset[:, 1]], axis=-1)
+    offset_local = rotate(offset, -frames.angle_rad)
     velocity = obs[:, -1] - obs[:, -2]
     if not world:
         offset, velocity = np.zeros_like(offset), np.zeros_like(velocity)

@@ -34,16 +34,21 @@ class AgentFrame:
         """(N, ..., 2) world metres -> agent frame (same shape)."""
         extra = (slice(None),) + (None,) * (xy_m.ndim - 2)
         rel = xy_m - self.origin_m[extra]
-        return _rotate(rel, -self.angle_rad[extra]) / self.scale_m[extra][..., None]
+        return rotate(rel, -self.angle_rad[extra]) / self.scale_m[extra][..., None]
 
     def to_world(self, xy: np.ndarray) -> np.ndarray:
         """(N, ..., 2) agent frame -> world metres (same shape)."""
         extra = (slice(None),) + (None,) * (xy.ndim - 2)
-        return _rotate(xy * self.scale_m[extra][..., None], self.angle_rad[extra]) + self.origin_m[extra]
+        return rotate(xy * self.scale_m[extra][..., None], self.angle_rad[extra]) + self.origin_m[extra]
+
+    def subset(self, mask: np.ndarray) -> AgentFrame:
+        """Frames of the agents where ``mask`` (N,) is true."""
+        return AgentFrame(self.origin_m[mask], self.angle_rad[mask], self.scale_m[mask], self.slow[mask])
 
 
-def _rotate(xy: np.ndarray, angle: np.ndarray) -> np.ndarray:
-    c, s = np.cos(angle), np.sin(angle)
+def rotate(xy: np.ndarray, angle_rad: np.ndarray) -> np.ndarray:
+    """Rotate (..., 2) vectors counter-clockwise by (...) angles [rad]."""
+    c, s = np.cos(angle_rad), np.sin(angle_rad)
     return np.stack([c * xy[..., 0] - s * xy[..., 1], s * xy[..., 0] + c * xy[..., 1]], axis=-1)
 
 

@@ -16,10 +16,10 @@ import torch
 from tqdm import tqdm
 
 from predictor.anchors import prototype_anchors
-from predictor.checkpoint import model_from_state, model_state, read_checkpoint, save_atomic
+from predictor.checkpoint import model_state, read_checkpoint, save_atomic
 from predictor.model import ModelConfig, SingularTrajectory, window_batches
 from predictor.normalize import agent_frames
-from predictor.refiner import Refiner, RefinerConfig
+from predictor.refiner import Refiner
 from predictor.singular_space import fit_singular_space
 from replays.constants import TASKS
 from replays.data_root import data_root, expected_sums
@@ -112,10 +112,8 @@ def fit_model(cfg: TrainConfig, train: Windows) -> SingularTrajectory:
         anchors.append(protos)
         coef_scale.append(coefs.std())
         residual_scale.append(np.sqrt((nearest**2).mean() / cfg.k))
-    refiner = Refiner(RefinerConfig(history_dim=model_cfg.history_dim, num_samples=model_cfg.num_samples, k=cfg.k,
-                                    dim=cfg.dim, heads=model_cfg.heads, layers=model_cfg.layers, steps=cfg.steps))
     return SingularTrajectory(model_cfg, spaces, np.stack(anchors), np.array(coef_scale), np.array(residual_scale),
-                              refiner, seed=cfg.seed)
+                              Refiner(model_cfg.refiner_config()), seed=cfg.seed)
 
 
 def split_tensors(model: SingularTrajectory, windows: Windows, root) -> dict[str, torch.Tensor]:
@@ -123,10 +121,10 @@ def split_tensors(model: SingularTrajectory, windows: Windows, root) -> dict[str
     scenes, index = split_scenes(windows, root)
     inputs = model.prepare(windows.obs, windows.group, scenes, index)
     tensors = model.tensors(inputs)
-    truth = inputs.frames.to_agent(windows.fut.astype(np.float64)) * inputs.frames.scale_m[:, None, None]
+    local = inputs.frames.to_agent(windows.fut.astype(np.float64))  # (N, 12, 2) agent frame, speed units
+    truth = local * inputs.frames.scale_m[:, None, None]
     tensors["truth_m"] = torch.from_numpy(truth.astype(np.float32))  # (N, 12, 2) agent-frame axes, metres
     coefs = np.zeros((len(windows), model.cfg.k))
-    local = inputs.frames.to_agent(windows.fut.astype(np.float64))
     for p, space in enumerate(model.spaces):
         mask = inputs.population == p
         coefs[mask] = space.project(local[mask])
@@ -199,31 +197,26 @@ def main(cfg: TrainConfig) -> Path:
 
     # ---- optimiser and schedule: AdamW, linear warm-up then cosine decay (per batch)
     refiner = model.refiner
+    resume = read_checkpoint(out / "last.pt") if (out / "last.pt").is_file() else None
+    if resume is not None:  # an interrupted run: same data -> same spaces and anchors; restore the weights
+        if resume["train_config"] != asdict(cfg):
+            raise ValueError(f"{out / 'last.pt'}: was written with another configuration; use a new --out")
+        refiner.load_state_dict(resume["model"]["weights"])
     optimizer = torch.optim.AdamW(refiner.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
     per_epoch = len(window_batches(t_train["group"], cfg.batch_agents, None))
     total, warmup = cfg.epochs * per_epoch, max(1, int(cfg.warmup_epochs * per_epoch))
     schedule = torch.optim.lr_scheduler.LambdaLR(optimizer, lambda i: min((i + 1) / warmup, 0.5 * (
         1 + math.cos(math.pi * min(1.0, max(0, i - warmup) / max(1, total - warmup))))))
-
-    # ---- resume from last.pt if this run was interrupted
     start_epoch, best, history = 0, {"fde": float("inf")}, []
-    if (out / "last.pt").is_file():
-        state = read_checkpoint(out / "last.pt")
-        if state["train_config"] != asdict(cfg):
-            raise ValueError(f"{out / 'last.pt'}: was written with another configuration; use a new --out")
-        model = model_from_state(state["model"])
-        model.seed = cfg.seed
-        refiner = model.refiner
-        optimizer = torch.optim.AdamW(refiner.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
-        optimizer.load_state_dict(state["optimizer"])
-        schedule.optimizer = optimizer
-        schedule.load_state_dict(state["schedule"])
-        start_epoch, best, history = state["epoch"] + 1, state["best"], state["history"]
-        print(f"{run_name}: resuming after epoch {state['epoch'] + 1}")
+    if resume is not None:
+        optimizer.load_state_dict(resume["optimizer"])
+        schedule.load_state_dict(resume["schedule"])
+        start_epoch, best, history = resume["epoch"] + 1, resume["best"], resume["history"]
+        print(f"{run_name}: resuming after epoch {start_epoch}")
 
     # ---- loop: epochs -> batches -> loss -> clip -> step; validation FDE picks best.pt
     generator = torch.Generator()
-    began = time.perf_counter()
+    began = time.perf_counter() - (history[-1]["wall_s"] if history else 0.0)  # wall time counts earlier epochs
     for epoch in range(start_epoch, cfg.epochs):
         refiner.train()
         generator.manual_seed(cfg.seed * 1000 + epoch)

@@ -7,13 +7,13 @@ files go through it. ``write_recording`` writes the same format atomically.
 from __future__ import annotations
 
 import os
-import tempfile
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
 
 import numpy as np
 
+from replays.atomic import write_text_atomic
 from replays.errors import DataFormatError
 
 N_COLUMNS = 4  # frame_id, agent_id, x [m], y [m]
@@ -139,9 +139,5 @@ def write_recording(path: str | os.PathLike, frame: np.ndarray, agent: np.ndarra
         f"{f:d}\t{a:d}\t{x:.6f}\t{y:.6f}\n"
         for f, a, (x, y) in zip(frame[order].tolist(), agent[order].tolist(), xy_m[order].tolist(), strict=True)
     )
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp")
-    with os.fdopen(fd, "w") as f:
-        f.write(body)
-    os.replace(tmp, path)
+    write_text_atomic(path, body)
     return path

@@ -10,12 +10,12 @@ from __future__ import annotations
 
 import hashlib
 import os
-import tempfile
 from dataclasses import dataclass, fields
 from pathlib import Path
 
 import numpy as np
 
+from replays.atomic import atomic_path
 from replays.constants import COORD_DECIMALS, FEWSHOT_EVERY, MIN_AGENTS_PER_WINDOW, SPLITS, T_PRED, TASKS
 from replays.data_root import data_root
 from replays.errors import DataRootError
@@ -140,11 +140,8 @@ def file_windows(path: Path, obs_len: int) -> dict[str, np.ndarray]:
 
 def _save_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".npz.tmp")
-        with os.fdopen(fd, "wb") as f:
-            np.savez(f, **arrays)
-        os.replace(tmp, path)
+        with atomic_path(path) as tmp:
+            np.savez(tmp, **arrays)
     except OSError:
         pass  # a read-only cache only costs speed
 

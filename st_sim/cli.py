@@ -4,10 +4,9 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import tempfile
 from pathlib import Path
 
+from replays.atomic import write_text_atomic
 from replays.constants import TASKS
 
 
@@ -79,15 +78,6 @@ def run_plot(args: argparse.Namespace) -> int:
 def write_json_atomic(path: Path, data: dict) -> None:
     """Write JSON through a temp file and a rename, so a crash never leaves half a file."""
     write_text_atomic(path, json.dumps(data, indent=1))
-
-
-def write_text_atomic(path: Path, text: str) -> None:
-    """Write text through a temp file and a rename."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
-    with os.fdopen(fd, "w") as f:
-        f.write(text)
-    os.replace(tmp, path)
 
 
 COMMANDS = {"evaluate": run_evaluate, "demo": run_demo, "plot": run_plot}

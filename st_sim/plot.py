@@ -12,12 +12,12 @@ so an agent has the same colour in the PNGs and in the Rerun viewer.
 from __future__ import annotations
 
 import os
-import tempfile
 from pathlib import Path
 
 import cv2
 import numpy as np
 
+from replays.atomic import atomic_path
 from replays.scenes import Scene
 
 # Colours are RGB. The agent palette leaves out green, orange and grey, which mark ground truth and anchors.
@@ -212,13 +212,6 @@ def _write_png(image_rgb: np.ndarray, path: Path) -> Path:
     ok, data = cv2.imencode(".png", cv2.cvtColor(image_rgb, cv2.COLOR_RGB2BGR))
     if not ok:
         raise ValueError(f"{path}: OpenCV could not encode the figure as PNG")
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as file:
-            file.write(data.tobytes())
-        os.chmod(tmp, 0o644)  # mkstemp creates owner-only files; a figure is for everyone
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    with atomic_path(path) as tmp:
+        tmp.write_bytes(data.tobytes())
     return path
