@@ -34,12 +34,13 @@ VARIANTS = {  # name -> (scene, overrides of TrainConfig)
 }
 
 
-def run_variant(runs: Path, name: str, scene: str, overrides: dict) -> dict:
+def run_variant(runs: Path, name: str, scene: str, overrides: dict, task: str = "stochastic") -> dict:
+    """Train (or reuse) one variant in ``runs/<name>`` and score it on ``scene``'s test split."""
     out = runs / name.replace(" ", "_").replace("(", "").replace(")", "").replace(",", "")
-    cfg = replace(TrainConfig(task="stochastic", scene=scene, out=str(out), progress=False), **overrides)
+    cfg = replace(TrainConfig(task=task, scene=scene, out=str(out), progress=False), **overrides)
     if not (out / "best.pt").is_file() or read_checkpoint(out / "last.pt")["epoch"] + 1 < cfg.epochs:
         train(cfg)
-    r = evaluate_scene(load(out / "best.pt"), "stochastic", scene)
+    r = evaluate_scene(load(out / "best.pt"), task, scene)
     wall = read_checkpoint(out / "last.pt")["history"][-1]["wall_s"]
     return {"name": name, "scene": scene, "ade": r.ade, "fde": r.fde, "map": r.map_violation,
             "paths": r.path_map_violation, "wall": wall}

@@ -13,6 +13,7 @@ import numpy as np
 from envs.common.config import EnvConfig
 from envs.common.crowd_env import CrowdEnv
 from envs.common.ego import spawn_start_goal, walkable_points
+from envs.common.predictors import shipped_checkpoint
 from envs.common.tracks import Frame
 from replays.constants import COORD_DECIMALS, MIN_AGENTS_PER_WINDOW, STEP_S, T_PRED
 from replays.data_root import data_root
@@ -99,7 +100,7 @@ class ReplayCrowdEnv(CrowdEnv):
     ## Arguments
     scene (eth, hotel, univ, zara1, zara2), recording (univ: students001 (default) or students003),
     predictor ("auto" (default): SingularTrajectory's leave-one-out checkpoint of this scene, which never
-    saw it, or "cvm" for momentary; "cvm", "cvm-s", "linear", "singular" or an object with ``predict``),
+    saw it, for 8 or 2 observed frames; "cvm", "cvm-s", "linear", "singular" or an object with ``predict``),
     task (stochastic:
     T_obs 8, S 20; deterministic: 8, 1; momentary: 2, 20), ego, render_mode ("rgb_array"), config
     (``EnvConfig``), root: the ETH/UCY data root (default $STCROWD_DATA or the user cache),
@@ -127,7 +128,7 @@ class ReplayCrowdEnv(CrowdEnv):
         self.replay = replays[recording]
         n_max = max(int(r.present.sum(axis=1).max()) for r in replays.values())
         super().__init__(load_scene(info.name, root), n_max, str(self.replay.path), predictor, task, ego,
-                         render_mode, config, pretrained=f"stochastic/{info.name}", rerun=rerun)
+                         render_mode, config, pretrained=shipped_checkpoint(task, info.name), rerun=rerun)
         observed = self.replay.xy_m[self.replay.present]
         margin = self.cfg.arena_margin_m
         self.arena_low_m, self.arena_high_m = observed.min(axis=0) - margin, observed.max(axis=0) + margin

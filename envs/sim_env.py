@@ -10,6 +10,7 @@ import numpy as np
 
 from envs.common.config import EnvConfig
 from envs.common.crowd_env import CrowdEnv
+from envs.common.predictors import shipped_checkpoint
 from envs.common.tracks import Frame
 from replays.data_root import data_root
 from replays.scenes import SCENES, load_scene
@@ -76,9 +77,9 @@ class SimCrowdEnv(CrowdEnv):
     ## Arguments
     layout (crossing, corridor, bottleneck, or eth, hotel, univ, zara1, zara2 for a real scene's walls and
     openings, which needs the data root), predictor ("auto" (default): the universal SingularTrajectory
-    checkpoint, "cvm" for momentary; or as ``ReplayCrowdEnv``), task, ego, render_mode, config (``EnvConfig``; its
-    ego radius and speed limit go to the simulator), crowd (``st_sim.sim.CrowdConfig``), root (data root),
-    rerun (a .rrd path or "spawn": log every step to Rerun).
+    checkpoint, trained on all five scenes, for 8 or 2 observed frames; or as ``ReplayCrowdEnv``), task, ego,
+    render_mode, config (``EnvConfig``; its ego radius and speed limit go to the simulator), crowd
+    (``st_sim.sim.CrowdConfig``), root (data root), rerun (a .rrd path or "spawn": log every step to Rerun).
 
     ## Version History
     - v0: initial version.
@@ -91,7 +92,7 @@ class SimCrowdEnv(CrowdEnv):
         self.layout = build_layout(layout, root)
         self.crowd_cfg = crowd or CrowdConfig()
         super().__init__(self.layout.scene, population_cap(self.crowd_cfg, self.layout), f"sim layout {layout}",
-                         predictor, task, ego, render_mode, config, rerun=rerun)
+                         predictor, task, ego, render_mode, config, shipped_checkpoint(task, None), rerun=rerun)
         self.sim: CrowdSim | None = None
 
     def _reset_world(self, options: dict) -> list[Frame]:

@@ -91,7 +91,8 @@ def pretrained_manifest() -> dict:
 
 
 def load_pretrained(name: str = "universal") -> SingularTrajectory:
-    """A shipped checkpoint by name: ``"stochastic/eth"`` ... ``"stochastic/zara2"`` or ``"universal"``."""
+    """A shipped checkpoint by name: ``"stochastic/eth"`` ... ``"stochastic/zara2"``, ``"universal"``, and their
+    2-frame counterparts ``"momentary/eth"`` ... ``"momentary/zara2"``, ``"momentary/universal"``."""
     manifest = pretrained_manifest()
     if name not in manifest["checkpoints"]:
         raise KeyError(f"no shipped checkpoint {name!r}; available: {', '.join(manifest['checkpoints'])}")

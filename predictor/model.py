@@ -42,7 +42,9 @@ class ModelConfig:
     adapt_anchors: bool = True
     """bend prototype paths onto walkable pixels (False = fixed prototype anchors)"""
     dim: int = 256
-    """refiner width"""
+    """width of the refiner's context transformer"""
+    denoiser_dim: int = 128
+    """width of the refiner's denoiser MLP"""
     heads: int = 4
     """attention heads"""
     layers: int = 1
@@ -55,7 +57,7 @@ class ModelConfig:
     def refiner_config(self) -> RefinerConfig:
         """The refiner's architecture for this model."""
         return RefinerConfig(history_dim=self.history_dim, num_samples=self.num_samples, k=self.k, dim=self.dim,
-                             heads=self.heads, layers=self.layers, steps=self.steps)
+                             denoiser_dim=self.denoiser_dim, heads=self.heads, layers=self.layers, steps=self.steps)
 
     @property
     def history_dim(self) -> int:
@@ -146,7 +148,7 @@ class SingularTrajectory:
         return flat.view(*coefs.shape[:2], T_WIN, 2)
 
     # ---------------------------------------------------------------- prediction
-    @torch.no_grad()
+    @torch.inference_mode()
     def predict_detailed(self, obs: np.ndarray, group: np.ndarray, scene: Scene | None,
                          num_samples: int | None = None, steps: int | None = None) -> Prediction:
         """Futures, prototype and adapted anchors, each (N, S, 12, 2) world metres."""

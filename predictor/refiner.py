@@ -27,7 +27,9 @@ class RefinerConfig:
     k: int = 4
     """Singular-space dimension"""
     dim: int = 256
-    """width of the context transformer and of the denoiser"""
+    """width of the context transformer"""
+    denoiser_dim: int = 128
+    """width of the denoiser MLP (run M times per prediction, so it dominates inference time)"""
     heads: int = 4
     """attention heads of the interaction layer"""
     layers: int = 1
@@ -57,15 +59,16 @@ class Refiner(nn.Module):
     def __init__(self, cfg: RefinerConfig):
         super().__init__()
         self.cfg = cfg
-        d, sk = cfg.dim, cfg.num_samples * cfg.k
+        d, h, sk = cfg.dim, cfg.denoiser_dim, cfg.num_samples * cfg.k
         self.encode_history = nn.Sequential(nn.Linear(cfg.history_dim + sk, d), nn.SiLU(), nn.Linear(d, d))
         layer = nn.TransformerEncoderLayer(d, cfg.heads, dim_feedforward=2 * d, dropout=0.0, batch_first=True,
                                            norm_first=True)
         self.interact = nn.TransformerEncoder(layer, cfg.layers, enable_nested_tensor=False)
-        self.embed_residual = nn.Linear(2 * sk, d)
-        self.embed_step = nn.Linear(d, d)
-        self.denoise = nn.Sequential(nn.SiLU(), nn.Linear(d, d), nn.SiLU(), nn.Linear(d, d), nn.SiLU(),
-                                     nn.Linear(d, sk))
+        self.embed_context = nn.Linear(d, h, bias=False)
+        self.embed_residual = nn.Linear(2 * sk, h)
+        self.embed_step = nn.Linear(d, h)
+        self.denoise = nn.Sequential(nn.SiLU(), nn.Linear(h, h), nn.SiLU(), nn.Linear(h, h), nn.SiLU(),
+                                     nn.Linear(h, sk))
         self.register_buffer("alpha_bar", cosine_alpha_bar(cfg.steps), persistent=False)
         self.register_buffer("step_table", step_embedding(torch.arange(cfg.steps + 1), d), persistent=False)
 
@@ -80,10 +83,10 @@ class Refiner(nn.Module):
         return self._denoise(x_m, self._step_invariant(anchors, ctx) + self.embed_step(self.step_table[m]))
 
     def _step_invariant(self, anchors: torch.Tensor, ctx: torch.Tensor) -> torch.Tensor:
-        """(B, dim): the anchors' share of the residual embedding plus the context (same at every step)."""
+        """(B, denoiser_dim): the anchors' share of the residual embedding plus the context (same at every step)."""
         sk = anchors[0].numel()
         weight, bias = self.embed_residual.weight, self.embed_residual.bias
-        return torch.nn.functional.linear(anchors.flatten(1), weight[:, sk:], bias) + ctx
+        return torch.nn.functional.linear(anchors.flatten(1), weight[:, sk:], bias) + self.embed_context(ctx)
 
     def _denoise(self, x_m: torch.Tensor, condition: torch.Tensor) -> torch.Tensor:
         """Clean residual from x_m (B, S, K) and the summed conditions (B or 1, dim)."""
@@ -98,14 +101,18 @@ class Refiner(nn.Module):
         """
         total = self.cfg.steps
         schedule = torch.linspace(total, 0, (steps or total) + 1).round().long().tolist()
+        alpha_bar = self.alpha_bar.tolist()
         x = noise
         invariant = self._step_invariant(anchors, ctx)  # computed once for all M steps
-        step_bias = self.embed_step(self.step_table)  # (M + 1, dim), one row per step, shared by all agents
+        step_bias = self.embed_step(self.step_table)  # (M + 1, denoiser_dim), one row per step, shared by all agents
         for m, m_next in itertools.pairwise(schedule):
-            a, a_next = self.alpha_bar[m], self.alpha_bar[m_next]
             x0 = self._denoise(x, invariant + step_bias[m])
-            eps = (x - a.sqrt() * x0) / (1 - a).sqrt()
-            x = a_next.sqrt() * x0 + (1 - a_next).sqrt() * eps if m_next > 0 else x0
+            if m_next == 0:
+                return x0
+            # x_next = sqrt(a_next) x0 + sqrt(1 - a_next) eps, with eps = (x - sqrt(a) x0) / sqrt(1 - a)
+            a, a_next = alpha_bar[m], alpha_bar[m_next]
+            keep = math.sqrt((1 - a_next) / (1 - a))
+            x = (math.sqrt(a_next) - keep * math.sqrt(a)) * x0 + keep * x
         return x
 
     def eps_loss(self, x0: torch.Tensor, anchors: torch.Tensor, ctx: torch.Tensor, generator: torch.Generator

@@ -18,7 +18,7 @@ from tqdm import tqdm
 from predictor.anchors import prototype_anchors
 from predictor.checkpoint import model_state, read_checkpoint, save_atomic
 from predictor.model import ModelConfig, SingularTrajectory, window_batches
-from predictor.normalize import agent_frames
+from predictor.normalize import SLOW_SPEED_M, agent_frames
 from predictor.refiner import Refiner
 from predictor.singular_space import fit_singular_space
 from replays.constants import TASKS
@@ -26,7 +26,10 @@ from replays.data_root import data_root, expected_sums
 from replays.scenes import load_scene, scene_of_recording
 from replays.windows import Windows, load_windows, split_files
 
-SINGLE_SAMPLE_SCALE_FLOOR_M = 0.05  # slow agents' speed-scale floor for S = 1 (measured: RESULTS.md)
+# Single-sample tasks (deterministic, domain; S = 1): one mean anchor must follow each agent's own speed, so
+# more agents are speed-scaled than for S = 20 (both settings measured: RESULTS.md).
+SINGLE_SAMPLE_SLOW_SPEED_M = 0.1  # slow-population threshold for S = 1 [m per step]
+SINGLE_SAMPLE_SCALE_FLOOR_M = 0.05  # slow agents' speed-scale floor for S = 1 [m per step]
 
 
 @dataclass(frozen=True)
@@ -56,16 +59,18 @@ class TrainConfig:
     k: int = 4
     """Singular-space dimension K"""
     dim: int = 256
-    """refiner width"""
+    """width of the refiner's context transformer"""
+    denoiser_dim: int = 128
+    """width of the refiner's denoiser MLP"""
     steps: int = 10
     """M, DDIM steps"""
     adapt_anchors: bool = True
     """map-adaptive anchors (False = fixed prototypes)"""
-    slow_speed_m: float = 0.3
-    """slow-population threshold [m per 0.4 s step]"""
+    slow_speed_m: float | None = None
+    """slow-population threshold [m per 0.4 s step]; None: 0.1 for single-sample tasks, 0.3 otherwise"""
     slow_scale_floor_m: float | None = None
     """0: slow agents unscaled; > 0: scaled by max(speed, this) [m per step]; None: 0.05 for single-sample
-    tasks (deterministic, domain: one mean anchor must follow each agent's own speed) and 0 otherwise"""
+    tasks and 0 otherwise"""
     world_features: bool = True
     """world-frame inputs (centroid offset, velocity); False = orientation-invariant inputs"""
     init_noise: float = 1.0
@@ -93,12 +98,17 @@ def split_scenes(windows: Windows, root) -> tuple[list, np.ndarray]:
 def fit_model(cfg: TrainConfig, train: Windows) -> SingularTrajectory:
     """Singular spaces, prototype anchors and coefficient scales from the training windows; fresh refiner."""
     task = TASKS[cfg.task]
+    single = task["num_samples"] == 1
     floor_m = cfg.slow_scale_floor_m
     if floor_m is None:
-        floor_m = SINGLE_SAMPLE_SCALE_FLOOR_M if task["num_samples"] == 1 else 0.0
+        floor_m = SINGLE_SAMPLE_SCALE_FLOOR_M if single else 0.0
+    slow_speed_m = cfg.slow_speed_m
+    if slow_speed_m is None:
+        slow_speed_m = SINGLE_SAMPLE_SLOW_SPEED_M if single else SLOW_SPEED_M
     model_cfg = ModelConfig(task=cfg.task, obs_len=task["obs_len"], num_samples=task["num_samples"], k=cfg.k,
-                            adapt_anchors=cfg.adapt_anchors, dim=cfg.dim, steps=cfg.steps, init_noise=cfg.init_noise,
-                            slow_speed_m=cfg.slow_speed_m, world_features=cfg.world_features,
+                            adapt_anchors=cfg.adapt_anchors, dim=cfg.dim, denoiser_dim=cfg.denoiser_dim,
+                            steps=cfg.steps, init_noise=cfg.init_noise,
+                            slow_speed_m=slow_speed_m, world_features=cfg.world_features,
                             slow_scale_floor_m=floor_m)
     frames = agent_frames(train.obs, model_cfg.scale_by_speed, model_cfg.slow_speed_m, model_cfg.slow_scale_floor_m)
     futures = frames.to_agent(train.fut.astype(np.float64))

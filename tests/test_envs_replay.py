@@ -189,8 +189,8 @@ def test_replay_singular_loads_the_scenes_leave_one_out_checkpoint(monkeypatch: 
     assert asked == ["stochastic/zara1"] and isinstance(env.unwrapped.predictor, ShiftedCVM)
     gym.make("STCrowd-Hotel-v0")  # the default ("auto") is SingularTrajectory for the stochastic task
     assert asked[-1] == "stochastic/hotel"
-    momentary = gym.make("STCrowd-Hotel-v0", task="momentary")  # no 2-frame model ships: CVM
-    assert type(momentary.unwrapped.predictor).__name__ == "ConstantVelocity"
+    gym.make("STCrowd-Hotel-v0", task="momentary")  # 2 observed frames: the 2-frame leave-one-out model
+    assert asked[-1] == "momentary/hotel"
 
 
 def test_replay_singular_without_checkpoint_gives_clear_error(monkeypatch: pytest.MonkeyPatch) -> None:

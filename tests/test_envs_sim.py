@@ -81,3 +81,13 @@ def test_sim_spectator_has_no_ego() -> None:
 def test_sim_unknown_layout_is_rejected() -> None:
     with pytest.raises(ValueError, match="crossing"):
         gym.make("STCrowd-SimCrossing-v0", layout="maze")
+
+
+@pytest.mark.parametrize("task, t_obs", [("stochastic", 8), ("momentary", 2)])
+def test_sim_default_predictor_is_the_universal_singular_model_for_its_history_length(task: str, t_obs: int) -> None:
+    env = gym.make("STCrowd-SimCrossing-v0", task=task)
+    model = env.unwrapped.predictor
+    assert type(model).__name__ == "SingularTrajectory" and model.cfg.obs_len == t_obs
+    obs, _ = env.reset(seed=0)
+    present = obs["futures_mask"]
+    assert present.any() and np.isfinite(obs["futures"][present]).all()

@@ -24,7 +24,7 @@ def test_missing_checkpoint_says_how_to_train_it(tmp_path):
     from predictor.registry import make_predictor
 
     with pytest.raises(FileNotFoundError, match="--train-missing"):
-        make_predictor("singular", "momentary", "eth", runs_dir=str(tmp_path))
+        make_predictor("singular", "deterministic", "eth", runs_dir=str(tmp_path))  # none ships for S = 1
 
 
 def test_evaluate_cli_out_folder_gets_json_and_markdown(tmp_path, capsys):

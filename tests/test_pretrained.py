@@ -10,7 +10,8 @@ from predictor.checkpoint import pretrained_manifest
 from replays import load_scene, load_windows
 from st_sim.metrics import ade_fde
 
-NAMES = [f"stochastic/{s}" for s in ("eth", "hotel", "univ", "zara1", "zara2")] + ["universal"]
+SCENES = ("eth", "hotel", "univ", "zara1", "zara2")
+NAMES = [f"{task}/{s}" for task in ("stochastic", "momentary") for s in SCENES] + ["universal", "momentary/universal"]
 
 
 def test_manifest_lists_every_shipped_checkpoint_with_its_numbers():
@@ -25,8 +26,9 @@ def test_manifest_lists_every_shipped_checkpoint_with_its_numbers():
 @pytest.mark.parametrize("name", NAMES, ids=NAMES)
 def test_pretrained_loads_by_name_and_beats_its_manifest_bound(name):
     model = predictor.load_pretrained(name)
-    scene = "zara1" if name == "universal" else name.split("/")[1]
-    test = load_windows("stochastic", scene, "test")
+    task = "momentary" if name.startswith("momentary") else "stochastic"
+    scene = "zara1" if name.endswith("universal") else name.split("/")[1]
+    test = load_windows(task, scene, "test")
     keep = test.group < 40  # a slice of whole windows keeps the test fast
     pred = model.predict(test.obs[keep], test.group[keep], load_scene(scene), 20)
     assert pred.shape == (keep.sum(), 20, 12, 2)

@@ -14,7 +14,7 @@ from predictor.train import TrainConfig, main
 from replays import load_scene, load_windows
 from st_sim.metrics import ade_fde
 
-SMALL = {"epochs": 2, "dim": 64, "max_train_windows": 400, "batch_agents": 256, "progress": False}
+SMALL = {"epochs": 2, "dim": 64, "denoiser_dim": 64, "max_train_windows": 400, "batch_agents": 256, "progress": False}
 
 
 @pytest.fixture(scope="module")

@@ -24,16 +24,27 @@ def task_sizes(task: str) -> tuple[int, int]:
     return TASKS[task]["obs_len"], TASKS[task]["num_samples"]
 
 
+def shipped_checkpoint(task: str, scene: str | None) -> str:
+    """Name of the shipped SingularTrajectory checkpoint an env uses for ``task`` on a real ``scene``.
+
+    A replay gets its scene's leave-one-out model, which never saw that scene: ``stochastic/<scene>`` (also
+    for the deterministic task, which keeps the likeliest sample), or ``momentary/<scene>`` for 2-frame
+    observations. A simulated layout (``scene`` None) gets the model trained on all five scenes:
+    ``universal`` or ``momentary/universal``.
+    """
+    if scene is None:
+        return "momentary/universal" if task == "momentary" else "universal"
+    return f"{'momentary' if task == 'momentary' else 'stochastic'}/{scene}"
+
+
 def resolve_predictor(spec: Any, task: str = "stochastic", pretrained: str = "universal") -> Any:
     """A predictor object from a name (auto, cvm, cvm-s, linear, singular) or an object with ``predict``.
 
-    ``singular`` loads the shipped checkpoint ``pretrained`` (a replay env passes its scene's leave-one-out
-    model, ``"stochastic/<scene>"``, which never saw that scene; simulated layouts use ``"universal"``);
-    torch is only imported then. ``auto`` is ``singular`` for the stochastic and deterministic tasks and
-    ``cvm`` for momentary, for which no 2-frame model ships.
+    ``singular`` (and ``auto``, its alias) loads the shipped checkpoint ``pretrained`` (see
+    ``shipped_checkpoint``); torch is only imported then.
     """
     if spec == "auto":
-        spec = "cvm" if task == "momentary" else "singular"
+        spec = "singular"
     if isinstance(spec, str):
         from predictor.baselines import BASELINES
 

@@ -1,0 +1,53 @@
+"""The diffusion refiner: DDIM sampling matches its textbook form; widths and shapes; S = 1 defaults."""
+
+from __future__ import annotations
+
+import itertools
+
+import pytest
+import torch
+
+from predictor.refiner import Refiner, RefinerConfig
+from predictor.train import SINGLE_SAMPLE_SLOW_SPEED_M, TrainConfig, fit_model
+from replays import load_windows
+
+
+def reference_ddim(refiner: Refiner, anchors: torch.Tensor, ctx: torch.Tensor, noise: torch.Tensor) -> torch.Tensor:
+    """Deterministic DDIM written out step by step: x0 from the network, eps from x0, then the next x."""
+    x = noise
+    steps = refiner.cfg.steps
+    for m, m_next in itertools.pairwise(range(steps, -1, -1)):
+        a, a_next = refiner.alpha_bar[m], refiner.alpha_bar[m_next]
+        x0 = refiner.predict_x0(x, torch.full((len(x),), m), anchors, ctx)
+        eps = (x - a.sqrt() * x0) / (1 - a).sqrt()
+        x = a_next.sqrt() * x0 + (1 - a_next).sqrt() * eps if m_next > 0 else x0
+    return x
+
+
+@pytest.mark.parametrize("denoiser_dim", [32, 64])
+def test_sampler_matches_textbook_ddim(denoiser_dim: int) -> None:
+    torch.manual_seed(0)
+    cfg = RefinerConfig(history_dim=10, num_samples=5, k=4, dim=32, denoiser_dim=denoiser_dim, heads=2, steps=6)
+    refiner = Refiner(cfg).eval()
+    history, anchors = torch.randn(7, 10), torch.randn(7, 5, 4)
+    group = torch.tensor([0, 0, 0, 1, 1, 2, 2])
+    noise = torch.randn(7, 5, 4)
+    with torch.no_grad():
+        ctx = refiner.context(history, anchors, group)
+        fast = refiner.sample(anchors, ctx, noise)
+        slow = reference_ddim(refiner, anchors, ctx, noise)
+    assert fast.shape == (7, 5, 4)
+    torch.testing.assert_close(fast, slow, rtol=1e-5, atol=1e-5)
+
+
+def test_denoiser_width_sets_the_mlp_not_the_context() -> None:
+    narrow = Refiner(RefinerConfig(history_dim=10, dim=64, denoiser_dim=32, heads=2))
+    assert narrow.denoise[-1].in_features == 32 and narrow.interact.layers[0].linear1.in_features == 64
+
+
+@pytest.mark.parametrize("task, expected_m", [("deterministic", SINGLE_SAMPLE_SLOW_SPEED_M), ("stochastic", 0.3)])
+def test_single_sample_models_default_to_a_lower_slow_threshold(task: str, expected_m: float) -> None:
+    train = load_windows(task, "zara1", "train")
+    train = train.subset(train.group < 100)
+    assert fit_model(TrainConfig(task=task, dim=32), train).cfg.slow_speed_m == expected_m
+    assert fit_model(TrainConfig(task=task, dim=32, slow_speed_m=0.2), train).cfg.slow_speed_m == 0.2
