@@ -55,6 +55,8 @@ def build_parser() -> argparse.ArgumentParser:
                        help=f"test scene (leave-one-out) or domain pair like A2B (default: {defaults.scene})")
     train.add_argument("--out", required=True, help="output folder for last.pt and best.pt")
     train.add_argument("--epochs", type=int, help=f"training epochs (default: {defaults.epochs})")
+    train.add_argument("--min-steps", type=int, help="least optimiser steps; small training sets get more epochs "
+                       f"(default: {defaults.min_steps})")
     train.add_argument("--objective", choices=["e2e", "eps"],
                        help=f"training objective (default: {defaults.objective})")
     train.add_argument("--k", type=int, help=f"Singular-space dimension (default: {defaults.k})")

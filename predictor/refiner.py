@@ -69,6 +69,8 @@ class Refiner(nn.Module):
         self.embed_step = nn.Linear(d, h)
         self.denoise = nn.Sequential(nn.SiLU(), nn.Linear(h, h), nn.SiLU(), nn.Linear(h, h), nn.SiLU(),
                                      nn.Linear(h, sk))
+        nn.init.zeros_(self.denoise[-1].weight)  # the untrained refiner predicts a zero residual: the anchors
+        nn.init.zeros_(self.denoise[-1].bias)
         self.register_buffer("alpha_bar", cosine_alpha_bar(cfg.steps), persistent=False)
         self.register_buffer("step_table", step_embedding(torch.arange(cfg.steps + 1), d), persistent=False)
 

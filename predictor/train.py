@@ -41,7 +41,9 @@ class TrainConfig:
     out: str = "runs/stochastic/zara1"
     """output folder: last.pt (resumable state) and best.pt (selected on validation FDE)"""
     epochs: int = 6
-    """passes over the training windows"""
+    """passes over the training windows (more when needed to reach ``min_steps``)"""
+    min_steps: int = 300
+    """least number of optimiser steps: small training sets (few-shot, domain sources) get more epochs"""
     batch_agents: int = 512
     """agents per batch (whole windows are kept together)"""
     lr: float = 1e-3
@@ -214,7 +216,8 @@ def main(cfg: TrainConfig) -> Path:
         refiner.load_state_dict(resume["model"]["weights"])
     optimizer = torch.optim.AdamW(refiner.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
     per_epoch = len(window_batches(t_train["group"], cfg.batch_agents, None))
-    total, warmup = cfg.epochs * per_epoch, max(1, int(cfg.warmup_epochs * per_epoch))
+    epochs = max(cfg.epochs, math.ceil(cfg.min_steps / per_epoch))
+    total, warmup = epochs * per_epoch, max(1, int(cfg.warmup_epochs * per_epoch))
     schedule = torch.optim.lr_scheduler.LambdaLR(optimizer, lambda i: min((i + 1) / warmup, 0.5 * (
         1 + math.cos(math.pi * min(1.0, max(0, i - warmup) / max(1, total - warmup))))))
     start_epoch, best, history = 0, {"fde": float("inf")}, []
@@ -227,12 +230,12 @@ def main(cfg: TrainConfig) -> Path:
     # ---- loop: epochs -> batches -> loss -> clip -> step; validation FDE picks best.pt
     generator = torch.Generator()
     began = time.perf_counter() - (history[-1]["wall_s"] if history else 0.0)  # wall time counts earlier epochs
-    for epoch in range(start_epoch, cfg.epochs):
+    for epoch in range(start_epoch, epochs):
         refiner.train()
         generator.manual_seed(cfg.seed * 1000 + epoch)
         losses = []
         bar = tqdm(window_batches(t_train["group"], cfg.batch_agents, generator), desc=f"{run_name} epoch {epoch + 1}/"
-                   f"{cfg.epochs}", leave=False, disable=not cfg.progress)
+                   f"{epochs}", leave=False, disable=not cfg.progress)
         for step, idx in enumerate(bar):
             if cfg.objective == "e2e":
                 ade, fde = best_of_s(rollout(model, t_train, idx, noise_seed=epoch * 100_000 + step),
@@ -253,8 +256,9 @@ def main(cfg: TrainConfig) -> Path:
         record = {"epoch": epoch + 1, "train/loss": float(np.mean(losses)), "val/ade_m": val_ade,
                   "val/fde_m": val_fde, "wall_s": time.perf_counter() - began}
         history.append(record)
-        print(f"{run_name} epoch {epoch + 1}: loss {record['train/loss']:.4f}  val ADE {val_ade:.4f}  "
-              f"FDE {val_fde:.4f}  ({record['wall_s']:.0f} s)")
+        if epochs <= 20 or (epoch + 1) % (epochs // 10) == 0 or epoch + 1 == epochs:  # at most ~20 lines
+            print(f"{run_name} epoch {epoch + 1}: loss {record['train/loss']:.4f}  val ADE {val_ade:.4f}  "
+                  f"FDE {val_fde:.4f}  ({record['wall_s']:.0f} s)")
         meta = {"train_config": asdict(cfg), "data_checksums": checksums, "history": history}
         if val_fde < best["fde"]:
             best = {"fde": val_fde, "ade": val_ade, "epoch": epoch + 1}

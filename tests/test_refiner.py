@@ -4,12 +4,13 @@ from __future__ import annotations
 
 import itertools
 
+import numpy as np
 import pytest
 import torch
 
 from predictor.refiner import Refiner, RefinerConfig
 from predictor.train import SINGLE_SAMPLE_SLOW_SPEED_M, TrainConfig, fit_model
-from replays import load_windows
+from replays import load_scene, load_windows
 
 
 def reference_ddim(refiner: Refiner, anchors: torch.Tensor, ctx: torch.Tensor, noise: torch.Tensor) -> torch.Tensor:
@@ -51,3 +52,17 @@ def test_single_sample_models_default_to_a_lower_slow_threshold(task: str, expec
     train = train.subset(train.group < 100)
     assert fit_model(TrainConfig(task=task, dim=32), train).cfg.slow_speed_m == expected_m
     assert fit_model(TrainConfig(task=task, dim=32, slow_speed_m=0.2), train).cfg.slow_speed_m == 0.2
+
+
+def test_untrained_refiner_returns_the_adapted_anchors() -> None:
+    train = load_windows("stochastic", "zara1", "train")
+    model = fit_model(TrainConfig(dim=32), train.subset(train.group < 100))
+    test = load_windows("stochastic", "zara1", "test")
+    keep = test.group < 20
+    detail = model.predict_detailed(test.obs[keep], test.group[keep], load_scene("zara1"), 20)
+    bent = np.abs(detail.adapted_anchors - detail.prototype_anchors).max(axis=(2, 3)) > 1e-6  # (N, S)
+    assert 0 < bent.mean() < 0.5
+    np.testing.assert_allclose(detail.futures[~bent], detail.adapted_anchors[~bent], atol=1e-4)
+    # a bent anchor is re-projected onto the K = 4 basis, which keeps it up to a small shape error
+    assert np.abs(detail.futures[bent] - detail.adapted_anchors[bent]).max() < 0.5
+    assert not np.allclose(detail.futures[:, 0], detail.futures[:, 1])  # the 20 anchors differ

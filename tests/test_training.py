@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -10,11 +11,13 @@ import torch
 
 from predictor.baselines import ConstantVelocity
 from predictor.checkpoint import CheckpointError, load, read_checkpoint
+from predictor.model import window_batches
 from predictor.train import TrainConfig, main
 from replays import load_scene, load_windows
 from st_sim.metrics import ade_fde
 
-SMALL = {"epochs": 2, "dim": 64, "denoiser_dim": 64, "max_train_windows": 400, "batch_agents": 256, "progress": False}
+SMALL = {"epochs": 2, "min_steps": 0, "dim": 64, "denoiser_dim": 64, "max_train_windows": 400, "batch_agents": 256,
+         "progress": False}
 
 
 @pytest.fixture(scope="module")
@@ -81,3 +84,12 @@ def test_model_rejects_wrong_history_length(trained):
         model.predict(np.zeros((3, 2, 2), np.float32), np.zeros(3), None, 20)
     with pytest.raises(ValueError, match="S = 20"):
         model.predict(np.zeros((3, 8, 2), np.float32), np.zeros(3), None, 21)
+
+
+def test_small_training_sets_get_epochs_up_to_min_steps(tmp_path):
+    cfg = TrainConfig(task="domain", scene="A2B", out=str(tmp_path), epochs=1, min_steps=5, dim=32, denoiser_dim=32,
+                      batch_agents=512, progress=False)
+    main(cfg)
+    batches = len(window_batches(torch.from_numpy(load_windows("domain", "A2B", "train").group), 512, None))
+    assert batches < 5  # ETH's own train portion is small: one epoch is fewer than five steps
+    assert len(read_checkpoint(tmp_path / "last.pt")["history"]) == math.ceil(5 / batches)
