@@ -41,9 +41,9 @@ def run_variant(runs: Path, name: str, scene: str, overrides: dict, task: str = 
     if not (out / "best.pt").is_file() or read_checkpoint(out / "last.pt")["epoch"] + 1 < cfg.epochs:
         train(cfg)
     r = evaluate_scene(load(out / "best.pt"), task, scene)
-    wall = read_checkpoint(out / "last.pt")["history"][-1]["wall_s"]
+    last = read_checkpoint(out / "last.pt")
     return {"name": name, "scene": scene, "ade": r.ade, "fde": r.fde, "map": r.map_violation,
-            "paths": r.path_map_violation, "wall": wall}
+            "paths": r.path_map_violation, "wall": last["history"][-1]["wall_s"], "val_fde": last["best"]["fde"]}
 
 
 def main() -> None:

@@ -53,11 +53,14 @@ class ModelConfig:
     """M, DDIM steps"""
     init_noise: float = 1.0
     """scale of the starting noise x_M of the sampler"""
+    zero_start: bool = True
+    """the refiner's output layer starts at zero (untrained refiner = anchors)"""
 
     def refiner_config(self) -> RefinerConfig:
         """The refiner's architecture for this model."""
         return RefinerConfig(history_dim=self.history_dim, num_samples=self.num_samples, k=self.k, dim=self.dim,
-                             denoiser_dim=self.denoiser_dim, heads=self.heads, layers=self.layers, steps=self.steps)
+                             denoiser_dim=self.denoiser_dim, heads=self.heads, layers=self.layers, steps=self.steps,
+                             zero_start=self.zero_start)
 
     @property
     def history_dim(self) -> int:

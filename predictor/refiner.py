@@ -36,6 +36,8 @@ class RefinerConfig:
     """interaction transformer layers"""
     steps: int = 10
     """M, DDIM denoising steps"""
+    zero_start: bool = True
+    """start the denoiser's output layer at zero, so the untrained refiner returns the anchors"""
 
 
 def cosine_alpha_bar(steps: int) -> torch.Tensor:
@@ -69,8 +71,9 @@ class Refiner(nn.Module):
         self.embed_step = nn.Linear(d, h)
         self.denoise = nn.Sequential(nn.SiLU(), nn.Linear(h, h), nn.SiLU(), nn.Linear(h, h), nn.SiLU(),
                                      nn.Linear(h, sk))
-        nn.init.zeros_(self.denoise[-1].weight)  # the untrained refiner predicts a zero residual: the anchors
-        nn.init.zeros_(self.denoise[-1].bias)
+        if cfg.zero_start:  # the untrained refiner predicts a zero residual: the futures are the anchors
+            nn.init.zeros_(self.denoise[-1].weight)
+            nn.init.zeros_(self.denoise[-1].bias)
         self.register_buffer("alpha_bar", cosine_alpha_bar(cfg.steps), persistent=False)
         self.register_buffer("step_table", step_embedding(torch.arange(cfg.steps + 1), d), persistent=False)
 

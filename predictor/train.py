@@ -75,6 +75,8 @@ class TrainConfig:
     tasks and 0 otherwise"""
     world_features: bool = True
     """world-frame inputs (centroid offset, velocity); False = orientation-invariant inputs"""
+    zero_start: bool = True
+    """the refiner's output layer starts at zero, so training starts from the anchors"""
     init_noise: float = 1.0
     """scale of the sampler's starting noise x_M (0 = a deterministic refinement chain)"""
     max_train_windows: int | None = None
@@ -109,7 +111,7 @@ def fit_model(cfg: TrainConfig, train: Windows) -> SingularTrajectory:
         slow_speed_m = SINGLE_SAMPLE_SLOW_SPEED_M if single else SLOW_SPEED_M
     model_cfg = ModelConfig(task=cfg.task, obs_len=task["obs_len"], num_samples=task["num_samples"], k=cfg.k,
                             adapt_anchors=cfg.adapt_anchors, dim=cfg.dim, denoiser_dim=cfg.denoiser_dim,
-                            steps=cfg.steps, init_noise=cfg.init_noise,
+                            steps=cfg.steps, init_noise=cfg.init_noise, zero_start=cfg.zero_start,
                             slow_speed_m=slow_speed_m, world_features=cfg.world_features,
                             slow_scale_floor_m=floor_m)
     frames = agent_frames(train.obs, model_cfg.scale_by_speed, model_cfg.slow_speed_m, model_cfg.slow_scale_floor_m)
