@@ -34,12 +34,17 @@ VARIANTS = {  # name -> (scene, overrides of TrainConfig)
 }
 
 
+def finished(last: dict, epochs: int) -> bool:
+    """Whether a run's last.pt has all its epochs (``epochs`` for runs saved before the planned total was kept)."""
+    return last["epoch"] + 1 >= last.get("epochs", epochs)
+
+
 def run_variant(runs: Path, name: str, scene: str, overrides: dict, task: str = "stochastic") -> dict:
     """Train (or reuse) one variant in ``runs/<name>`` and score it on ``scene``'s test split."""
     out = runs / name.replace(" ", "_").replace("(", "").replace(")", "").replace(",", "")
     cfg = replace(TrainConfig(task=task, scene=scene, out=str(out), progress=False), **overrides)
-    if not (out / "best.pt").is_file() or read_checkpoint(out / "last.pt")["epoch"] + 1 < cfg.epochs:
-        train(cfg)
+    if not (out / "best.pt").is_file() or not finished(read_checkpoint(out / "last.pt"), cfg.epochs):
+        train(cfg)  # resumes an interrupted run
     r = evaluate_scene(load(out / "best.pt"), task, scene)
     last = read_checkpoint(out / "last.pt")
     return {"name": name, "scene": scene, "ade": r.ade, "fde": r.fde, "map": r.map_violation,

@@ -6,7 +6,7 @@ each has its own Singular space, prototype anchors and coefficient scales.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 import torch
@@ -58,9 +58,8 @@ class ModelConfig:
 
     def refiner_config(self) -> RefinerConfig:
         """The refiner's architecture for this model."""
-        return RefinerConfig(history_dim=self.history_dim, num_samples=self.num_samples, k=self.k, dim=self.dim,
-                             denoiser_dim=self.denoiser_dim, heads=self.heads, layers=self.layers, steps=self.steps,
-                             zero_start=self.zero_start)
+        shared = {f.name: getattr(self, f.name) for f in fields(RefinerConfig) if f.name != "history_dim"}
+        return RefinerConfig(history_dim=self.history_dim, **shared)
 
     @property
     def history_dim(self) -> int:

@@ -8,7 +8,7 @@ from __future__ import annotations
 import math
 import random
 import time
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass, fields, replace
 from pathlib import Path
 
 import numpy as np
@@ -109,11 +109,9 @@ def fit_model(cfg: TrainConfig, train: Windows) -> SingularTrajectory:
     slow_speed_m = cfg.slow_speed_m
     if slow_speed_m is None:
         slow_speed_m = SINGLE_SAMPLE_SLOW_SPEED_M if single else SLOW_SPEED_M
-    model_cfg = ModelConfig(task=cfg.task, obs_len=task["obs_len"], num_samples=task["num_samples"], k=cfg.k,
-                            adapt_anchors=cfg.adapt_anchors, dim=cfg.dim, denoiser_dim=cfg.denoiser_dim,
-                            steps=cfg.steps, init_noise=cfg.init_noise, zero_start=cfg.zero_start,
-                            slow_speed_m=slow_speed_m, world_features=cfg.world_features,
-                            slow_scale_floor_m=floor_m)
+    shared = {f.name: getattr(cfg, f.name) for f in fields(ModelConfig) if hasattr(cfg, f.name)}  # same-named
+    model_cfg = ModelConfig(**{**shared, "obs_len": task["obs_len"], "num_samples": task["num_samples"],
+                               "slow_speed_m": slow_speed_m, "slow_scale_floor_m": floor_m})
     frames = agent_frames(train.obs, model_cfg.scale_by_speed, model_cfg.slow_speed_m, model_cfg.slow_scale_floor_m)
     futures = frames.to_agent(train.fut.astype(np.float64))
     spaces, anchors, coef_scale, residual_scale = [], [], [], []
@@ -265,7 +263,7 @@ def main(cfg: TrainConfig) -> Path:
         if val_fde < best["fde"]:
             best = {"fde": val_fde, "ade": val_ade, "epoch": epoch + 1}
             save_atomic({"model": model_state(model), **meta, "best": best}, out / "best.pt")
-        save_atomic({"model": model_state(model), **meta, "best": best, "epoch": epoch,
+        save_atomic({"model": model_state(model), **meta, "best": best, "epoch": epoch, "epochs": epochs,
                      "optimizer": optimizer.state_dict(), "schedule": schedule.state_dict()}, out / "last.pt")
     return out / "best.pt"
 
