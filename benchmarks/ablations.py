@@ -18,7 +18,7 @@ import torch
 from predictor.checkpoint import load, read_checkpoint
 from predictor.train import TrainConfig
 from predictor.train import main as train
-from st_sim.evaluate import evaluate_scene
+from st_sim.scoring import evaluate_offline
 
 VARIANTS = {  # name -> (scene, overrides of TrainConfig)
     "K=1": ("zara1", {"k": 1}),
@@ -45,7 +45,7 @@ def run_variant(runs: Path, name: str, scene: str, overrides: dict, task: str = 
     cfg = replace(TrainConfig(task=task, scene=scene, out=str(out), progress=False), **overrides)
     if not (out / "best.pt").is_file() or not finished(read_checkpoint(out / "last.pt"), cfg.epochs):
         train(cfg)  # resumes an interrupted run
-    r = evaluate_scene(load(out / "best.pt"), task, scene)
+    r = evaluate_offline(load(out / "best.pt"), task, scene)
     last = read_checkpoint(out / "last.pt")
     return {"name": name, "scene": scene, "ade": r.ade, "fde": r.fde, "map": r.map_violation,
             "paths": r.path_map_violation, "wall": last["history"][-1]["wall_s"], "val_fde": last["best"]["fde"]}

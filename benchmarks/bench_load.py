@@ -16,7 +16,7 @@ t = time.perf_counter()
 from replays import load_windows
 from replays.constants import TASKS, SPLITS
 from replays.scenes import SCENE_NAMES
-from st_sim.evaluate import DOMAIN_PAIRS
+from st_sim.apps.evaluate import DOMAIN_PAIRS
 n = 0
 for task in TASKS:
     for scene in (DOMAIN_PAIRS if task == "domain" else SCENE_NAMES):

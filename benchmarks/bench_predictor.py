@@ -56,13 +56,13 @@ def inference(model, repeats: int) -> None:
 def training(scene: str) -> None:
     from predictor.checkpoint import load
     from predictor.train import TrainConfig, main
-    from st_sim.evaluate import evaluate_scene
+    from st_sim.scoring import evaluate_offline
 
     with tempfile.TemporaryDirectory() as out:
         start = time.perf_counter()
         best = main(TrainConfig(task="stochastic", scene=scene, out=out, progress=False))
         wall = time.perf_counter() - start
-        r = evaluate_scene(load(best), "stochastic", scene)
+        r = evaluate_offline(load(best), "stochastic", scene)
     within = abs(r.ade - r.paper_ade) <= 0.005 and abs(r.fde - r.paper_fde) <= 0.005
     print(f"training stochastic/{scene} (default config, 1 thread): {wall:.0f} s wall including data preparation")
     print(f"  test ADE {r.ade:.4f}  FDE {r.fde:.4f}   paper {r.paper_ade} / {r.paper_fde}   "

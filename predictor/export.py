@@ -22,7 +22,7 @@ def export_checkpoint(checkpoint: str | os.PathLike, name: str, root=None) -> di
     The test numbers are measured on the exported (fp16) weights: the scene's own test split for a
     leave-one-out model, every scene's test split for the universal one.
     """
-    from st_sim.evaluate import evaluate_scene
+    from st_sim.scoring import evaluate_offline
 
     state = read_checkpoint(checkpoint)
     cfg = state["train_config"]
@@ -35,7 +35,7 @@ def export_checkpoint(checkpoint: str | os.PathLike, name: str, root=None) -> di
     scenes = SCENE_NAMES if cfg["scene"] == "all" else (cfg["scene"],)
     test = {}
     for scene in scenes:
-        r = evaluate_scene(model, cfg["task"], scene, root=root)
+        r = evaluate_offline(model, cfg["task"], scene, root=root)
         test[scene] = {"samples": r.samples, "ade": round(r.ade, 4), "fde": round(r.fde, 4),
                        "map_violation": round(r.map_violation, 4)}
     entry = {

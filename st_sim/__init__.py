@@ -1,1 +1,4 @@
-"""Simulation core: metrics and evaluators, pymunk crowd simulator, Rerun logging and the CLI."""
+"""Simulation core: metrics and offline scoring, pymunk crowd simulator (`st_sim.sim`), Rerun logging, plots.
+
+Applications (CLI, evaluators through the envs, demo) live in `st_sim.apps`, above predictor and envs.
+"""

@@ -1,3 +1,3 @@
-from st_sim.cli import main
+from st_sim.apps.cli import main
 
 raise SystemExit(main())

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from replays.constants import T_PRED
-from st_sim.demo import goal_seeking_action, run_demo
+from st_sim.apps.demo import goal_seeking_action, run_demo
 
 
 def observation(ego_xy: tuple[float, float], goal: tuple[float, float], peds: list[tuple[float, float]],

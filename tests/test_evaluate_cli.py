@@ -2,7 +2,7 @@ from __future__ import annotations
 
 import json
 
-from st_sim.cli import main
+from st_sim.apps.cli import main
 
 
 def test_evaluate_cli_prints_table_and_writes_json(tmp_path, capsys):

@@ -6,8 +6,8 @@ import pytest
 
 import predictor
 from predictor.baselines import ConstantVelocity, ConstantVelocitySampler
-from st_sim.evaluate import evaluate_scene
-from st_sim.stream_eval import evaluate_stream
+from st_sim.apps.evaluate import evaluate_scene
+from st_sim.apps.stream_eval import evaluate_stream
 
 CASES = {
     "cvm-s/stochastic/hotel": (ConstantVelocitySampler(sigma_rad=0.3), "stochastic", "hotel"),

@@ -1,66 +1,23 @@
-"""Offline windowed evaluation: a predictor on a task's test windows -> ADE/FDE, map violations, collisions."""
+"""Benchmark evaluation: every scene of a task, offline (``st_sim.scoring``) and through the spectator env."""
 
 from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
 from tqdm import tqdm
 
 from predictor.protocol import Predictor
-from replays.constants import TASKS
-from replays.scenes import SCENE_NAMES, Scene, load_scene, scene_info
-from replays.windows import Windows, load_windows
-from st_sim.metrics import ade_fde, collision_rate, map_violation, path_map_violation
+from replays.scenes import SCENE_NAMES, scene_info
 from st_sim.paper import paper_numbers
+from st_sim.scoring import SceneResult, evaluate_offline, target_scene
 
 DOMAIN_PAIRS: tuple[str, ...] = tuple(
     f"{scene_info(a).letter}2{scene_info(b).letter}" for a in SCENE_NAMES for b in SCENE_NAMES if a != b
 )
-
-
-@dataclass
-class SceneResult:
-    """Scores of one predictor on one scene's (or domain pair's) test windows. Distances in metres."""
-
-    scene: str
-    samples: int
-    ade: float
-    fde: float
-    map_violation: float
-    """share of predicted points on non-walkable or off-image pixels"""
-    path_map_violation: float
-    """share of predicted paths with at least one such point"""
-    gt_map_violation: float
-    """the same share for the ground-truth futures (annotation noise)"""
-    collision_rate: float
-    """share of (same-window agent pair, sample) whose predictions come within 0.2 m"""
-    wall_s: float
-    paper_ade: float | None = None
-    paper_fde: float | None = None
-    stream_samples: int | None = None
-    """samples scored through the spectator environment (None: not run)"""
-    stream_ade: float | None = None
-    stream_fde: float | None = None
-
-
-def score_predictions(pred: np.ndarray, windows: Windows, scene: Scene) -> dict[str, float]:
-    """Metrics of predictions (N, S, 12, 2) against ``windows.fut``, on ``scene``'s map."""
-    ade, fde = ade_fde(pred, windows.fut)
-    return {
-        "ade": float(ade.mean()), "fde": float(fde.mean()),
-        "map_violation": map_violation(pred, scene), "path_map_violation": path_map_violation(pred, scene),
-        "gt_map_violation": map_violation(windows.fut, scene),
-        "collision_rate": collision_rate(pred, windows.group),
-    }
-
-
-def target_scene(task: str, scene: str) -> str:
-    """Scene whose map the test windows live on (the target of a domain pair)."""
-    return scene_info(scene.upper().split("2")[1]).name if task == "domain" else scene_info(scene).name
 
 
 STREAM_TOLERANCE_M = 1e-6  # stream and offline ADE/FDE must agree to this
@@ -80,22 +37,9 @@ def evaluate_scene(predictor: Predictor, task: str, scene: str, num_samples: int
         rerun_path: with ``stream``, write the replay to Rerun (see ``evaluate_stream``).
     """
     start = time.perf_counter()
-    if task == "momentary" and momentary_from_8:
-        windows = load_windows("stochastic", scene, "test", root).last_observed(2)
-    else:
-        windows = load_windows(task, scene, "test", root)
-    map_scene = load_scene(target_scene(task, scene), root)
-    samples = num_samples or TASKS[task]["num_samples"]
-    if steps is not None:
-        pred = predictor.predict_detailed(windows.obs, windows.group, map_scene, samples, steps).futures
-    else:
-        pred = predictor.predict(windows.obs, windows.group, map_scene, samples)
-    scores = score_predictions(pred, windows, map_scene)
-    paper = paper_numbers(task, scene.upper() if task == "domain" else scene)
-    result = SceneResult(scene=scene, samples=len(windows), **scores, wall_s=time.perf_counter() - start,
-                         paper_ade=paper[0] if paper else None, paper_fde=paper[1] if paper else None)
+    result = evaluate_offline(predictor, task, scene, num_samples, momentary_from_8, root, steps)
     if stream and not momentary_from_8 and steps is None:
-        from st_sim.stream_eval import evaluate_stream
+        from st_sim.apps.stream_eval import evaluate_stream
 
         streamed = evaluate_stream(predictor, task, target_scene(task, scene), root, rerun_path, progress)
         result.stream_samples, result.stream_ade, result.stream_fde = (

@@ -13,7 +13,7 @@ from replays.constants import TASKS
 def run_evaluate(args: argparse.Namespace) -> int:
     """Evaluate a predictor on one task's test windows; print a markdown table, optionally write JSON."""
     from predictor.registry import make_predictor
-    from st_sim.evaluate import evaluate_task, markdown_table
+    from st_sim.apps.evaluate import evaluate_task, markdown_table
 
     def factory(task: str, scene: str):
         return make_predictor(args.predictor, task, scene, args.data_root, args.runs, args.train_missing,
@@ -41,7 +41,7 @@ def run_evaluate(args: argparse.Namespace) -> int:
 
 def run_demo(args: argparse.Namespace) -> int:
     """Run the embedded default: a simulated crossing with an ego and the shipped predictor."""
-    from st_sim.demo import run_demo as demo
+    from st_sim.apps.demo import run_demo as demo
 
     demo(steps=args.steps, rerun_path=args.rerun, seed=args.seed)
     return 0
