@@ -1,9 +1,15 @@
 """Anchors: prototype paths (k-means in Singular space) and their adaptation to a scene's walkable map.
 
-Adaptation: each prototype path is placed at the agent (world frame); where its end point falls on a
-non-walkable pixel, the path is bent about the agent's last observed point (offset growing linearly
-with time) so the end lands on the nearest walkable pixel. The nearest-walkable-pixel field comes
-from one Euclidean distance transform per map, cached. Everything is vectorised over agents x prototypes.
+Adaptation: each prototype path is placed at the agent (world frame). Where its end point is not on a
+walkable pixel of the scene image, the path is bent so the end lands on the nearest walkable pixel.
+End points that leave the image count as not walkable (``off_image="pull"``, the default): the
+nearest-walkable-pixel field covers a canvas twice the image's size with the image in its centre, and end
+points beyond that canvas are clamped to its edge, so such a prototype is pulled back inside the image.
+``off_image="keep"`` leaves them alone (agents may leave view). Two bending shapes (``bend``):
+``"ramp"`` adds the end-point correction linearly over time (world metres); ``"scale"`` stretches the
+path about the agent's last observed point, per image axis, so its end lands on the target. The field
+comes from one Euclidean distance transform per map, cached; everything is vectorised over agents x
+prototypes.
 """
 
 from __future__ import annotations
@@ -19,6 +25,9 @@ from predictor.singular_space import T_WIN, SingularSpace
 from replays.scenes import Scene
 
 RAMP = np.arange(1, T_WIN + 1) / T_WIN  # (12,) share of the end-point correction applied at each step
+OFF_IMAGE_MODES = ("pull", "keep")
+BEND_SHAPES = ("ramp", "scale")
+MIN_AXIS_SPAN_PX = 1.0  # below this end-to-origin span on an image axis, "scale" bends that axis by a ramp
 
 
 def prototype_anchors(coefficients: np.ndarray, num_anchors: int, seed: int = 0) -> np.ndarray:
@@ -38,40 +47,74 @@ _FIELDS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 def nearest_walkable_field(scene: Scene) -> np.ndarray:
-    """(2, H, W) int row and column of the nearest walkable pixel for every pixel (cached per scene)."""
+    """(2, 2H, 2W) int32 row and column (image pixels) of the nearest walkable pixel, over the padded canvas.
+
+    The canvas is the (H, W) map centred in a non-walkable border of H/2 rows and W/2 columns on each
+    side; canvas pixel (r, c) is image pixel (r - H//2, c - W//2). Cached per scene.
+    """
     if scene not in _FIELDS:
         if not scene.walkable.any():
             raise ValueError(f"{scene}: walkability map has no walkable pixel")
-        _, indices = distance_transform_edt(~scene.walkable, return_indices=True)
-        _FIELDS[scene] = indices
+        height, width = scene.walkable.shape
+        canvas = np.pad(scene.walkable, ((height // 2, height - height // 2), (width // 2, width - width // 2)))
+        _, indices = distance_transform_edt(~canvas, return_indices=True)
+        indices[0] -= height // 2
+        indices[1] -= width // 2
+        _FIELDS[scene] = indices.astype(np.int32)
     return _FIELDS[scene]
 
 
-def adapt_paths(paths_m: np.ndarray, scene: Scene) -> tuple[np.ndarray, np.ndarray]:
-    """Bend world paths whose end point is on a non-walkable pixel of ``scene``.
+def _end_targets(end_px: np.ndarray, scene: Scene, off_image: str) -> tuple[np.ndarray, np.ndarray]:
+    """Nearest walkable pixel (..., 2) for end points (..., 2) [px], and which end points must move (...)."""
+    height, width = scene.walkable.shape
+    uv = np.rint(np.nan_to_num(end_px, nan=-1.0, posinf=4.0 * width, neginf=-4.0 * width))
+    inside = (uv[..., 0] >= 0) & (uv[..., 0] < width) & (uv[..., 1] >= 0) & (uv[..., 1] < height)
+    u = np.clip(uv[..., 0] + width // 2, 0, 2 * width - 1).astype(np.intp)  # canvas column, clamped
+    v = np.clip(uv[..., 1] + height // 2, 0, 2 * height - 1).astype(np.intp)
+    field = nearest_walkable_field(scene)
+    on_wall = inside & ~scene.walkable[np.where(inside, uv[..., 1], 0).astype(np.intp),
+                                       np.where(inside, uv[..., 0], 0).astype(np.intp)]
+    moved = on_wall | ~inside if off_image == "pull" else on_wall
+    return np.stack([field[1, v, u], field[0, v, u]], axis=-1).astype(np.float64), moved
+
+
+def adapt_paths(paths_m: np.ndarray, scene: Scene, origin_m: np.ndarray | None = None, off_image: str = "pull",
+                bend: str = "ramp") -> tuple[np.ndarray, np.ndarray]:
+    """Bend world paths whose end point is not on a walkable pixel of ``scene`` (see module docstring).
 
     Args:
         paths_m: (N, S, 12, 2) world metres; step 0 is the first future step.
+        origin_m: (N, 2) last observed points [m]; needed by ``bend="scale"``.
+        off_image: "pull" end points off the image back onto it, or "keep" them.
+        bend: "ramp" or "scale".
 
     Returns:
         adapted: (N, S, 12, 2) world metres.  moved: (N, S) bool, paths that were bent.
     """
-    end_m = paths_m[:, :, -1]
-    uv = np.rint(scene.world_to_pixel(end_m))
-    height, width = scene.walkable.shape
-    inside = (uv[..., 0] >= 0) & (uv[..., 0] < width) & (uv[..., 1] >= 0) & (uv[..., 1] < height)
-    u = np.where(inside, uv[..., 0], 0).astype(np.intp)
-    v = np.where(inside, uv[..., 1], 0).astype(np.intp)
-    moved = inside & ~scene.walkable[v, u]  # off-image end points are left alone (agents may leave view)
-    field = nearest_walkable_field(scene)
-    target_uv = np.stack([field[1, v, u], field[0, v, u]], axis=-1).astype(np.float64)
-    target_m = scene.pixel_to_world(target_uv)
-    shift = np.where(moved[..., None], target_m - end_m, 0.0)  # (N, S, 2)
-    return paths_m + RAMP[:, None] * shift[:, :, None, :], moved
+    if off_image not in OFF_IMAGE_MODES or bend not in BEND_SHAPES:
+        raise ValueError(f"off_image must be one of {OFF_IMAGE_MODES} and bend one of {BEND_SHAPES}, "
+                         f"got {off_image!r} and {bend!r}")
+    end_px = scene.world_to_pixel(paths_m[:, :, -1])
+    target_px, moved = _end_targets(end_px, scene, off_image)
+    if bend == "ramp":
+        shift = np.where(moved[..., None], scene.pixel_to_world(target_px) - paths_m[:, :, -1], 0.0)  # (N, S, 2)
+        return paths_m + RAMP[:, None] * shift[:, :, None, :], moved
+    if origin_m is None:
+        raise ValueError('bend="scale" needs the agents\' last observed points (origin_m)')
+    paths_px = scene.world_to_pixel(paths_m)  # (N, S, 12, 2)
+    origin_px = scene.world_to_pixel(origin_m)[:, None, None, :]  # (N, 1, 1, 2)
+    span = end_px - origin_px[:, :, 0]  # (N, S, 2)
+    wide = np.abs(span) >= MIN_AXIS_SPAN_PX
+    ratio = np.where(wide, (target_px - origin_px[:, :, 0]) / np.where(wide, span, 1.0), 1.0)
+    offset = np.where(wide, 0.0, target_px - end_px)  # narrow axes: ramp the correction instead
+    bent_px = origin_px + (paths_px - origin_px) * ratio[:, :, None] + RAMP[:, None] * offset[:, :, None]
+    adapted = np.where(moved[..., None, None], scene.pixel_to_world(bent_px), paths_m)
+    return adapted, moved
 
 
 def adaptive_anchors(anchors: np.ndarray, frames: AgentFrame, space_of: list[SingularSpace],
-                     population: np.ndarray, scene: Scene | None) -> tuple[np.ndarray, np.ndarray]:
+                     population: np.ndarray, scene: Scene | None, off_image: str = "pull", bend: str = "ramp"
+                     ) -> tuple[np.ndarray, np.ndarray]:
     """Per-agent anchors adapted to the map, as coefficients and world paths.
 
     Args:
@@ -80,6 +123,7 @@ def adaptive_anchors(anchors: np.ndarray, frames: AgentFrame, space_of: list[Sin
         space_of: Singular space per population.
         population: (N,) int population index.
         scene: map to adapt to, or None (prototypes unchanged).
+        off_image, bend: see ``adapt_paths``.
 
     Returns:
         coefficients: (N, S, K) adapted anchors.  paths_m: (N, S, 12, 2) prototype paths in world metres
@@ -96,7 +140,7 @@ def adaptive_anchors(anchors: np.ndarray, frames: AgentFrame, space_of: list[Sin
         for p in range(len(space_of)):
             coefs[population == p] = anchors[p]
         return coefs, np.stack([proto_m, proto_m])
-    adapted_m, _ = adapt_paths(proto_m, scene)
+    adapted_m, _ = adapt_paths(proto_m, scene, frames.origin_m, off_image, bend)
     adapted_local = frames.to_agent(adapted_m)
     coefs = np.empty((n, s, k))
     for p, space in enumerate(space_of):

@@ -7,6 +7,7 @@ from dataclasses import fields
 
 from predictor.train import TrainConfig
 from replays.constants import TASKS
+from st_sim.command_line import add_debug_flag, positive_int, run_guarded
 
 
 def run_train(args: argparse.Namespace) -> int:
@@ -46,6 +47,7 @@ COMMANDS = {"train": run_train, "evaluate": run_evaluate, "export": run_export}
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="python -m predictor", description=__doc__)
+    add_debug_flag(parser)
     commands = parser.add_subparsers(dest="command", required=True)
     defaults = TrainConfig()
 
@@ -63,6 +65,10 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument("--steps", type=int, help=f"DDIM steps M (default: {defaults.steps})")
     train.add_argument("--fixed-anchors", dest="adapt_anchors", action="store_const", const=False,
                        help="use fixed prototype anchors (default: map-adaptive)")
+    train.add_argument("--anchor-off-image", choices=["pull", "keep"],
+                       help=f"anchor end points off the image (default: {defaults.anchor_off_image})")
+    train.add_argument("--anchor-bend", choices=["ramp", "scale"],
+                       help=f"anchor bending shape (default: {defaults.anchor_bend})")
     train.add_argument("--seed", type=int, help=f"random seed (default: {defaults.seed})")
     train.add_argument("--threads", type=int, help=f"torch threads (default: {defaults.threads})")
     train.add_argument("--data-root", help="ETH/UCY folder (default: $STCROWD_DATA or the cache)")
@@ -71,7 +77,8 @@ def build_parser() -> argparse.ArgumentParser:
     evaluate = commands.add_parser("evaluate", help="score a checkpoint on its task's test split")
     evaluate.add_argument("--checkpoint", required=True, help="best.pt or last.pt")
     evaluate.add_argument("--scene", help="test scene or pair (default: the one it was trained for)")
-    evaluate.add_argument("--steps", type=int, default=None, help="DDIM steps at inference (default: as trained)")
+    evaluate.add_argument("--steps", type=positive_int, default=None,
+                          help="DDIM steps at inference (default: as trained)")
     evaluate.add_argument("--data-root", help="ETH/UCY folder (default: $STCROWD_DATA or the cache)")
     export = commands.add_parser("export", help="ship a checkpoint in predictor/pretrained/ (fp16 + manifest)")
     export.add_argument("--checkpoint", required=True, help="best.pt to ship")
@@ -82,4 +89,4 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    return COMMANDS[args.command](args)
+    return run_guarded(COMMANDS[args.command], args)

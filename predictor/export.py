@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 from importlib import resources
 from pathlib import Path
 
-from predictor.checkpoint import PRETRAINED_DIR, load, model_state, read_checkpoint, save_atomic
+from predictor.checkpoint import PRETRAINED_DIR, CheckpointError, load, model_state, read_checkpoint, save_atomic
+from predictor.train import TRAIN_SUMMARY
 from replays.atomic import write_text_atomic
 from replays.scenes import SCENE_NAMES
 
@@ -26,6 +28,10 @@ def export_checkpoint(checkpoint: str | os.PathLike, name: str, root=None) -> di
 
     state = read_checkpoint(checkpoint)
     cfg = state["train_config"]
+    summary_path = Path(checkpoint).with_name(TRAIN_SUMMARY)
+    if not summary_path.is_file():
+        raise CheckpointError(f"{summary_path}: missing; export only the best.pt of a finished training run")
+    summary = json.loads(summary_path.read_text())
     file_name = name.replace("/", "_") + ".pt"
     target = pretrained_dir() / file_name
     shipped = {"model": model_state(load(checkpoint), half=True), "train_config": cfg,
@@ -40,13 +46,15 @@ def export_checkpoint(checkpoint: str | os.PathLike, name: str, root=None) -> di
                        "map_violation": round(r.map_violation, 4)}
     entry = {
         "file": file_name,
-        "command": f"python -m predictor train --task {cfg['task']} --scene {cfg['scene']} --epochs {cfg['epochs']} "
-                   f"--seed {cfg['seed']} --out OUT",
-        "train_wall_s": round(state["history"][-1]["wall_s"]),
+        "command": f"python -m predictor train --task {cfg['task']} --scene {cfg['scene']} --seed {cfg['seed']} "
+                   "--out OUT",
+        "train_config": cfg,
+        "train_wall_s": round(summary["wall_s"]),
         "selected_epoch": state["best"]["epoch"],
         "val": {"ade": round(state["best"]["ade"], 4), "fde": round(state["best"]["fde"], 4)},
         "test": test,
         "size_bytes": target.stat().st_size,
+        "sha256": hashlib.sha256(target.read_bytes()).hexdigest(),
         "data_checksums": state["data_checksums"],
     }
     manifest_path = pretrained_dir() / "manifest.json"

@@ -41,6 +41,10 @@ class ModelConfig:
     """0: slow agents are not scaled; > 0: scaled by max(speed, this) [m per step]"""
     adapt_anchors: bool = True
     """bend prototype paths onto walkable pixels (False = fixed prototype anchors)"""
+    anchor_off_image: str = "pull"
+    """prototype end points off the scene image: "pull" them onto the nearest walkable pixel, or "keep" them"""
+    anchor_bend: str = "ramp"
+    """how a path is bent onto its target end point: "ramp" (linear offset) or "scale" (per image axis)"""
     dim: int = 256
     """width of the refiner's context transformer"""
     denoiser_dim: int = 128
@@ -101,6 +105,7 @@ class SingularTrajectory:
         self.residual_scale = residual_scale  # (2,) typical anchor-to-truth residual per population
         self.refiner = refiner.eval()
         self.seed = seed
+        self.source: str | None = None  # the checkpoint it was loaded from (set by predictor.checkpoint)
         self.bases = torch.tensor(np.stack([s.basis for s in spaces]), dtype=torch.float32)  # (2, 24, K)
         self._noise: torch.Tensor | None = None
 
@@ -121,7 +126,7 @@ class SingularTrajectory:
             mask = scene_index == i
             anchors[mask], anchor_paths[:, mask] = adaptive_anchors(
                 self.anchors, frames.subset(mask), self.spaces, population[mask],
-                scene if self.cfg.adapt_anchors else None)
+                scene if self.cfg.adapt_anchors else None, self.cfg.anchor_off_image, self.cfg.anchor_bend)
         history = np.concatenate([
             history_local.reshape(n, -1), history_coef / self.coef_scale[population][:, None],
             np.log(frames.scale_m)[:, None], frames.slow[:, None],

@@ -1,4 +1,9 @@
-"""Turn a predictor name (cvm, cvm-s, linear, singular, or a checkpoint path) into a predictor per task/scene."""
+"""Turn a predictor name (cvm, cvm-s, linear, singular, or a checkpoint path) into a predictor per task/scene.
+
+Trained SingularTrajectory checkpoints live in ``runs/<task>/<scene>/seed<k>/best.pt``; a run counts once it
+has finished (``train.json`` written). Where none has, seed 0 falls back to the shipped checkpoint of that
+task and scene, if one ships.
+"""
 
 from __future__ import annotations
 
@@ -10,17 +15,47 @@ from replays.constants import TASKS
 from replays.windows import load_windows
 
 PREDICTOR_NAMES = ("cvm", "cvm-s", "linear", "singular")
-RUNS_DIR = "runs"  # trained checkpoints: runs/<task>/<scene>/best.pt
+RUNS_DIR = "runs"
 
 
-def make_predictor(name: str, task: str, scene: str, root=None, runs_dir: str = RUNS_DIR,
+class MissingCheckpointError(FileNotFoundError):
+    """No trained or shipped checkpoint exists for a task, scene and seed (the message says how to train it)."""
+
+
+def run_dir(runs_dir: str | Path, task: str, scene: str, seed: int) -> Path:
+    """Training folder of one model: ``runs_dir/<task>/<scene>/seed<seed>``."""
+    return Path(runs_dir) / task / scene / f"seed{seed}"
+
+
+def resolve_checkpoint(task: str, scene: str, seed: int = 0, runs_dir: str | Path = RUNS_DIR) -> str | None:
+    """Which checkpoint a singular predictor uses: a finished run's ``best.pt``, else ``"shipped:<task>/<scene>"``
+    for seed 0 when one ships, else None (it must be trained)."""
+    from predictor.checkpoint import pretrained_manifest
+    from predictor.train import finished
+
+    folder = run_dir(runs_dir, task, scene, seed)
+    if finished(folder):
+        return str(folder / "best.pt")
+    if seed == 0 and f"{task}/{scene}" in pretrained_manifest()["checkpoints"]:
+        return f"shipped:{task}/{scene}"
+    return None
+
+
+def load_checkpoint_spec(spec: str, task: str | None = None) -> Predictor:
+    """A model from ``resolve_checkpoint``'s answer (a file or ``"shipped:<name>"``)."""
+    from predictor.checkpoint import load, load_pretrained
+
+    return load_pretrained(spec.removeprefix("shipped:")) if spec.startswith("shipped:") else load(spec, task=task)
+
+
+def make_predictor(name: str, task: str, scene: str, root=None, runs_dir: str | Path = RUNS_DIR, seed: int = 0,
                    train_missing: bool = False, progress: bool = True) -> Predictor:
     """The predictor ``name`` prepared for one task and scene (or domain pair).
 
-    ``cvm-s`` fits its heading noise on that task's training split. ``singular`` uses
-    ``runs_dir/<task>/<scene>/best.pt``. If that is missing, ``train_missing`` trains it (resuming an
-    interrupted run); otherwise the shipped checkpoint is used where one exists (stochastic
-    leave-one-out). Any other value is a checkpoint file, or a folder holding ``<task>/<scene>/best.pt``.
+    ``cvm-s`` fits its heading noise on that task's training split. ``singular`` uses the checkpoint that
+    ``resolve_checkpoint`` names; if there is none, ``train_missing`` trains it (resuming an interrupted
+    run), otherwise ``MissingCheckpointError`` says how. Any other value is a checkpoint file, or a folder
+    holding ``<task>/<scene>/seed<seed>/best.pt``.
     """
     if name == "cvm":
         return ConstantVelocity()
@@ -31,26 +66,25 @@ def make_predictor(name: str, task: str, scene: str, root=None, runs_dir: str = 
         train = load_windows(task, scene, "train", root)
         sampler.fit_sigma(train.obs, train.fut, TASKS[task]["num_samples"])
         return sampler
-    from predictor.checkpoint import load, load_pretrained, pretrained_manifest  # torch only when needed
-
     if name == "singular":
-        checkpoint = Path(runs_dir) / task / scene / "best.pt"
-        if not checkpoint.is_file() and train_missing:
+        spec = resolve_checkpoint(task, scene, seed, runs_dir)
+        if spec is None and train_missing:
             from predictor.train import TrainConfig, main
 
-            main(TrainConfig(task=task, scene=scene, out=str(checkpoint.parent), data_root=root, progress=progress))
-        if checkpoint.is_file():
-            return load(checkpoint, task=task)
-        if f"{task}/{scene}" in pretrained_manifest()["checkpoints"]:
-            return load_pretrained(f"{task}/{scene}")
-        raise FileNotFoundError(f"no checkpoint for {task}/{scene} at {checkpoint}; pass --train-missing to "
-                                f"train it, or `python -m predictor train --task {task} --scene {scene} "
-                                f"--out {checkpoint.parent}`")
+            main(TrainConfig(task=task, scene=scene, seed=seed, out=str(run_dir(runs_dir, task, scene, seed)),
+                             data_root=None if root is None else str(root), progress=progress))
+            spec = resolve_checkpoint(task, scene, seed, runs_dir)
+        if spec is None:
+            folder = run_dir(runs_dir, task, scene, seed)
+            raise MissingCheckpointError(
+                f"no checkpoint for {task}/{scene} seed {seed} (none in {folder}, none shipped); train it with "
+                f"`python -m predictor train --task {task} --scene {scene} --seed {seed} --out {folder}`, or let "
+                "`python -m st_sim evaluate` train it (its default)")
+        return load_checkpoint_spec(spec, task)
     path = Path(name)
     if path.is_dir():
-        path = path / task / scene / "best.pt"
+        path = run_dir(path, task, scene, seed) / "best.pt"
     if not path.is_file():
-        raise FileNotFoundError(
-            f"predictor {name!r}: not one of {', '.join(PREDICTOR_NAMES)} and no checkpoint at {path}"
-        )
-    return load(path, task=task)
+        raise MissingCheckpointError(
+            f"predictor {name!r}: not one of {', '.join(PREDICTOR_NAMES)} and no checkpoint at {path}")
+    return load_checkpoint_spec(str(path), task)

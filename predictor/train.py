@@ -5,7 +5,9 @@
 
 from __future__ import annotations
 
+import json
 import math
+import os
 import random
 import time
 from dataclasses import asdict, dataclass, fields, replace
@@ -15,12 +17,14 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
-from predictor.anchors import prototype_anchors
+from predictor.anchors import BEND_SHAPES, OFF_IMAGE_MODES, prototype_anchors
 from predictor.checkpoint import model_state, read_checkpoint, save_atomic
+from predictor.config_check import check_config
 from predictor.model import ModelConfig, SingularTrajectory, window_batches
 from predictor.normalize import SLOW_SPEED_M, agent_frames
 from predictor.refiner import Refiner
 from predictor.singular_space import fit_singular_space
+from replays.atomic import atomic_path, write_text_atomic
 from replays.constants import TASKS
 from replays.data_root import data_root, expected_sums
 from replays.scenes import load_scene, scene_of_recording
@@ -30,6 +34,7 @@ from replays.windows import Windows, load_windows, split_files
 # more agents are speed-scaled than for S = 20 (both settings measured: RESULTS.md).
 SINGLE_SAMPLE_SLOW_SPEED_M = 0.1  # slow-population threshold for S = 1 [m per step]
 SINGLE_SAMPLE_SCALE_FLOOR_M = 0.05  # slow agents' speed-scale floor for S = 1 [m per step]
+TRAIN_SUMMARY = "train.json"  # written when a run has finished: selected epoch, per-epoch history, wall time
 
 
 @dataclass(frozen=True)
@@ -38,8 +43,8 @@ class TrainConfig:
     """stochastic | deterministic | momentary | fewshot | domain"""
     scene: str = "zara1"
     """test scene (leave-one-out) or domain pair such as A2B"""
-    out: str = "runs/stochastic/zara1"
-    """output folder: last.pt (resumable state) and best.pt (selected on validation FDE)"""
+    out: str = "runs/stochastic/zara1/seed0"
+    """output folder: last.pt (resumable state), best.pt (selected on validation FDE), train.json (when done)"""
     epochs: int = 6
     """passes over the training windows (more when needed to reach ``min_steps``)"""
     min_steps: int = 300
@@ -68,6 +73,10 @@ class TrainConfig:
     """M, DDIM steps"""
     adapt_anchors: bool = True
     """map-adaptive anchors (False = fixed prototypes)"""
+    anchor_off_image: str = "pull"
+    """anchor end points off the scene image: "pull" onto the nearest walkable pixel, or "keep" (agents leave view)"""
+    anchor_bend: str = "ramp"
+    """anchor bending shape: "ramp" (linear offset over time) or "scale" (about the last observed point)"""
     slow_speed_m: float | None = None
     """slow-population threshold [m per 0.4 s step]; None: 0.1 for single-sample tasks, 0.3 otherwise"""
     slow_scale_floor_m: float | None = None
@@ -89,6 +98,30 @@ class TrainConfig:
     """ETH/UCY folder (default: $STCROWD_DATA or the cache)"""
     progress: bool = True
     """show progress bars"""
+    select_tolerance_m: float = 0.002
+    """a later epoch replaces the selected one unless its validation FDE is worse by more than this [m]
+    (near-ties go to the later epoch, so float differences between machines do not flip the choice)"""
+
+    def __post_init__(self) -> None:
+        check_config(self, {
+            "epochs": (1, 10_000), "min_steps": (0, 10**7), "batch_agents": (2, 10**6), "lr": (1e-8, 1.0),
+            "weight_decay": (0.0, 1.0), "warmup_epochs": (0.0, 10_000.0), "clip_grad": (1e-6, 1e6),
+            "fde_weight": (0.0, 100.0), "k": (1, 24), "dim": (4, 4096), "denoiser_dim": (4, 4096),
+            "steps": (1, 1000), "init_noise": (0.0, 100.0), "seed": (0, 2**31 - 1), "threads": (1, 256),
+            "select_tolerance_m": (0.0, 10.0), "max_train_windows": (1, 10**9),
+            "slow_speed_m": (0.0, 10.0), "slow_scale_floor_m": (0.0, 10.0),
+        }, choices={"task": tuple(TASKS), "objective": ("e2e", "eps"), "anchor_off_image": OFF_IMAGE_MODES,
+                    "anchor_bend": BEND_SHAPES})
+        if self.dim % 4:
+            raise ValueError(f"TrainConfig.dim={self.dim}: must be a multiple of the 4 attention heads")
+
+
+COSMETIC_FIELDS = ("out", "threads", "data_root", "progress")  # change neither the model nor the data
+
+
+def model_fields(cfg: TrainConfig) -> dict:
+    """The configuration without its cosmetic fields: what a checkpoint records and a resume must match."""
+    return {k: v for k, v in asdict(cfg).items() if k not in COSMETIC_FIELDS}
 
 
 def split_scenes(windows: Windows, root) -> tuple[list, np.ndarray]:
@@ -188,13 +221,29 @@ def data_checksums(cfg: TrainConfig, root: Path) -> dict[str, str]:
     return {str(f.relative_to(root)): sums.get(str(f.relative_to(root)), "unlisted") for f in files}
 
 
+class TrainingError(RuntimeError):
+    """A training run cannot start, resume or produce a checkpoint (the message says what to do)."""
+
+
+def check_output_folder(out: Path) -> None:
+    """Fail before any work if ``out`` cannot hold checkpoints (not a folder, or not writable)."""
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        with atomic_path(out / ".write-test"):
+            pass
+    except OSError as err:
+        raise TrainingError(f"--out {out}: cannot write checkpoints there ({err.strerror or err})") from err
+
+
 def main(cfg: TrainConfig) -> Path:
-    # ---- seeding and threads
+    """Train one model; returns ``OUT/best.pt``. Resumes from ``OUT/last.pt``; writes ``OUT/train.json`` last."""
+    # ---- seeding, threads, output folder (checked before any work)
     random.seed(cfg.seed)
     np.random.seed(cfg.seed)
     torch.manual_seed(cfg.seed)
     torch.set_num_threads(cfg.threads)
     out = Path(cfg.out)
+    check_output_folder(out)
     run_name = f"{cfg.task}__{cfg.scene}__seed{cfg.seed}"
 
     # ---- data: windows -> model statistics -> precomputed tensors (obs T_obs, pred 12 steps of 0.4 s)
@@ -206,13 +255,18 @@ def main(cfg: TrainConfig) -> Path:
     model = fit_model(cfg, train)
     t_train, t_val = split_tensors(model, train, root), split_tensors(model, val, root)
     checksums = data_checksums(cfg, root)
+    recorded = {"train_config": model_fields(cfg), "data_checksums": checksums}  # what every checkpoint carries
 
     # ---- optimiser and schedule: AdamW, linear warm-up then cosine decay (per batch)
     refiner = model.refiner
     resume = read_checkpoint(out / "last.pt") if (out / "last.pt").is_file() else None
     if resume is not None:  # an interrupted run: same data -> same spaces and anchors; restore the weights
-        if resume["train_config"] != asdict(cfg):
-            raise ValueError(f"{out / 'last.pt'}: was written with another configuration; use a new --out")
+        changed = sorted(k for k, v in recorded["train_config"].items() if resume["train_config"].get(k) != v)
+        if resume["data_checksums"] != checksums:
+            changed.append("training data")
+        if changed:
+            raise TrainingError(f"{out / 'last.pt'}: an unfinished run with other settings ({', '.join(changed)}); "
+                                f"use another --out, or delete {out} to throw that progress away")
         refiner.load_state_dict(resume["model"]["weights"])
     optimizer = torch.optim.AdamW(refiner.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
     per_epoch = len(window_batches(t_train["group"], cfg.batch_agents, None))
@@ -259,13 +313,30 @@ def main(cfg: TrainConfig) -> Path:
         if epochs <= 20 or (epoch + 1) % (epochs // 10) == 0 or epoch + 1 == epochs:  # at most ~20 lines
             print(f"{run_name} epoch {epoch + 1}: loss {record['train/loss']:.4f}  val ADE {val_ade:.4f}  "
                   f"FDE {val_fde:.4f}  ({record['wall_s']:.0f} s)")
-        meta = {"train_config": asdict(cfg), "data_checksums": checksums, "history": history}
-        if val_fde < best["fde"]:
+        if math.isfinite(val_fde) and val_fde <= best["fde"] + cfg.select_tolerance_m:  # near-ties: the later epoch
             best = {"fde": val_fde, "ade": val_ade, "epoch": epoch + 1}
-            save_atomic({"model": model_state(model), **meta, "best": best}, out / "best.pt")
-        save_atomic({"model": model_state(model), **meta, "best": best, "epoch": epoch, "epochs": epochs,
-                     "optimizer": optimizer.state_dict(), "schedule": schedule.state_dict()}, out / "last.pt")
+            save_atomic({"model": model_state(model), **recorded, "best": best}, out / "best.pt")
+        save_atomic({"model": model_state(model), **recorded, "best": best, "history": history, "epoch": epoch,
+                     "epochs": epochs, "optimizer": optimizer.state_dict(), "schedule": schedule.state_dict()},
+                    out / "last.pt")
+
+    # ---- the run's summary, written last: its presence marks a finished run
+    if not (out / "best.pt").is_file():
+        raise TrainingError(f"{run_name}: no epoch gave a finite validation FDE, so no {out / 'best.pt'} was written")
+    summary = {**recorded, "best": best, "epochs": epochs, "history": history,
+               "wall_s": history[-1]["wall_s"] if history else 0.0}
+    write_text_atomic(out / TRAIN_SUMMARY, json.dumps(summary, indent=1))
     return out / "best.pt"
+
+
+def finished(out: str | os.PathLike) -> bool:
+    """Whether a training run in ``out`` has finished (its summary is written after the last epoch)."""
+    return (Path(out) / TRAIN_SUMMARY).is_file()
+
+
+def train_job(**config) -> None:
+    """Grid entry point (``st_sim.apps.grid``): train with ``TrainConfig(**config)``."""
+    main(TrainConfig(**config))
 
 
 def config_for(task: str, scene: str, out: str, **overrides) -> TrainConfig:

@@ -19,6 +19,8 @@ TASKS: Final[dict[str, dict]] = {
     "deterministic": {"obs_len": T_OBS, "num_samples": 1},
     "momentary": {"obs_len": T_OBS_MOMENTARY, "num_samples": 20},
     "fewshot": {"obs_len": T_OBS, "num_samples": 20},
-    "domain": {"obs_len": T_OBS, "num_samples": 1},
+    "domain": {"obs_len": T_OBS, "num_samples": 1},  # val = the target's val portion (the paper's protocol)
+    "domain_strict": {"obs_len": T_OBS, "num_samples": 1},  # val = the source's own val portion
 }
+DOMAIN_TASKS: Final[tuple[str, ...]] = ("domain", "domain_strict")  # scene = a pair "X2Y" of scene letters
 SPLITS: Final[tuple[str, ...]] = ("train", "val", "test")

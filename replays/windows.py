@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from replays.atomic import atomic_path
-from replays.constants import COORD_DECIMALS, FEWSHOT_EVERY, MIN_AGENTS_PER_WINDOW, SPLITS, T_PRED, TASKS
+from replays.constants import COORD_DECIMALS, DOMAIN_TASKS, FEWSHOT_EVERY, MIN_AGENTS_PER_WINDOW, SPLITS, T_PRED, TASKS
 from replays.data_root import data_root
 from replays.errors import DataRootError
 from replays.recording import Recording, read_recording
@@ -150,17 +150,21 @@ def split_files(task: str, scene: str, split: str, root: Path) -> list[Path]:
     """Recording files making up one split, in loading order (sorted by name).
 
     ``scene="all"`` (training a universal model): every recording's train/val portion, or every test set.
+    Domain pair X2Y: train = X's ``raw/train`` portions; val = Y's ``raw/val`` portions (the paper's T-GNN
+    layout) or, for ``domain_strict``, X's own; test = Y's test set.
     """
     if scene == ALL_SCENES:
         if split == "test":
             return sorted(f for name in SCENES for f in (root / name / "test").glob("*.txt"))
         return sorted((root / "raw" / split).glob(f"*_{split}.txt"))
-    if task == "domain":
+    if task in DOMAIN_TASKS:
         source, target = _domain_pair(scene)
         if split == "test":
             folder = root / target.name / "test"
             return sorted(folder.glob("*.txt"))
-        return [root / "raw" / split / f"{rec}_{split}.txt" for rec in sorted(source.train_recordings)]
+        # paper (T-GNN) layout: validation on the target's val portion; "domain_strict": on the source's
+        portion_of = target if split == "val" and task == "domain" else source
+        return [root / "raw" / split / f"{rec}_{split}.txt" for rec in sorted(portion_of.train_recordings)]
     return sorted((root / scene_info(scene).name / split).glob("*.txt"))
 
 
@@ -179,8 +183,9 @@ def load_windows(task: str, scene: str, split: str, root: str | os.PathLike | No
     """Benchmark samples of one task, scene and split.
 
     Args:
-        task: stochastic | deterministic | momentary | fewshot | domain.
-        scene: eth | hotel | univ | zara1 | zara2 (or letter); for ``domain`` a pair like ``"A2B"``;
+        task: stochastic | deterministic | momentary | fewshot | domain | domain_strict.
+        scene: eth | hotel | univ | zara1 | zara2 (or letter); for ``domain`` and ``domain_strict`` a pair
+            like ``"A2B"``;
             ``"all"`` for every scene at once.
         split: train | val | test.
         root: data root (default: ``$STCROWD_DATA`` or the user cache).
@@ -192,7 +197,7 @@ def load_windows(task: str, scene: str, split: str, root: str | os.PathLike | No
         raise ValueError(f"unknown task {task!r}; expected one of {', '.join(TASKS)}")
     if split not in SPLITS:
         raise ValueError(f"unknown split {split!r}; expected one of {', '.join(SPLITS)}")
-    if task != "domain" and scene != ALL_SCENES:
+    if task not in DOMAIN_TASKS and scene != ALL_SCENES:
         scene_info(scene)  # raises on an unknown scene
     root_path = data_root(root)
     obs_len = TASKS[task]["obs_len"]
@@ -205,7 +210,7 @@ def load_windows(task: str, scene: str, split: str, root: str | os.PathLike | No
     merged["recording"] = np.concatenate([np.full(len(p["group"]), path.stem, dtype=object)
                                           for p, path in zip(parts, files, strict=True)])
     merged["group"] = np.concatenate([p["group"] + off for p, off in zip(parts, offsets, strict=False)])
-    name = scene.upper() if task == "domain" else scene if scene == ALL_SCENES else scene_info(scene).name
+    name = scene.upper() if task in DOMAIN_TASKS else scene if scene == ALL_SCENES else scene_info(scene).name
     windows = Windows(**merged, task=task, scene=name, split=split)
     if task == "fewshot" and split == "train":
         windows = windows.subset(windows.group % FEWSHOT_EVERY == 0)

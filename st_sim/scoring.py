@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from replays.constants import TASKS
+from replays.constants import DOMAIN_TASKS, TASKS
 from replays.scenes import Scene, load_scene, scene_info
 from replays.windows import Windows, load_windows
 from st_sim.metrics import ade_fde, collision_rate, map_violation, path_map_violation
@@ -59,7 +59,7 @@ def score_predictions(pred: np.ndarray, windows: Windows, scene: Scene) -> dict[
 
 def target_scene(task: str, scene: str) -> str:
     """Scene whose map the test windows live on (the target of a domain pair)."""
-    return scene_info(scene.upper().split("2")[1]).name if task == "domain" else scene_info(scene).name
+    return scene_info(scene.upper().split("2")[1]).name if task in DOMAIN_TASKS else scene_info(scene).name
 
 
 def evaluate_offline(predictor: Any, task: str, scene: str, num_samples: int | None = None,
@@ -85,7 +85,7 @@ def evaluate_offline(predictor: Any, task: str, scene: str, num_samples: int | N
     else:
         pred = predictor.predict(windows.obs, windows.group, map_scene, samples)
     scores = score_predictions(pred, windows, map_scene)
-    paper = paper_numbers(task, scene.upper() if task == "domain" else scene)
+    paper = paper_numbers(task, scene.upper() if task in DOMAIN_TASKS else scene)
     return SceneResult(scene=scene, samples=len(windows), **scores, wall_s=time.perf_counter() - start,
                        paper_ade=paper[0] if paper else None, paper_fde=paper[1] if paper else None,
                        checkpoint=getattr(predictor, "source", None))

@@ -1,6 +1,9 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from predictor.anchors import adapt_paths, nearest_walkable_field, prototype_anchors
 
@@ -11,9 +14,11 @@ def straight_paths(start_xy, velocity_xy, n_steps=12):
 
 
 def test_nearest_walkable_field_points_to_walkable_pixels(toy_scene):
-    rows, cols = nearest_walkable_field(toy_scene)
+    rows, cols = nearest_walkable_field(toy_scene)  # over the padded canvas: image pixel (r, c) at (r + 50, c + 50)
+    assert rows.shape == (200, 200)
     assert toy_scene.walkable[rows, cols].all()
-    assert cols[10, 80] == 49 and rows[10, 80] == 10  # right half is wall: nearest walkable column is 49
+    assert cols[10 + 50, 80 + 50] == 49 and rows[10 + 50, 80 + 50] == 10  # right half is wall: nearest column 49
+    assert cols[0, 0] == 0 and rows[0, 0] == 0  # the canvas corner (off the image) points at the image corner
 
 
 def test_paths_ending_in_walls_are_pulled_back_and_others_untouched(toy_scene):
@@ -26,6 +31,46 @@ def test_paths_ending_in_walls_are_pulled_back_and_others_untouched(toy_scene):
     np.testing.assert_allclose(adapted[0, 1], free)
     assert abs(adapted[0, 0, -1, 0] - 4.9) < 0.1  # lands on the last walkable column
     np.testing.assert_allclose(adapted[0, 0, 0], into_wall[0] + (adapted[0, 0, -1] - into_wall[-1]) / 12)
+
+
+@pytest.mark.parametrize("bend", ["ramp", "scale"])
+def test_end_points_beyond_the_image_are_pulled_to_a_walkable_pixel_inside_it(toy_scene, bend):
+    leaving = straight_paths([1.0, 5.0], [-0.5, 0.0])  # ends at x = -5 m, left of the image (x < 0)
+    far = straight_paths([1.0, 5.0], [-30.0, 4.0])  # ends beyond the padded canvas too
+    paths = np.stack([leaving, far])[:, None]  # (N=2, S=1, 12, 2)
+    origin = np.array([[1.5, 5.0], [31.0, 1.0]])
+    adapted, moved = adapt_paths(paths, toy_scene, origin, bend=bend)
+    assert moved.all()
+    assert toy_scene.is_walkable(adapted[:, 0, -1]).all()
+    assert adapted[0, 0, -1, 0] == pytest.approx(0.0, abs=0.06)  # the first image column, same row
+    assert adapted[0, 0, -1, 1] == pytest.approx(5.0, abs=0.06)
+    kept, kept_moved = adapt_paths(paths, toy_scene, origin, off_image="keep", bend=bend)
+    assert not kept_moved.any()
+    np.testing.assert_array_equal(kept, paths)
+
+
+def test_scale_bend_stretches_the_path_about_the_last_observed_point(toy_scene):
+    into_wall = straight_paths([3.0, 2.0], [0.4, 0.1])  # ends at (7.8, 3.2) m, in the wall
+    origin = np.array([[2.6, 1.9]])
+    adapted, moved = adapt_paths(into_wall[None, None], toy_scene, origin, bend="scale")
+    assert moved.all()
+    end = adapted[0, 0, -1]
+    assert toy_scene.is_walkable(end) and end[0] == pytest.approx(4.9, abs=0.06)
+    ratio = (end - origin[0]) / (into_wall[-1] - origin[0])  # per axis
+    np.testing.assert_allclose(adapted[0, 0], origin[0] + (into_wall - origin[0]) * ratio, atol=1e-9)
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(st.lists(st.tuples(st.floats(-40, 40), st.floats(-40, 40), st.floats(-3, 3), st.floats(-3, 3)),
+                min_size=1, max_size=8), st.sampled_from(["ramp", "scale"]))
+def test_pulled_paths_end_walkable_and_walkable_ends_are_untouched(toy_scene, agents, bend):
+    start, velocity = np.array(agents)[:, :2], np.array(agents)[:, 2:]
+    paths = np.stack([straight_paths(s, v) for s, v in zip(start, velocity, strict=True)])[:, None]
+    adapted, moved = adapt_paths(paths, toy_scene, start - velocity, bend=bend)
+    np.testing.assert_array_equal(moved[:, 0], ~toy_scene.is_walkable(paths[:, 0, -1]))
+    assert toy_scene.is_walkable(adapted[:, 0, -1]).all()
+    np.testing.assert_array_equal(adapted[~moved], paths[~moved])
+    assert np.isfinite(adapted).all()
 
 
 def test_adaptation_is_vectorised_over_agents_and_prototypes(toy_scene):

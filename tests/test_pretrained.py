@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import predictor
-from predictor.checkpoint import pretrained_manifest
+from predictor.checkpoint import CheckpointError, pretrained_manifest
 from replays import load_scene, load_windows
 from st_sim.metrics import ade_fde
 
@@ -54,5 +54,5 @@ def test_universal_predicts_without_a_map_and_for_fewer_samples():
 
 
 def test_unknown_pretrained_name_lists_the_available_ones():
-    with pytest.raises(KeyError, match="stochastic/eth"):
+    with pytest.raises(CheckpointError, match="stochastic/eth"):
         predictor.load_pretrained("stochastic/mars")

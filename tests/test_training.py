@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import json
 import math
+import os
 from pathlib import Path
 
 import numpy as np
@@ -10,9 +12,9 @@ import pytest
 import torch
 
 from predictor.baselines import ConstantVelocity
-from predictor.checkpoint import CheckpointError, load, read_checkpoint
+from predictor.checkpoint import CheckpointError, content_hash, load, read_checkpoint
 from predictor.model import window_batches
-from predictor.train import TrainConfig, main
+from predictor.train import TrainConfig, TrainingError, main
 from replays import load_scene, load_windows
 from st_sim.metrics import ade_fde
 
@@ -48,12 +50,49 @@ def test_checkpoint_round_trip_gives_identical_predictions(trained, tmp_path):
     assert all(len(v) == 64 for v in state["data_checksums"].values())
 
 
-def test_resume_continues_from_last_epoch(trained, tmp_path):
+def test_resume_refuses_a_changed_model_setting_and_names_it(trained):
     longer = TrainConfig(**{**trained.__dict__, "epochs": 3})
-    with pytest.raises(ValueError, match="another configuration"):
+    with pytest.raises(TrainingError, match=r"other settings \(epochs\).*delete"):
         main(longer)  # a changed config is refused, never silently mixed
     state = read_checkpoint(f"{trained.out}/last.pt")
     assert state["epoch"] == 1 and len(state["history"]) == 2
+
+
+def test_cosmetic_flags_do_not_block_a_resume(trained, monkeypatch):
+    before = Path(f"{trained.out}/best.pt").read_bytes()
+    data = str(Path(os.environ["STCROWD_DATA"]).resolve())  # the root given by flag instead of the variable
+    monkeypatch.chdir(Path(trained.out).parent)
+    relative = Path(trained.out).name  # the same folder, given relatively
+    cosmetic = TrainConfig(**{**trained.__dict__, "out": relative, "threads": 2, "progress": True,
+                              "data_root": data})
+    assert main(cosmetic) == Path(relative) / "best.pt"  # a finished run: nothing to redo
+    assert Path(f"{trained.out}/best.pt").read_bytes() == before
+    summary = json.loads(Path(f"{trained.out}/train.json").read_text())
+    assert summary["epochs"] == 2 and summary["best"]["epoch"] in (1, 2) and len(summary["history"]) == 2
+    assert "out" not in summary["train_config"] and "threads" not in summary["train_config"]
+
+
+@pytest.mark.parametrize("field, value", [("epochs", 0), ("epochs", -1), ("min_steps", -5), ("k", 0), ("steps", 0),
+                                          ("lr", float("nan")), ("batch_agents", 1.5), ("seed", True),
+                                          ("objective", "mse"), ("anchor_bend", "curl"), ("dim", 30)])
+def test_bad_training_settings_are_refused_naming_the_field(field, value):
+    with pytest.raises(ValueError, match=f"TrainConfig.{field}="):
+        TrainConfig(**{field: value})
+
+
+def test_damaged_or_non_finite_checkpoints_are_refused(trained, tmp_path):
+    state = read_checkpoint(f"{trained.out}/best.pt")
+    name = next(iter(state["model"]["weights"]))
+    flipped = {**state, "model": {**state["model"], "weights": dict(state["model"]["weights"])}}
+    flipped["model"]["weights"][name] = state["model"]["weights"][name] * 2
+    torch.save(flipped, tmp_path / "flipped.pt")
+    with pytest.raises(CheckpointError, match="content hash mismatch"):
+        load(tmp_path / "flipped.pt")
+    nan = {**state, "model": {**state["model"], "anchors": torch.full_like(state["model"]["anchors"], float("nan"))}}
+    nan["model"]["content_sha256"] = content_hash(nan["model"])  # a consistent hash over NaN anchors
+    torch.save(nan, tmp_path / "nan.pt")
+    with pytest.raises(CheckpointError, match=r"non-finite values.*anchors"):
+        load(tmp_path / "nan.pt")
 
 
 def test_truncated_checkpoint_is_a_clear_error(trained, tmp_path):

@@ -81,12 +81,20 @@ def test_fewshot_keeps_every_tenth_training_window():
     assert len(load_windows("fewshot", "zara1", "test")) == 2253
 
 
-def test_domain_pair_uses_source_portions_and_target_test():
+def test_domain_pair_trains_on_the_source_validates_on_the_target_and_tests_on_the_target():
     train = load_windows("domain", "A2B", "train")
     assert set(train.recording) == {"biwi_eth_train"}
-    assert set(load_windows("domain", "E2A", "val").recording) == {"crowds_zara02_val", "crowds_zara03_val"}
+    assert set(load_windows("domain", "A2B", "val").recording) == {"biwi_hotel_val"}  # the paper's T-GNN layout
+    assert set(load_windows("domain", "B2E", "val").recording) == {"crowds_zara02_val", "crowds_zara03_val"}
     test = load_windows("domain", "A2B", "test")
     assert len(test) == 1053 and set(test.recording) == {"biwi_hotel"}
+
+
+def test_strict_domain_pair_validates_on_the_source():
+    assert set(load_windows("domain_strict", "A2B", "train").recording) == {"biwi_eth_train"}
+    assert set(load_windows("domain_strict", "A2B", "val").recording) == {"biwi_eth_val"}
+    assert set(load_windows("domain_strict", "E2A", "val").recording) == {"crowds_zara02_val", "crowds_zara03_val"}
+    assert len(load_windows("domain_strict", "A2B", "test")) == 1053
 
 
 def test_groups_are_windows_and_ordered():

@@ -1,41 +1,68 @@
-"""``python -m st_sim <command>``: evaluate predictors, run the demo."""
+"""``python -m st_sim <command>`` (or ``stcrowd <command>``): evaluate predictors, plot a window, run the demo."""
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
+import sys
 from pathlib import Path
 
 from replays.atomic import write_text_atomic
 from replays.constants import TASKS
+from st_sim.command_line import CliError, add_debug_flag, check_writable, positive_int, run_guarded
 
 
 def run_evaluate(args: argparse.Namespace) -> int:
-    """Evaluate a predictor on one task's test windows; print a markdown table, optionally write JSON."""
-    from predictor.registry import make_predictor
-    from st_sim.apps.evaluate import evaluate_task, markdown_table
+    """Evaluate a predictor on benchmark tasks (seeds x scenes); print markdown tables, optionally write JSON."""
+    from st_sim.apps.evaluate import TRAIN_ESTIMATE_S, Plan, aggregate, markdown_table, task_scenes
+    from st_sim.apps.grid import raise_on_failure, run_jobs, summary_lines
 
-    def factory(task: str, scene: str):
-        return make_predictor(args.predictor, task, scene, args.data_root, args.runs, args.train_missing,
-                              progress=not args.quiet)
-
-    tasks = list(TASKS) if args.task == "all" else [args.task]
+    tasks = tuple(TASKS) if args.task == "all" else (args.task,)
+    if args.json and len(tasks) > 1:
+        raise CliError("--json takes one task; use --out DIR for --task all")
+    for path in filter(None, [args.json, args.out]):
+        check_writable(Path(path) if path == args.out else Path(path).parent)
+    scenes = {task: tuple(args.scenes if args.scenes and len(tasks) == 1 else task_scenes(task)) for task in tasks}
     for task in tasks:
-        scenes = args.scenes if args.scenes and len(tasks) == 1 else None
-        result = evaluate_task(factory, task, scenes, momentary_from_8=args.momentary_from_8,
-                               root=args.data_root, progress=not args.quiet, stream=not args.no_stream,
-                               rerun_path=args.rerun)
-        result["predictor"] = args.predictor
+        unknown = [scene for scene in scenes[task] if scene not in task_scenes(task)]
+        if unknown:
+            raise CliError(f"--scenes {' '.join(unknown)}: not in the {task} table; expected some of "
+                           f"{' '.join(task_scenes(task))}")
+    plan = Plan(args.predictor, tasks, scenes, tuple(args.seeds), args.runs, args.data_root, not args.no_stream,
+                args.momentary_from_8, args.rerun)
+    grid = {"executor": args.executor, "workers": args.workers, "address": args.ray_address,
+            "progress": not args.quiet}
+    reports = []
+    missing = plan.train_jobs()
+    if missing:
+        names = ", ".join(job.name.removeprefix("train/") for job in missing[:6]) + (" ..." if len(missing) > 6 else "")
+        if args.no_train:
+            raise CliError(f"{len(missing)} checkpoints are missing ({names}); drop --no-train to train them")
+        workers = args.workers or os.cpu_count() or 1
+        print(f"training {len(missing)} missing models into {args.runs}/ ({names}); about "
+              f"{len(missing) * TRAIN_ESTIMATE_S / 60 / min(workers, len(missing)):.0f} min with {workers} workers")
+        reports += run_jobs(missing, desc="train", **grid)
+        raise_on_failure(reports)
+    jobs = plan.evaluation_jobs()
+    reports += run_jobs(jobs, desc="evaluate", **grid)
+    raise_on_failure(reports)
+    for task in tasks:
+        cells = {(scene, seed): json.loads(Path(job.output).read_text())
+                 for job, (t, scene, seed) in zip(jobs, plan.cells(), strict=True) if t == task}
+        result = aggregate(task, args.predictor, cells)
         result["momentary_protocol"] = "from-8" if args.momentary_from_8 else "own-2-frame-windows"
-        table = markdown_table(result, args.predictor)
+        table = markdown_table(result)
         print(table + "\n")
-        if args.json and len(tasks) == 1:
+        if args.json:
             write_json_atomic(Path(args.json), result)
             print(f"wrote {args.json}")
         if args.out:
             write_json_atomic(Path(args.out) / f"{task}.json", result)
             write_text_atomic(Path(args.out) / f"{task}.md", table + "\n")
             print(f"wrote {args.out}/{task}.json and {task}.md")
+    if not args.quiet:
+        print("\n".join(summary_lines(reports)))
     return 0
 
 
@@ -56,7 +83,7 @@ def run_plot(args: argparse.Namespace) -> int:
 
     windows = load_windows(args.task, args.scene, "test", args.data_root)
     if not 0 <= args.step < windows.num_groups:
-        raise SystemExit(f"--step must be a window index in 0..{windows.num_groups - 1} for {args.scene}")
+        raise CliError(f"--step {args.step}: must be a window index in 0..{windows.num_groups - 1} for {args.scene}")
     keep = windows.group == args.step
     scene = load_scene(args.scene, args.data_root)
     model = make_predictor(args.predictor, args.task, args.scene, args.data_root, args.runs)
@@ -84,7 +111,9 @@ COMMANDS = {"evaluate": run_evaluate, "demo": run_demo, "plot": run_plot}
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="python -m st_sim", description=__doc__)
+    prog = "stcrowd" if Path(sys.argv[0]).name == "stcrowd" else "python -m st_sim"
+    parser = argparse.ArgumentParser(prog=prog, description=__doc__)
+    add_debug_flag(parser)
     commands = parser.add_subparsers(dest="command", required=True)
 
     evaluate = commands.add_parser("evaluate", help="score a predictor on a benchmark task's test windows")
@@ -99,9 +128,14 @@ def build_parser() -> argparse.ArgumentParser:
                                "(default: the loader's own 2-frame windows)")
     evaluate.add_argument("--json", default=None, help="also write the results to this JSON file (one task)")
     evaluate.add_argument("--out", default=None, help="write <task>.json and <task>.md into this folder")
-    evaluate.add_argument("--runs", default="runs", help="checkpoint folder <task>/<scene>/best.pt (default: runs)")
-    evaluate.add_argument("--train-missing", action="store_true",
-                          help="singular: train any checkpoint that does not exist yet (resumes)")
+    evaluate.add_argument("--seeds", type=int, nargs="+", default=[0],
+                          help="singular: training seeds; each row is the mean ± sd over them (default: 0)")
+    evaluate.add_argument("--runs", default="runs",
+                          help="singular: training folder <task>/<scene>/seed<k>/ (default: runs); missing models "
+                               "are trained there, seed 0 falls back to the shipped checkpoint where one exists")
+    evaluate.add_argument("--no-train", action="store_true",
+                          help="singular: fail instead of training missing checkpoints (default: train them)")
+    add_grid_arguments(evaluate)
     evaluate.add_argument("--data-root", default=None, help="ETH/UCY folder (default: $STCROWD_DATA or the cache)")
     evaluate.add_argument("--no-stream", action="store_true",
                           help="skip the replay through the spectator env (default: run it and check that it "
@@ -126,6 +160,17 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def add_grid_arguments(parser: argparse.ArgumentParser) -> None:
+    """Flags of commands that run a grid of jobs (``st_sim.apps.grid``)."""
+    parser.add_argument("--executor", choices=["local", "ray"], default="local",
+                        help="local: a process pool on this machine; ray: a Ray cluster (pip install -e \".[ray]\") "
+                             "(default: local)")
+    parser.add_argument("--workers", type=positive_int, default=None,
+                        help="local: parallel jobs, one thread each (default: the number of cores)")
+    parser.add_argument("--ray-address", default=None,
+                        help="ray: cluster address, auto or HOST:PORT (default: start Ray on this machine)")
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    return COMMANDS[args.command](args)
+    return run_guarded(COMMANDS[args.command], args)

@@ -1,26 +1,38 @@
-"""Benchmark evaluation: every scene of a task, offline (``st_sim.scoring``) and through the spectator env."""
+"""Benchmark tables: a predictor on every scene of a task, for one or more training seeds.
+
+Each (task, scene, seed) is scored offline on the benchmark windows (``st_sim.scoring``) and, by default,
+again by replaying the test recordings through the spectator environment; the two must agree. The cells
+run as a grid (``st_sim.apps.grid``): missing SingularTrajectory checkpoints are trained first, then every
+cell is evaluated, each writing its own JSON, so an interrupted run resumes where it stopped.
+"""
 
 from __future__ import annotations
 
+import hashlib
+import json
+import statistics
 import time
-from collections.abc import Callable
-from dataclasses import asdict
+from dataclasses import asdict, dataclass
 from pathlib import Path
-
-import numpy as np
-from tqdm import tqdm
+from typing import Any
 
 from predictor.protocol import Predictor
+from replays.atomic import write_text_atomic
+from replays.constants import DOMAIN_TASKS
 from replays.scenes import SCENE_NAMES, scene_info
+from st_sim.apps.grid import Job
 from st_sim.paper import paper_numbers
 from st_sim.scoring import SceneResult, evaluate_offline, target_scene
 
 DOMAIN_PAIRS: tuple[str, ...] = tuple(
     f"{scene_info(a).letter}2{scene_info(b).letter}" for a in SCENE_NAMES for b in SCENE_NAMES if a != b
 )
-
-
 STREAM_TOLERANCE_M = 1e-6  # stream and offline ADE/FDE must agree to this
+TRAIN_ESTIMATE_S = 45.0  # one model with one thread on this project's 2-core machine, two jobs at a time [s]
+
+
+class StreamMismatchError(RuntimeError):
+    """Evaluation through the environment disagrees with the offline windows."""
 
 
 def evaluate_scene(predictor: Predictor, task: str, scene: str, num_samples: int | None = None,
@@ -46,64 +58,206 @@ def evaluate_scene(predictor: Predictor, task: str, scene: str, num_samples: int
             streamed["samples"], streamed["ade"], streamed["fde"])
         if (streamed["samples"] != result.samples or abs(streamed["ade"] - result.ade) > STREAM_TOLERANCE_M
                 or abs(streamed["fde"] - result.fde) > STREAM_TOLERANCE_M):
-            raise AssertionError(f"{task}/{scene}: stream {streamed} disagrees with offline "
-                                 f"({result.samples}, {result.ade}, {result.fde})")
+            raise StreamMismatchError(f"{task}/{scene}: stream {streamed} disagrees with offline "
+                                      f"({result.samples}, {result.ade}, {result.fde})")
         result.wall_s = time.perf_counter() - start
     return result
 
 
-def evaluate_task(make_predictor: Callable[[str, str], Predictor], task: str, scenes: list[str] | None = None,
-                  momentary_from_8: bool = False, root=None, progress: bool = True, stream: bool = False,
-                  rerun_path: str | None = None) -> dict:
-    """Evaluate every scene (or domain pair) of a task.
+def task_scenes(task: str) -> list[str]:
+    """Every scene of a task's table: the 20 domain pairs, or the five scenes."""
+    return list(DOMAIN_PAIRS if task in DOMAIN_TASKS else SCENE_NAMES)
 
-    Args:
-        make_predictor: (task, scene) -> predictor for that scene (e.g. a leave-one-out checkpoint).
-        scenes: scene names, or domain pairs for ``domain``; default all.
+
+@dataclass(frozen=True)
+class Plan:
+    """What one ``evaluate`` command runs: a predictor on tasks x scenes x seeds."""
+
+    predictor: str
+    """cvm | cvm-s | linear | singular | a checkpoint file or folder"""
+    tasks: tuple[str, ...]
+    scenes: dict[str, tuple[str, ...]]
+    """task -> scenes (or domain pairs)"""
+    seeds: tuple[int, ...] = (0,)
+    """training seeds of singular models (one row per scene: mean and sd over these)"""
+    runs: str = "runs"
+    """training folder: ``runs/<task>/<scene>/seed<k>``; evaluations are kept in ``runs/evaluations``"""
+    root: str | None = None
+    stream: bool = True
+    momentary_from_8: bool = False
+    rerun: str | None = None
+    """FILE.rrd -> one recording per cell and replayed file"""
+
+    @property
+    def trained(self) -> bool:
+        return self.predictor == "singular"
+
+    def cells(self) -> list[tuple[str, str, int]]:
+        seeds = self.seeds if self.trained else (0,)
+        return [(task, scene, seed) for task in self.tasks for scene in self.scenes[task] for seed in seeds]
+
+    def missing_models(self) -> list[tuple[str, str, int]]:
+        """Cells whose SingularTrajectory checkpoint neither exists in ``runs`` nor ships."""
+        if not self.trained:
+            return []
+        from predictor.registry import resolve_checkpoint
+
+        return [cell for cell in self.cells() if resolve_checkpoint(*cell, runs_dir=self.runs) is None]
+
+    def train_jobs(self) -> list[Job]:
+        """One training job per missing model (resumes an interrupted run)."""
+        from predictor.registry import run_dir
+        from predictor.train import TRAIN_SUMMARY, TrainConfig
+
+        jobs = []
+        for task, scene, seed in self.missing_models():
+            out = run_dir(self.runs, task, scene, seed)
+            cfg = TrainConfig(task=task, scene=scene, seed=seed, out=str(out), data_root=self.root, progress=False)
+            jobs.append(Job(f"train/{task}/{scene}/seed{seed}", "predictor.train:train_job", asdict(cfg),
+                            str(out / TRAIN_SUMMARY)))
+        return jobs
+
+    def evaluation_jobs(self) -> list[Job]:
+        """One evaluation job per cell, its JSON named after what it scored (a new checkpoint = a new job)."""
+        jobs = []
+        for task, scene, seed in self.cells():
+            source = self.source(task, scene, seed)
+            flags = ("-from8" if self.momentary_from_8 and task == "momentary" else "") + ("" if self.stream else
+                                                                                          "-offline")
+            label = source_label(source) + flags
+            output = Path(self.runs) / "evaluations" / task / scene / f"{label}.json"
+            rerun = None
+            if self.rerun is not None:
+                base = Path(self.rerun)
+                rerun = str(base.with_name(f"{base.stem}_{task}_{scene}_seed{seed}.rrd"))
+            jobs.append(Job(f"evaluate/{task}/{scene}/seed{seed}", "st_sim.apps.evaluate:evaluate_job",
+                            {"source": source, "task": task, "scene": scene, "root": self.root, "stream": self.stream,
+                             "momentary_from_8": self.momentary_from_8, "rerun_path": rerun, "output": str(output)},
+                            str(output)))
+        return jobs
+
+    def source(self, task: str, scene: str, seed: int) -> str:
+        """What a cell's predictor is made from: a baseline name, a checkpoint file, or ``shipped:<name>``."""
+        if not self.trained:
+            path = Path(self.predictor)
+            if path.is_dir():
+                from predictor.registry import run_dir
+
+                return str(run_dir(path, task, scene, seed) / "best.pt")
+            return self.predictor
+        from predictor.registry import MissingCheckpointError, resolve_checkpoint
+
+        spec = resolve_checkpoint(task, scene, seed, self.runs)
+        if spec is None:
+            raise MissingCheckpointError(f"no checkpoint for {task}/{scene} seed {seed}; train it first")
+        return spec
+
+
+def source_label(source: str) -> str:
+    """File-name-safe label of a predictor source; checkpoints are labelled by the hash of their bytes."""
+    if source.startswith("shipped:"):
+        from predictor.checkpoint import pretrained_manifest
+
+        return "shipped-" + pretrained_manifest()["checkpoints"][source.removeprefix("shipped:")]["sha256"][:12]
+    path = Path(source)
+    if path.is_file():
+        return "checkpoint-" + hashlib.sha256(path.read_bytes()).hexdigest()[:12]
+    return source
+
+
+def evaluate_job(source: str, task: str, scene: str, root: str | None, stream: bool, momentary_from_8: bool,
+                 rerun_path: str | None, output: str) -> None:
+    """Grid entry point: score one cell and write its ``SceneResult`` as JSON to ``output``."""
+    from predictor.registry import PREDICTOR_NAMES, load_checkpoint_spec, make_predictor
+
+    if source in PREDICTOR_NAMES:
+        predictor = make_predictor(source, task, scene, root)
+    else:
+        predictor = load_checkpoint_spec(source, task)
+    result = evaluate_scene(predictor, task, scene, None, momentary_from_8, root, stream=stream,
+                            rerun_path=rerun_path)
+    result.checkpoint = source if source not in PREDICTOR_NAMES else None
+    write_text_atomic(output, json.dumps(asdict(result), indent=1))
+
+
+def _mean_sd(values: list[float]) -> tuple[float, float]:
+    return statistics.fmean(values), (statistics.stdev(values) if len(values) > 1 else 0.0)
+
+
+def aggregate(task: str, predictor: str, per_cell: dict[tuple[str, int], dict[str, Any]]) -> dict:
+    """One task's table from its cells' results (``(scene, seed) -> SceneResult dict``).
 
     Returns:
-        ``{"task", "avg": {"ade", "fde", "paper_ade", "paper_fde"}, "scenes": {scene: SceneResult dict}}``.
+        ``{"task", "predictor", "seeds", "avg": {"ade", "fde", "ade_sd", "fde_sd", "per_seed", "paper_*"},
+        "scenes": {scene: {"ade", "fde", "ade_sd", "fde_sd", means of the other scores, "checkpoints",
+        "seeds": {seed: SceneResult dict}}}}``; sd is over seeds (n - 1 in the denominator).
     """
-    scenes = scenes or list(DOMAIN_PAIRS if task == "domain" else SCENE_NAMES)
-    results = {}
-    for scene in tqdm(scenes, desc=f"{task}", unit="scene", disable=not progress):
-        rerun = None if rerun_path is None else str(Path(rerun_path).with_name(f"{Path(rerun_path).stem}_{task}"
-                                                                                   f"_{scene}.rrd"))
-        results[scene] = evaluate_scene(make_predictor(task, scene), task, scene, None, momentary_from_8, root,
-                                        stream=stream, rerun_path=rerun, progress=progress)
-    avg = {"ade": float(np.mean([r.ade for r in results.values()])),
-           "fde": float(np.mean([r.fde for r in results.values()]))}
+    scenes = list(dict.fromkeys(scene for scene, _ in per_cell))
+    seeds = sorted({seed for _, seed in per_cell})
+    table: dict[str, Any] = {}
+    for scene in scenes:
+        runs = {seed: per_cell[(scene, seed)] for seed in seeds}
+        row: dict[str, Any] = {"samples": runs[seeds[0]]["samples"], "seeds": {str(k): v for k, v in runs.items()},
+                               "paper_ade": runs[seeds[0]]["paper_ade"], "paper_fde": runs[seeds[0]]["paper_fde"],
+                               "checkpoints": [r["checkpoint"] for r in runs.values()],
+                               "stream_checked": all(r["stream_samples"] is not None for r in runs.values())}
+        for metric in ("ade", "fde"):
+            row[metric], row[f"{metric}_sd"] = _mean_sd([r[metric] for r in runs.values()])
+        for metric in ("map_violation", "path_map_violation", "gt_map_violation", "collision_rate"):
+            row[metric] = statistics.fmean(r[metric] for r in runs.values())
+        table[scene] = row
+    per_seed = {str(seed): {m: statistics.fmean(per_cell[(s, seed)][m] for s in scenes) for m in ("ade", "fde")}
+                for seed in seeds}
+    avg: dict[str, Any] = {"per_seed": per_seed}
+    for metric in ("ade", "fde"):
+        avg[metric], avg[f"{metric}_sd"] = _mean_sd([v[metric] for v in per_seed.values()])
     paper_avg = paper_numbers(task, "avg")
-    if paper_avg and len(scenes) == (20 if task == "domain" else 5):
+    if paper_avg and set(scenes) == set(task_scenes(task)):
         avg.update(paper_ade=paper_avg[0], paper_fde=paper_avg[1])
-    return {"task": task, "avg": avg, "scenes": {name: asdict(r) for name, r in results.items()}}
+    return {"task": task, "predictor": predictor, "seeds": seeds, "avg": avg, "scenes": table}
 
 
-def _pair(ade: float, fde: float) -> str:
-    return f"{ade:.3f} / {fde:.3f}"
+def _pair(ade: float, fde: float, ade_sd: float | None = None, fde_sd: float | None = None) -> str:
+    if ade_sd is None:
+        return f"{ade:.3f} / {fde:.3f}"
+    return f"{ade:.3f} ± {ade_sd:.3f} / {fde:.3f} ± {fde_sd:.3f}"
 
 
-def markdown_table(result: dict, predictor_name: str) -> str:
-    """A markdown table of ``evaluate_task``'s result with the paper's numbers and the delta."""
+def _delta(row: dict) -> str:
+    if row.get("paper_ade") is None:
+        return "–"
+    return f"{row['ade'] - row['paper_ade']:+.3f} / {row['fde'] - row['paper_fde']:+.3f}"
+
+
+TASK_TITLES = {"domain": "domain adaptation (paper protocol: validation on the target's val portion)",
+               "domain_strict": "domain adaptation, strict (validation on the source's own val portion)"}
+
+
+def markdown_table(result: dict) -> str:
+    """A markdown table of ``aggregate``'s result with the paper's numbers, the delta and the checkpoints."""
+    seeds = result["seeds"]
+    several = len(seeds) > 1
+    spread = f"mean ± sd over seeds {', '.join(map(str, seeds))}" if several else f"seed {seeds[0]}"
     lines = [
-        f"**{result['task']}** — predictor `{predictor_name}` (ADE / FDE in metres)", "",
+        f"**{TASK_TITLES.get(result['task'], result['task'])}** — predictor `{result['predictor']}`, {spread} "
+        "(ADE / FDE in metres)", "",
         "| scene | samples | ADE / FDE | paper | delta | map-viol. pred (paths) | map-viol. GT | collisions "
-        "| stream = offline |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "| stream = offline | checkpoint |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for name, r in result["scenes"].items():
         paper = _pair(r["paper_ade"], r["paper_fde"]) if r["paper_ade"] is not None else "–"
-        delta = (f"{r['ade'] - r['paper_ade']:+.3f} / {r['fde'] - r['paper_fde']:+.3f}"
-                 if r["paper_ade"] is not None else "–")
+        scores = _pair(r["ade"], r["fde"], r["ade_sd"], r["fde_sd"]) if several else _pair(r["ade"], r["fde"])
+        checkpoint = r["checkpoints"][0] or "–"
+        if several and r["checkpoints"][0]:
+            checkpoint += f" (+{len(seeds) - 1} seeds)"
         lines.append(
-            f"| {name} | {r['samples']} | {_pair(r['ade'], r['fde'])} | {paper} | {delta} | "
+            f"| {name} | {r['samples']} | {scores} | {paper} | {_delta(r)} | "
             f"{100 * r['map_violation']:.2f}% ({100 * r['path_map_violation']:.1f}%) | "
             f"{100 * r['gt_map_violation']:.2f}% | {100 * r['collision_rate']:.2f}% | "
-            f"{'yes' if r['stream_samples'] is not None else 'not run'} |"
-        )
+            f"{'yes' if r['stream_checked'] else 'not run'} | {checkpoint} |")
     avg = result["avg"]
     paper = _pair(avg["paper_ade"], avg["paper_fde"]) if "paper_ade" in avg else "–"
-    delta = (f"{avg['ade'] - avg['paper_ade']:+.3f} / {avg['fde'] - avg['paper_fde']:+.3f}"
-             if "paper_ade" in avg else "–")
-    lines.append(f"| **AVG** | | **{_pair(avg['ade'], avg['fde'])}** | {paper} | {delta} | | | | |")
+    scores = _pair(avg["ade"], avg["fde"], avg["ade_sd"], avg["fde_sd"]) if several else _pair(avg["ade"], avg["fde"])
+    lines.append(f"| **AVG** | | **{scores}** | {paper} | {_delta(avg)} | | | | | |")
     return "\n".join(lines)

@@ -14,8 +14,8 @@ from predictor.protocol import Predictor
 from replays.constants import TASKS
 from replays.scenes import scene_info
 
-ENV_TASK = {"stochastic": "stochastic", "deterministic": "deterministic", "momentary": "momentary",
-            "fewshot": "stochastic", "domain": "deterministic"}  # the env protocol with the same T_obs and S
+ENV_TASK = {"stochastic": "stochastic", "deterministic": "deterministic", "momentary": "momentary",  # the env
+            "fewshot": "stochastic", "domain": "deterministic", "domain_strict": "deterministic"}  # task, same T_obs, S
 
 
 def evaluate_stream(predictor: Predictor, task: str, test_scene: str, root=None,

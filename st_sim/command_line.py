@@ -1,0 +1,55 @@
+"""What every STCrowd command line shares: one ``error: ...`` line and exit code 1 on failure (``--debug``
+shows the traceback instead), argument types that name the flag, and output paths checked before work."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Callable
+from pathlib import Path
+
+from replays.atomic import atomic_path
+
+
+class CliError(RuntimeError):
+    """A command cannot run as asked (the message names the flag and what to do)."""
+
+
+def positive_int(text: str) -> int:
+    """argparse type: an integer >= 1."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"{value} must be at least 1")
+    return value
+
+
+def check_writable(folder: Path) -> None:
+    """Fail before any work if files cannot be written into ``folder`` (created if missing)."""
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        with atomic_path(folder / ".write-test"):
+            pass
+    except OSError as err:
+        raise CliError(f"{folder}: cannot write there ({err.strerror or err})") from err
+
+
+def add_debug_flag(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--debug", action="store_true", help="show the Python traceback on errors")
+
+
+def run_guarded(command: Callable[[argparse.Namespace], int], args: argparse.Namespace) -> int:
+    """Run ``command(args)``; any error becomes one ``error: ...`` line on stderr and exit code 1."""
+    try:
+        return command(args)
+    except KeyboardInterrupt:
+        print("error: interrupted; run the same command again to resume (finished work is kept)", file=sys.stderr)
+        return 130
+    except Exception as err:
+        if getattr(args, "debug", False):
+            raise
+        message = err.args[0] if isinstance(err, KeyError) and err.args else str(err)
+        print(f"error: {message or type(err).__name__}", file=sys.stderr)
+        return 1
