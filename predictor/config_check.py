@@ -15,6 +15,8 @@ def check_config(cfg: Any, ranges: dict[str, tuple[float, float]], choices: dict
         ranges: field -> inclusive (low, high) for numeric fields; ``None`` values are allowed where the
             field's default is None. Fields annotated ``int`` must hold integers (not bools or floats).
         choices: field -> allowed values.
+
+    Fields annotated ``bool`` must hold a bool.
     """
     name = type(cfg).__name__
     defaults = {f.name: f.default for f in fields(cfg)}
@@ -29,6 +31,9 @@ def check_config(cfg: Any, ranges: dict[str, tuple[float, float]], choices: dict
             raise ValueError(f"{name}.{field_name}={value!r}: must be {kind} in [{low}, {high}]")
         if not (math.isfinite(value) and low <= value <= high):
             raise ValueError(f"{name}.{field_name}={value!r}: must be in [{low}, {high}]")
+    for field_name, kind in types.items():
+        if kind == "bool" and not isinstance(getattr(cfg, field_name), bool):
+            raise ValueError(f"{name}.{field_name}={getattr(cfg, field_name)!r}: must be True or False")
     for field_name, allowed in (choices or {}).items():
         if getattr(cfg, field_name) not in allowed:
             raise ValueError(f"{name}.{field_name}={getattr(cfg, field_name)!r}: must be one of {', '.join(allowed)}")

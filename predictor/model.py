@@ -11,11 +11,13 @@ from dataclasses import dataclass, fields
 import numpy as np
 import torch
 
-from predictor.anchors import adaptive_anchors
+from predictor.anchors import BEND_SHAPES, OFF_IMAGE_MODES, adaptive_anchors
+from predictor.config_check import check_config
 from predictor.normalize import AgentFrame, agent_frames, rotate
 from predictor.protocol import check_inputs, empty_prediction
 from predictor.refiner import Refiner, RefinerConfig
 from predictor.singular_space import T_WIN, SingularSpace
+from replays.constants import TASKS
 from replays.scenes import Scene
 
 BATCH_AGENTS = 512  # agents per refiner call at inference (whole windows; bounds attention memory)
@@ -59,6 +61,14 @@ class ModelConfig:
     """scale of the starting noise x_M of the sampler"""
     zero_start: bool = True
     """the refiner's output layer starts at zero (untrained refiner = anchors)"""
+
+    def __post_init__(self) -> None:
+        check_config(self, {"obs_len": (2, 64), "num_samples": (1, 1000), "k": (1, 24), "slow_speed_m": (0.0, 10.0),
+                            "slow_scale_floor_m": (0.0, 10.0), "dim": (4, 4096), "denoiser_dim": (4, 4096),
+                            "heads": (1, 64), "layers": (1, 16), "steps": (1, 1000), "init_noise": (0.0, 100.0)},
+                     choices={"task": tuple(TASKS), "anchor_off_image": OFF_IMAGE_MODES, "anchor_bend": BEND_SHAPES})
+        if self.dim % self.heads:
+            raise ValueError(f"ModelConfig.dim={self.dim}: must be a multiple of heads={self.heads}")
 
     def refiner_config(self) -> RefinerConfig:
         """The refiner's architecture for this model."""
