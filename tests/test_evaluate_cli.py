@@ -72,3 +72,11 @@ def test_plot_cli_writes_a_png(tmp_path):
     assert main(["plot", "--scene", "hotel", "--step", "3", "--predictor", "cvm-s", "--out", str(out)]) == 0
     image = cv2.imread(str(out))
     assert image is not None and image.shape[0] >= 576
+
+
+def test_figures_command_writes_the_readme_figures_outside_docs(tmp_path):
+    import cv2
+
+    assert main(["figures", "--out", str(tmp_path)]) == 0
+    for name in ("zara1_window120.png", "eth_window30.png"):
+        assert cv2.imread(str(tmp_path / name)) is not None

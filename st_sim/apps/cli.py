@@ -74,20 +74,21 @@ def run_demo(args: argparse.Namespace) -> int:
     return 0
 
 
-def run_plot(args: argparse.Namespace) -> int:
+def plot_window(task: str, scene_name: str, step: int, predictor: str, out: str | Path, runs: str = "runs",
+                root: str | None = None) -> Path:
     """PNG of one test window: photo, map overlay, histories, futures, anchors before/after adaptation, truth."""
     from predictor.registry import make_predictor
     from replays.scenes import load_scene
     from replays.windows import load_windows
     from st_sim.plot import plot_prediction
 
-    windows = load_windows(args.task, args.scene, "test", args.data_root)
-    if not 0 <= args.step < windows.num_groups:
-        raise CliError(f"--step {args.step}: must be a window index in 0..{windows.num_groups - 1} for {args.scene}")
-    keep = windows.group == args.step
-    scene = load_scene(args.scene, args.data_root)
-    model = make_predictor(args.predictor, args.task, args.scene, args.data_root, args.runs)
-    num_samples = TASKS[args.task]["num_samples"]
+    windows = load_windows(task, scene_name, "test", root)
+    if not 0 <= step < windows.num_groups:
+        raise CliError(f"--step {step}: must be a window index in 0..{windows.num_groups - 1} for {scene_name}")
+    keep = windows.group == step
+    scene = load_scene(scene_name, root)
+    model = make_predictor(predictor, task, scene_name, root, runs)
+    num_samples = TASKS[task]["num_samples"]
     if hasattr(model, "predict_detailed"):
         detail = model.predict_detailed(windows.obs[keep], windows.group[keep], scene, num_samples)
         futures, prototype, adapted = detail.futures, detail.prototype_anchors, detail.adapted_anchors
@@ -95,10 +96,27 @@ def run_plot(args: argparse.Namespace) -> int:
         futures = model.predict(windows.obs[keep], windows.group[keep], scene, num_samples)
         prototype = adapted = None
     frame = int(windows.frame[keep][0])
-    path = plot_prediction(scene, windows.obs[keep], futures, args.out, gt_m=windows.fut[keep],
+    return plot_prediction(scene, windows.obs[keep], futures, out, gt_m=windows.fut[keep],
                            prototype_anchors_m=prototype, adapted_anchors_m=adapted,
-                           title=f"{args.scene} {args.task}, window {args.step} (frame {frame}), {args.predictor}")
-    print(f"wrote {path}")
+                           title=f"{scene_name} {task}, window {step} (frame {frame}), {predictor}")
+
+
+def run_plot(args: argparse.Namespace) -> int:
+    check_writable(Path(args.out).parent)
+    print(f"wrote {plot_window(args.task, args.scene, args.step, args.predictor, args.out, args.runs, args.data_root)}")
+    return 0
+
+
+README_FIGURES = (("zara1", 120), ("eth", 30))  # (scene, test window) of the figures the README shows
+
+
+def run_figures(args: argparse.Namespace) -> int:
+    """Regenerate the README's figures with the shipped stochastic models."""
+    check_writable(Path(args.out))
+    for scene, step in README_FIGURES:
+        path = plot_window("stochastic", scene, step, "singular", Path(args.out) / f"{scene}_window{step}.png",
+                           root=args.data_root)
+        print(f"wrote {path}")
     return 0
 
 
@@ -107,7 +125,7 @@ def write_json_atomic(path: Path, data: dict) -> None:
     write_text_atomic(path, json.dumps(data, indent=1))
 
 
-COMMANDS = {"evaluate": run_evaluate, "demo": run_demo, "plot": run_plot}
+COMMANDS = {"evaluate": run_evaluate, "demo": run_demo, "plot": run_plot, "figures": run_figures}
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -152,6 +170,11 @@ def build_parser() -> argparse.ArgumentParser:
     plot.add_argument("--runs", default="runs", help="checkpoint folder for singular (default: runs)")
     plot.add_argument("--out", default="stcrowd_plot.png", help="PNG path (default: stcrowd_plot.png)")
     plot.add_argument("--data-root", default=None, help="ETH/UCY folder (default: $STCROWD_DATA or the cache)")
+
+    figures = commands.add_parser("figures", help="regenerate the README's figures (shipped stochastic models)")
+    figures.add_argument("--out", default="figures", help="folder for the PNGs (default: figures; the README's "
+                         "copies live in docs/)")
+    figures.add_argument("--data-root", default=None, help="ETH/UCY folder (default: $STCROWD_DATA or the cache)")
 
     demo = commands.add_parser("demo", help="simulated crossing with an ego robot and predictions (no data needed)")
     demo.add_argument("--steps", type=int, default=150, help="env steps of 0.4 s (default: 150)")
