@@ -80,3 +80,14 @@ def test_figures_command_writes_the_readme_figures_outside_docs(tmp_path):
     assert main(["figures", "--out", str(tmp_path)]) == 0
     for name in ("zara1_window120.png", "eth_window30.png"):
         assert cv2.imread(str(tmp_path / name)) is not None
+
+
+@pytest.mark.parametrize("flag", ["--json", "--out"])
+def test_unwritable_output_paths_fail_before_any_work(tmp_path, capsys, flag):
+    blocker = tmp_path / "a_file"
+    blocker.write_text("not a folder")
+    target = blocker / "result.json" if flag == "--json" else blocker / "tables"
+    assert main(["evaluate", "--task", "stochastic", "--predictor", "cvm", flag, str(target),
+                 "--runs", str(tmp_path / "runs")]) == 1
+    assert f"error: {blocker}" in capsys.readouterr().err
+    assert not (tmp_path / "runs").exists()  # nothing was evaluated
