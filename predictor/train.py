@@ -24,11 +24,12 @@ from predictor.model import ModelConfig, SingularTrajectory, window_batches
 from predictor.normalize import SLOW_SPEED_M, agent_frames
 from predictor.refiner import Refiner
 from predictor.singular_space import fit_singular_space
-from replays.atomic import atomic_path, write_text_atomic
+from replays.atomic import write_text_atomic
 from replays.constants import TASKS
 from replays.data_root import data_root, expected_sums
 from replays.scenes import load_scene, scene_of_recording
 from replays.windows import Windows, load_windows, split_files
+from st_sim.command_line import check_writable
 
 # Single-sample tasks (deterministic, domain; S = 1): one mean anchor must follow each agent's own speed, so
 # more agents are speed-scaled than for S = 20 (both settings measured: RESULTS.md).
@@ -225,16 +226,6 @@ class TrainingError(RuntimeError):
     """A training run cannot start, resume or produce a checkpoint (the message says what to do)."""
 
 
-def check_output_folder(out: Path) -> None:
-    """Fail before any work if ``out`` cannot hold checkpoints (not a folder, or not writable)."""
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-        with atomic_path(out / ".write-test"):
-            pass
-    except OSError as err:
-        raise TrainingError(f"--out {out}: cannot write checkpoints there ({err.strerror or err})") from err
-
-
 def main(cfg: TrainConfig) -> Path:
     """Train one model; returns ``OUT/best.pt``. Resumes from ``OUT/last.pt``; writes ``OUT/train.json`` last."""
     # ---- seeding, threads, output folder (checked before any work)
@@ -243,7 +234,7 @@ def main(cfg: TrainConfig) -> Path:
     torch.manual_seed(cfg.seed)
     torch.set_num_threads(cfg.threads)
     out = Path(cfg.out)
-    check_output_folder(out)
+    check_writable(out)  # before any work
     run_name = f"{cfg.task}__{cfg.scene}__seed{cfg.seed}"
 
     # ---- data: windows -> model statistics -> precomputed tensors (obs T_obs, pred 12 steps of 0.4 s)
