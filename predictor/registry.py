@@ -27,16 +27,17 @@ def run_dir(runs_dir: str | Path, task: str, scene: str, seed: int) -> Path:
     return Path(runs_dir) / task / scene / f"seed{seed}"
 
 
-def resolve_checkpoint(task: str, scene: str, seed: int = 0, runs_dir: str | Path = RUNS_DIR) -> str | None:
+def resolve_checkpoint(task: str, scene: str, seed: int = 0, runs_dir: str | Path = RUNS_DIR,
+                       use_shipped: bool = True) -> str | None:
     """Which checkpoint a singular predictor uses: a finished run's ``best.pt``, else ``"shipped:<task>/<scene>"``
-    for seed 0 when one ships, else None (it must be trained)."""
+    for seed 0 when one ships (and ``use_shipped``), else None (it must be trained)."""
     from predictor.checkpoint import pretrained_manifest
     from predictor.train import finished
 
     folder = run_dir(runs_dir, task, scene, seed)
     if finished(folder):
         return str(folder / "best.pt")
-    if seed == 0 and f"{task}/{scene}" in pretrained_manifest()["checkpoints"]:
+    if use_shipped and seed == 0 and f"{task}/{scene}" in pretrained_manifest()["checkpoints"]:
         return f"shipped:{task}/{scene}"
     return None
 

@@ -30,7 +30,7 @@ def run_evaluate(args: argparse.Namespace) -> int:
             raise CliError(f"--scenes {' '.join(unknown)}: not in the {task} table; expected some of "
                            f"{' '.join(task_scenes(task))}")
     plan = Plan(args.predictor, tasks, scenes, tuple(args.seeds), args.runs, args.data_root, not args.no_stream,
-                args.momentary_from_8, args.rerun)
+                args.momentary_from_8, args.rerun, not args.no_shipped)
     grid = {"executor": args.executor, "workers": args.workers, "address": args.ray_address,
             "progress": not args.quiet}
     reports = []
@@ -151,6 +151,8 @@ def build_parser() -> argparse.ArgumentParser:
     evaluate.add_argument("--runs", default="runs",
                           help="singular: training folder <task>/<scene>/seed<k>/ (default: runs); missing models "
                                "are trained there, seed 0 falls back to the shipped checkpoint where one exists")
+    evaluate.add_argument("--no-shipped", action="store_true",
+                          help="singular: train seed 0 into --runs too instead of using the shipped checkpoints")
     evaluate.add_argument("--no-train", action="store_true",
                           help="singular: fail instead of training missing checkpoints (default: train them)")
     add_grid_arguments(evaluate)

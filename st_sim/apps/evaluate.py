@@ -87,6 +87,8 @@ class Plan:
     momentary_from_8: bool = False
     rerun: str | None = None
     """FILE.rrd -> one recording per cell and replayed file"""
+    use_shipped: bool = True
+    """seed 0 falls back to the shipped checkpoint when ``runs`` has none (False: train it)"""
 
     @property
     def trained(self) -> bool:
@@ -102,7 +104,8 @@ class Plan:
             return []
         from predictor.registry import resolve_checkpoint
 
-        return [cell for cell in self.cells() if resolve_checkpoint(*cell, runs_dir=self.runs) is None]
+        return [cell for cell in self.cells()
+                if resolve_checkpoint(*cell, runs_dir=self.runs, use_shipped=self.use_shipped) is None]
 
     def train_jobs(self) -> list[Job]:
         """One training job per missing model (resumes an interrupted run)."""
@@ -147,7 +150,7 @@ class Plan:
             return self.predictor
         from predictor.registry import MissingCheckpointError, resolve_checkpoint
 
-        spec = resolve_checkpoint(task, scene, seed, self.runs)
+        spec = resolve_checkpoint(task, scene, seed, self.runs, self.use_shipped)
         if spec is None:
             raise MissingCheckpointError(f"no checkpoint for {task}/{scene} seed {seed}; train it first")
         return spec
