@@ -9,7 +9,7 @@ from importlib import resources
 from pathlib import Path
 
 from predictor.checkpoint import PRETRAINED_DIR, CheckpointError, load, model_state, read_checkpoint, save_atomic
-from predictor.train import TRAIN_SUMMARY
+from predictor.train import TRAIN_SUMMARY, finished, read_summary
 from replays.atomic import write_text_atomic
 from replays.scenes import SCENE_NAMES
 
@@ -28,10 +28,10 @@ def export_checkpoint(checkpoint: str | os.PathLike, name: str, root=None) -> di
 
     state = read_checkpoint(checkpoint)
     cfg = state["train_config"]
-    summary_path = Path(checkpoint).with_name(TRAIN_SUMMARY)
-    if not summary_path.is_file():
-        raise CheckpointError(f"{summary_path}: missing; export only the best.pt of a finished training run")
-    summary = json.loads(summary_path.read_text())
+    if not finished(Path(checkpoint).parent):
+        raise CheckpointError(f"{Path(checkpoint).with_name(TRAIN_SUMMARY)}: missing; export only the best.pt of a "
+                              "finished training run")
+    summary = read_summary(Path(checkpoint).parent)
     file_name = name.replace("/", "_") + ".pt"
     target = pretrained_dir() / file_name
     shipped = {"model": model_state(load(checkpoint), half=True), "train_config": cfg,

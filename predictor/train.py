@@ -325,6 +325,11 @@ def finished(out: str | os.PathLike) -> bool:
     return (Path(out) / TRAIN_SUMMARY).is_file()
 
 
+def read_summary(out: str | os.PathLike) -> dict:
+    """A finished run's summary: train_config, data_checksums, best (epoch, val ADE/FDE), epochs, history, wall_s."""
+    return json.loads((Path(out) / TRAIN_SUMMARY).read_text())
+
+
 def train_job(**config) -> None:
     """Grid entry point (``st_sim.apps.grid``): train with ``TrainConfig(**config)``."""
     main(TrainConfig(**config))
