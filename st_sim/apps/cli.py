@@ -8,6 +8,7 @@ from pathlib import Path
 
 from replays.atomic import write_text_atomic
 from replays.constants import TASKS
+from st_sim.apps.navigation import cli as navigation_cli
 
 
 def run_evaluate(args: argparse.Namespace) -> int:
@@ -81,6 +82,7 @@ def write_json_atomic(path: Path, data: dict) -> None:
 
 
 COMMANDS = {"evaluate": run_evaluate, "demo": run_demo, "plot": run_plot}
+COMMANDS["navigate"] = navigation_cli.run
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -119,6 +121,7 @@ def build_parser() -> argparse.ArgumentParser:
     plot.add_argument("--out", default="stcrowd_plot.png", help="PNG path (default: stcrowd_plot.png)")
     plot.add_argument("--data-root", default=None, help="ETH/UCY folder (default: $STCROWD_DATA or the cache)")
 
+    navigation_cli.add_parser(commands)
     demo = commands.add_parser("demo", help="simulated crossing with an ego robot and predictions (no data needed)")
     demo.add_argument("--steps", type=int, default=150, help="env steps of 0.4 s (default: 150)")
     demo.add_argument("--rerun", default="stcrowd_demo.rrd", help="Rerun recording path (default: stcrowd_demo.rrd)")
