@@ -199,6 +199,7 @@ def main(cfg: TrainConfig) -> Path:
 def ship(policy_path: Path, name: str, record: dict) -> Path:
     """Copy a trained policy into the package's pretrained/ folder and record it in the manifest."""
     folder = Path(str(resources.files(__package__).joinpath(PRETRAINED_DIR)))
+    folder.mkdir(exist_ok=True)
     target = folder / f"{name}.pt"
     shutil.copyfile(policy_path, target)
     manifest_path = folder / "manifest.json"
