@@ -15,14 +15,15 @@ from st_sim.apps.navigation.ppo import SHIPPED, PolicyFileError, load_policy
 from st_sim.apps.navigation.terrain import Terrain
 
 
-def test_navigate_prints_intervals_and_writes_the_same_episodes_twice(tmp_path: Path,
+def test_navigate_prints_intervals_writes_json_and_recordings_and_repeats(tmp_path: Path,
                                                                       capsys: pytest.CaptureFixture) -> None:
     args = ["navigate", "--env", "STCrowd-SimCorridor-v0", "--policy", "straight", "--predictor", "none",
             "--episodes", "2", "--seed", "5", "--quiet"]
     assert main([*args, "--json", str(tmp_path / "a.json")]) == 0
     out = capsys.readouterr().out
     assert "95 % CI" in out and "with a pedestrian" in out and "jerk" in out
-    main([*args, "--json", str(tmp_path / "b.json")])
+    main([*args, "--json", str(tmp_path / "b.json"), "--rerun", str(tmp_path / "rrd")])
+    assert len(list((tmp_path / "rrd").glob("*seed[56].rrd"))) == 2, "one recording per episode"
     a, b = (json.loads((tmp_path / name).read_text()) for name in ("a.json", "b.json"))
     assert [e["seed"] for e in a["episodes"]] == [5, 6]
     assert a["episodes"] == b["episodes"], "the same seeds must give the same episodes"
