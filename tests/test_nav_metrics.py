@@ -27,12 +27,14 @@ def straight_episode(steps: int, outcome: Outcome, clearance_m: float = 1.0) -> 
 
 
 def test_outcome_names_goal_pedestrian_wall_and_timeout() -> None:
-    assert outcome_of(PARTS, truncated=False, clearance_m=2.0) is None
-    assert outcome_of({**PARTS, "goal": 1.0}, False, 2.0) is Outcome.GOAL
-    assert outcome_of({**PARTS, "collision": 1.0}, False, 0.02) is Outcome.PEDESTRIAN
-    assert outcome_of({**PARTS, "collision": 1.0}, False, 1.5) is Outcome.WALL
-    assert outcome_of({**PARTS, "collision": 1.0, "goal": 1.0}, False, 0.0) is Outcome.PEDESTRIAN
-    assert outcome_of(PARTS, truncated=True, clearance_m=2.0) is Outcome.TIMEOUT
+    assert outcome_of(PARTS, truncated=False, clearance_m=2.0, wall_gap_m=1.0) is None
+    assert outcome_of({**PARTS, "goal": 1.0}, False, 2.0, 1.0) is Outcome.GOAL
+    assert outcome_of({**PARTS, "collision": 1.0}, False, 0.02, 1.0) is Outcome.PEDESTRIAN
+    assert outcome_of({**PARTS, "collision": 1.0}, False, 1.5, 0.01) is Outcome.WALL
+    assert outcome_of({**PARTS, "collision": 1.0}, False, 0.2, 2.0) is Outcome.PEDESTRIAN, "touched mid-step"
+    assert outcome_of({**PARTS, "collision": 1.0}, False, 0.0, 0.05) is Outcome.PEDESTRIAN, "a body beats a wall"
+    assert outcome_of({**PARTS, "collision": 1.0, "goal": 1.0}, False, 0.0, 1.0) is Outcome.PEDESTRIAN
+    assert outcome_of(PARTS, truncated=True, clearance_m=2.0, wall_gap_m=1.0) is Outcome.TIMEOUT
 
 
 def test_straight_successful_episode_has_ratio_one_and_no_jerk() -> None:

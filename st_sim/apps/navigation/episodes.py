@@ -90,7 +90,8 @@ def run_episode(env: gym.Env, planner: Planner, world: NavWorld, seed: int) -> t
         xy.append(obs["ego"][:2].copy())
         velocity.append(obs["ego"][2:4].copy())
         clearance.append(pedestrian_clearance(obs, world))
-        outcome = outcome_of(info["reward_parts"], truncated, clearance[-1])
+        wall_gap_m = float(world.terrain.clearance_at(obs["ego"][:2])) - world.ego_radius_m
+        outcome = outcome_of(info["reward_parts"], truncated, clearance[-1], wall_gap_m)
         assert outcome is not None or not terminated, "the env terminated without goal or collision"
     xy_m = np.array(xy, np.float64)
     trace = EpisodeTrace(xy_m, np.array(velocity, np.float64), np.array(clearance),

@@ -16,7 +16,7 @@ from scipy import stats
 from replays.constants import STEP_S
 
 DISCOMFORT_M = 0.2  # the ego is uncomfortably close when its body is this near a pedestrian's [m]
-PEDESTRIAN_CONTACT_M = 0.1  # a collision with a pedestrian's body this close is a pedestrian collision [m]
+WALL_CONTACT_M = 0.1  # a collision with the robot's body this near a wall (and no pedestrian as near) hit the wall [m]
 CONFIDENCE = 0.95
 
 
@@ -29,14 +29,18 @@ class Outcome(str, Enum):
     TIMEOUT = "timeout"
 
 
-def outcome_of(reward_parts: dict[str, float], truncated: bool, clearance_m: float) -> Outcome | None:
+def outcome_of(reward_parts: dict[str, float], truncated: bool, clearance_m: float,
+               wall_gap_m: float) -> Outcome | None:
     """Outcome of a step from the env's reward parts, or None while the episode goes on.
 
-    A collision is a pedestrian collision when a pedestrian's body is within PEDESTRIAN_CONTACT_M of the
-    ego's, a wall collision otherwise (the env's ``collision`` part counts both). Collision beats goal.
+    The env's ``collision`` part counts pedestrians and walls alike. A collision is a wall collision when the
+    ego's body ends the step within WALL_CONTACT_M of a wall (``wall_gap_m``) and no pedestrian's body is as
+    close (``clearance_m``); otherwise a pedestrian collision (a pedestrian touched mid-step may have moved
+    off by the step's end, a wall has not). Collision beats goal.
     """
     if reward_parts["collision"]:
-        return Outcome.PEDESTRIAN if clearance_m <= PEDESTRIAN_CONTACT_M else Outcome.WALL
+        near_wall = wall_gap_m <= WALL_CONTACT_M and wall_gap_m < clearance_m
+        return Outcome.WALL if near_wall else Outcome.PEDESTRIAN
     if reward_parts["goal"]:
         return Outcome.GOAL
     return Outcome.TIMEOUT if truncated else None
