@@ -8,6 +8,8 @@ Needs the optional extra: ``pip install -e ".[nav]"``.
 
 from __future__ import annotations
 
+from types import ModuleType
+
 import numpy as np
 
 from st_sim.apps.navigation.pedestrians import pedestrians_of
@@ -21,7 +23,7 @@ BODY_MARGIN_M = 0.05  # added to every radius [m]
 OUTLINE_TOLERANCE_CELLS = 1.5  # wall outlines are simplified to this many grid cells [-]
 
 
-def _pyrvo():
+def _pyrvo() -> ModuleType:
     try:
         import pyrvo
     except ImportError as err:

@@ -22,6 +22,7 @@ from dataclasses import asdict, dataclass, field
 from functools import partial
 from importlib import resources
 from pathlib import Path
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -90,7 +91,7 @@ def outcome(info: dict) -> str:
     return "goal" if parts["goal"] and not parts["collision"] else "collision" if parts["collision"] else "timeout"
 
 
-def curve_callback(cfg: TrainConfig, curve: list[dict]):
+def curve_callback(cfg: TrainConfig, curve: list[dict]) -> Any:
     """A stable-baselines3 callback: progress bar, and a curve point every rollout."""
     from stable_baselines3.common.callbacks import BaseCallback
 
