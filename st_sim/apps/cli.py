@@ -10,6 +10,7 @@ from pathlib import Path
 
 from replays.atomic import write_text_atomic
 from replays.constants import TASKS
+from st_sim.apps.navigation import cli as navigation_cli
 from st_sim.command_line import CliError, add_debug_flag, check_writable, positive_int, run_guarded
 
 
@@ -125,7 +126,8 @@ def write_json_atomic(path: Path, data: dict) -> None:
     write_text_atomic(path, json.dumps(data, indent=1))
 
 
-COMMANDS = {"evaluate": run_evaluate, "demo": run_demo, "plot": run_plot, "figures": run_figures}
+COMMANDS = {"evaluate": run_evaluate, "demo": run_demo, "plot": run_plot, "figures": run_figures,
+            "navigate": navigation_cli.run}
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -178,6 +180,7 @@ def build_parser() -> argparse.ArgumentParser:
                          "copies live in docs/)")
     figures.add_argument("--data-root", default=None, help="ETH/UCY folder (default: $STCROWD_DATA or the cache)")
 
+    navigation_cli.add_parser(commands)
     demo = commands.add_parser("demo", help="simulated crossing with an ego robot and predictions (no data needed)")
     demo.add_argument("--steps", type=int, default=150, help="env steps of 0.4 s (default: 150)")
     demo.add_argument("--rerun", default="stcrowd_demo.rrd", help="Rerun recording path (default: stcrowd_demo.rrd)")

@@ -1,8 +1,10 @@
-"""Demo: an ego robot crosses a simulated crowd (STCrowd-SimCrossing-v0), a predictor in the loop.
+"""Demo: the benchmark's best planner crosses a simulated crowd (STCrowd-SimCrossing-v0) with SingularTrajectory.
 
-The ego picks, every step, the velocity that brings it closest to its goal while keeping clear of the
-pedestrians' predicted positions over the next 1.6 s; each finished episode prints its metrics. Runs
-headless; with a Rerun path the run is also written as a ``.rrd`` recording.
+The ego runs the prediction-aware sampling MPC (``st_sim.apps.navigation.mpc``): every 0.4 s it rolls out
+candidate velocity commands for 3.2 s and scores them against every sample the shipped universal
+SingularTrajectory model predicts for every pedestrian. Whole episodes run until the step budget is used;
+each prints how it ended (goal, pedestrian collision, wall collision, timeout) and its metrics, and the run
+ends with the success and collision figures. Runs headless; with a Rerun path every step is recorded.
 
     python -m st_sim demo --steps 150 --rerun demo.rrd
 """
@@ -11,98 +13,46 @@ from __future__ import annotations
 
 import time
 
-import gymnasium as gym
-import numpy as np
-
-import envs  # noqa: F401  (registers the ids)
-from replays.constants import STEP_S
-from replays.scenes import Scene
+from st_sim.apps.navigation.episodes import NavRun, make_nav_env, run_episode
+from st_sim.apps.navigation.metrics import episode_metrics
+from st_sim.apps.navigation.planners import make_planner
+from st_sim.apps.navigation.world import world_of
 
 ENV_ID = "STCrowd-SimCrossing-v0"
-HEADINGS = 16  # candidate directions of the ego's velocity [-]
-SPEED_FRACTIONS = (1.0, 0.6, 0.3)  # candidate speeds as shares of the max [-]
-LOOKAHEAD_STEPS = 4  # predicted steps (of 0.4 s) the ego checks its candidates against
-CONTACT_MARGIN_M = 0.25  # clearance wanted beyond body contact [m]
-CLEARANCE_WEIGHT = 4.0  # cost per metre of missing clearance, relative to one metre of progress [-]
-WALL_PROBE_M = 0.4  # the ego's footprint is probed for walkability this far around its centre [m]
-
-
-def goal_seeking_action(obs: dict[str, np.ndarray], max_speed_mps: float, contact_m: float,
-                        scene: Scene | None = None) -> np.ndarray:
-    """Velocity (2,) [m/s] toward the goal that keeps clear of pedestrians' predicted positions.
-
-    Candidate velocities (16 headings x 3 speeds, and standing still) are rolled out for 4 steps at
-    constant velocity; each is scored by its progress to the goal minus a penalty for coming within
-    ``contact_m`` + 0.25 m of any predicted future (every sample) or current position of a pedestrian
-    without predictions, and discarded if it leaves the walkable map. The best one wins.
-
-    Args:
-        obs: an STCrowd observation (metres, world frame).
-        max_speed_mps: the ego's speed limit [m/s].
-        contact_m: ego radius + pedestrian radius [m].
-        scene: walkability map, or None to ignore walls.
-    """
-    ego_xy, goal = obs["ego"][:2].astype(np.float64), obs["ego"][4:6].astype(np.float64)
-    angles = np.linspace(0.0, 2 * np.pi, HEADINGS, endpoint=False)
-    unit = np.stack([np.cos(angles), np.sin(angles)], axis=1)
-    candidates = np.concatenate([(unit[None] * np.array(SPEED_FRACTIONS)[:, None, None]).reshape(-1, 2)
-                                 * max_speed_mps, np.zeros((1, 2))])  # (K, 2) m/s
-    ahead = np.arange(1, LOOKAHEAD_STEPS + 1) * STEP_S
-    ego_path = ego_xy + candidates[:, None] * ahead[None, :, None]  # (K, L, 2)
-    futures = obs["futures"][obs["futures_mask"], :, :LOOKAHEAD_STEPS].transpose(2, 0, 1, 3).reshape(
-        LOOKAHEAD_STEPS, -1, 2)  # (L, P*S, 2)
-    standing = obs["history"][obs["history_mask"][:, -1] & ~obs["futures_mask"], -1]  # (Q, 2)
-    others = np.concatenate([futures, np.broadcast_to(standing, (LOOKAHEAD_STEPS, *standing.shape))], axis=1)
-    if others.shape[1]:
-        clearance = np.linalg.norm(ego_path[:, :, None] - others[None], axis=-1).min(axis=(1, 2))
-    else:
-        clearance = np.full(len(candidates), np.inf)
-    progress = np.linalg.norm(goal - ego_xy) - np.linalg.norm(goal - ego_path[:, -1], axis=1)
-    cost = -progress + CLEARANCE_WEIGHT * np.clip(contact_m + CONTACT_MARGIN_M - clearance, 0.0, None)
-    if scene is not None:
-        probes = ego_path[:, :, None] + WALL_PROBE_M * np.concatenate([unit[::4], np.zeros((1, 2))])[None, None]
-        cost[~scene.is_walkable(probes).all(axis=(1, 2))] = np.inf
-    return candidates[int(np.argmin(cost))]
-
-
-def _episode_summary(index: int, steps: int, episode_return: float, truncated: bool, info: dict) -> dict:
-    parts = info["reward_parts"]
-    outcome = ("goal" if parts["goal"] else "collision" if parts["collision"] else
-               "time limit" if truncated else "demo over")
-    metrics = info["metrics"]
-    print(f"episode {index}: {steps} steps, {outcome}, return {episode_return:+.2f}, "
-          f"ADE/FDE {metrics['ade_m']:.3f}/{metrics['fde_m']:.3f} m over {metrics['matured']} predictions, "
-          f"map violation {100 * metrics['map_violation']:.1f} %, "
-          f"closest pedestrian {metrics['min_ego_ped_distance_m']:.2f} m")
-    return {"steps": steps, "outcome": outcome, "return": episode_return, **metrics}
+PLANNER, PREDICTOR = "mpc", "singular"  # the benchmark's best pair (RESULTS.md, "Navigation benchmark")
+OUTCOMES = ("goal", "pedestrian collision", "wall collision", "timeout")
 
 
 def run_demo(steps: int = 150, rerun_path: str | None = None, seed: int = 0) -> dict:
-    """Run ``steps`` env steps (episodes restart as they end) and print each episode's metrics.
+    """Run whole episodes (seeds seed, seed + 1, ...) until ``steps`` env steps are used; print each and a summary.
 
     Returns:
-        {"env_id", "steps", "seed", "episodes": [per-episode dict: steps, outcome, return and the env's
-        metrics], "steps_per_s"}.
+        {"env_id", "planner", "predictor", "steps" (env steps run), "seed", "episodes": [per-episode dict:
+        seed, outcome, steps and the navigation metrics, plus the env's prediction metrics], "counts":
+        {outcome: episodes}, "steps_per_s"}.
     """
-    env = gym.make(ENV_ID, rerun=rerun_path)  # the shipped universal SingularTrajectory model predicts
-    cfg, scene = env.unwrapped.cfg, env.unwrapped.scene
-    contact_m = cfg.ego_radius_m + env.unwrapped.crowd_cfg.radius_m
-    obs, info = env.reset(seed=seed)
+    env = make_nav_env(NavRun(env_id=ENV_ID, policy=PLANNER, predictor=PREDICTOR), rerun_path)
+    world = world_of(env)
+    planner = make_planner(PLANNER, world, PREDICTOR)
     episodes: list[dict] = []
-    episode_steps, episode_return = 0, 0.0
+    used = 0
     start = time.perf_counter()
-    for step in range(steps):
-        action = goal_seeking_action(obs, cfg.max_speed_mps, contact_m, scene)
-        obs, reward, terminated, truncated, info = env.step(action)
-        episode_steps, episode_return = episode_steps + 1, episode_return + reward
-        if terminated or truncated or step == steps - 1:
-            episodes.append(_episode_summary(len(episodes), episode_steps, episode_return, truncated, info))
-            if step < steps - 1:
-                obs, info = env.reset()
-                episode_steps, episode_return = 0, 0.0
+    while used < steps:
+        trace, _ = run_episode(env, planner, world, seed + len(episodes))
+        metrics = {"seed": seed + len(episodes), **episode_metrics(trace), **env.unwrapped.metrics.summary()}
+        episodes.append(metrics)
+        used += metrics["steps"]
+        print(f"episode {len(episodes) - 1} (seed {metrics['seed']}): {metrics['steps']} steps, {metrics['outcome']}, "
+              f"closest pedestrian {metrics['min_clearance_m']:.2f} m from the robot's body, "
+              f"ADE/FDE {metrics['ade_m']:.2f}/{metrics['fde_m']:.2f} m over {metrics['matured']} predictions")
     elapsed_s = time.perf_counter() - start
     env.close()
+    counts = {outcome: sum(e["outcome"] == outcome for e in episodes) for outcome in OUTCOMES}
+    n = len(episodes)
+    print(f"{PLANNER} + {PREDICTOR} on {ENV_ID}: {n} episodes, goal {counts['goal']}/{n} "
+          f"({100 * counts['goal'] / n:.0f} %), pedestrian collisions {counts['pedestrian collision']}, "
+          f"wall collisions {counts['wall collision']}, timeouts {counts['timeout']}")
     if rerun_path is not None:
         print(f"wrote {rerun_path}")
-    return {"env_id": ENV_ID, "steps": steps, "seed": seed, "episodes": episodes,
-            "steps_per_s": steps / elapsed_s if elapsed_s > 0 else float("inf")}
+    return {"env_id": ENV_ID, "planner": PLANNER, "predictor": PREDICTOR, "steps": used, "seed": seed,
+            "episodes": episodes, "counts": counts, "steps_per_s": used / elapsed_s if elapsed_s > 0 else float("inf")}

@@ -1,0 +1,14 @@
+"""Crowd navigation on the STCrowd envs: planners that use the predicted futures, and a benchmark to score them.
+
+    python -m st_sim navigate --env STCrowd-SimCrossing-v0 --policy mpc --predictor singular --episodes 100
+
+Modules, one concept each:
+- ``planners``: the registry (straight, orca, mpc, ppo) and the ``Planner`` interface (``reset``, ``act``);
+  ``straight``, ``orca``, ``mpc``, ``ppo``: one planner class each;
+- ``predictors``: the predictor names (none, cvm, cvm-s, singular) and "none" (nobody moves);
+- ``world``, ``terrain``, ``pedestrians``: what a planner knows (limits, radii, map grid, cost-to-go) and sees;
+- ``features``, ``train_ppo``: the learned policy's inputs and its stable-baselines3 training script;
+- ``episodes``, ``metrics``, ``report``, ``cli``: seeded episodes, their figures with 95 % intervals, the command.
+
+Application layer: it imports envs, predictor, replays and st_sim; nothing below imports it.
+"""

@@ -1,0 +1,128 @@
+"""Run a planner through seeded episodes of an STCrowd env and collect each episode's metrics.
+
+Episode i of a run starts from ``env.reset(seed=seed + i)``, so every planner and predictor meets the same
+episodes (same crowd, start and goal) and runs can be compared pair by pair.
+"""
+
+from __future__ import annotations
+
+import inspect
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from tqdm import tqdm
+
+import envs  # noqa: F401  (registers the ids)
+from st_sim.apps.navigation.metrics import EpisodeTrace, episode_metrics, outcome_of, summarize
+from st_sim.apps.navigation.planners import Planner, make_planner
+from st_sim.apps.navigation.predictors import env_predictor
+from st_sim.apps.navigation.world import NavWorld, world_of
+
+SEE_EGO_KWARG = "pedestrians_see_ego"  # env keyword of the simulated envs: pedestrians steer around the ego
+
+
+@dataclass(frozen=True)
+class NavRun:
+    """One cell of the benchmark: a planner with a predictor on an env, over seeded episodes."""
+
+    env_id: str = "STCrowd-SimCrossing-v0"
+    """gym id of an STCrowd env with an ego"""
+    policy: str = "mpc"
+    """planner name (straight, orca, mpc, ppo)"""
+    predictor: str = "singular"
+    """none, cvm, cvm-s or singular"""
+    episodes: int = 100
+    """number of episodes"""
+    seed: int = 0
+    """episode i is reset with seed + i"""
+    pedestrians_see_ego: bool | None = None
+    """pass this to envs that accept the keyword; None = the env's default"""
+    rerun_dir: str | None = None
+    """write one Rerun recording per episode into this folder"""
+    data_root: str | None = None
+    """ETH/UCY data root for replays (default: $STCROWD_DATA or the cache)"""
+
+
+def accepts_keyword(env_id: str, name: str) -> bool:
+    """True if the env class behind ``env_id`` takes the constructor keyword ``name``."""
+    entry = gym.spec(env_id).entry_point
+    if isinstance(entry, str):
+        module, attr = entry.split(":")
+        entry = getattr(__import__(module, fromlist=[attr]), attr)
+    return name in inspect.signature(entry).parameters
+
+
+def make_nav_env(run: NavRun, rerun_path: str | None = None) -> gym.Env:
+    """The env of ``run``, with its predictor (``none``: pedestrians predicted to stand still)."""
+    kwargs: dict[str, Any] = {"predictor": env_predictor(run.predictor)}
+    if run.pedestrians_see_ego is not None and accepts_keyword(run.env_id, SEE_EGO_KWARG):
+        kwargs[SEE_EGO_KWARG] = run.pedestrians_see_ego
+    if run.data_root is not None and "Sim" not in run.env_id:
+        kwargs["root"] = run.data_root
+    if rerun_path is not None:
+        kwargs["rerun"] = rerun_path
+    return gym.make(run.env_id, **kwargs)
+
+
+def pedestrian_clearance(obs: dict[str, np.ndarray], world: NavWorld) -> float:
+    """Gap between the ego's body and the nearest pedestrian's [m]; inf when nobody is present."""
+    peds = obs["history"][obs["history_mask"][:, -1], -1]
+    if len(peds) == 0:
+        return float("inf")
+    return float(np.min(np.linalg.norm(peds - obs["ego"][:2], axis=1))) - world.contact_m
+
+
+def run_episode(env: gym.Env, planner: Planner, world: NavWorld, seed: int) -> tuple[EpisodeTrace, float]:
+    """One episode from ``reset(seed=seed)`` to its end; returns the trace and the seconds spent in ``act``."""
+    obs, _ = env.reset(seed=seed)
+    planner.reset()
+    xy, velocity, clearance = [obs["ego"][:2].copy()], [obs["ego"][2:4].copy()], [pedestrian_clearance(obs, world)]
+    thinking_s, outcome = 0.0, None
+    while outcome is None:
+        start = time.perf_counter()
+        action = planner.act(obs)
+        thinking_s += time.perf_counter() - start
+        obs, _, terminated, truncated, info = env.step(action)
+        xy.append(obs["ego"][:2].copy())
+        velocity.append(obs["ego"][2:4].copy())
+        clearance.append(pedestrian_clearance(obs, world))
+        wall_gap_m = float(world.terrain.clearance_at(obs["ego"][:2])) - world.ego_radius_m
+        outcome = outcome_of(info["reward_parts"], truncated, clearance[-1], wall_gap_m)
+        assert outcome is not None or not terminated, "the env terminated without goal or collision"
+    xy_m = np.array(xy, np.float64)
+    trace = EpisodeTrace(xy_m, np.array(velocity, np.float64), np.array(clearance),
+                         ~world.scene.is_walkable(xy_m), obs["ego"][4:6].astype(np.float64), outcome)
+    return trace, thinking_s
+
+
+def run_navigation(run: NavRun, progress: bool = True) -> dict[str, Any]:
+    """Run the episodes of ``run``; returns {run settings, episodes: [seed + metrics], summary, speed}.
+
+    ``pedestrians_see_ego`` in the result is the value passed to the env, or None when the env does not
+    take the keyword (then its own behaviour applies) or none was asked.
+    """
+    see_ego = run.pedestrians_see_ego if accepts_keyword(run.env_id, SEE_EGO_KWARG) else None
+    env = make_nav_env(run)
+    world = world_of(env)
+    planner = make_planner(run.policy, world, run.predictor)
+    episodes, thinking_s, decisions = [], 0.0, 0
+    start = time.perf_counter()
+    for i in tqdm(range(run.episodes), desc=f"{run.policy}/{run.predictor} {run.env_id}", disable=not progress,
+                  unit="episode"):
+        seed = run.seed + i
+        if run.rerun_dir is not None:
+            env.close()
+            path = Path(run.rerun_dir) / f"{run.env_id}_{run.policy}_{run.predictor}_seed{seed}.rrd"
+            env = make_nav_env(run, str(path))
+        trace, seconds = run_episode(env, planner, world, seed)
+        episodes.append({"seed": seed, **episode_metrics(trace)})
+        thinking_s += seconds
+        decisions += len(trace.ego_xy_m) - 1
+    env.close()
+    return {**asdict(run), "pedestrians_see_ego": see_ego, "episodes": episodes, "summary": summarize(episodes),
+            "decisions_per_s": decisions / thinking_s if thinking_s > 0 else float("inf"),
+            "wall_time_s": time.perf_counter() - start}

@@ -1,0 +1,177 @@
+"""Prediction-aware sampling MPC: candidate velocity commands rolled out 3.2 s and scored against every sample.
+
+Each decision rolls out K candidate commands (24 headings x 3 speeds, standing still, and the previous
+choice) through the ego's acceleration limit, at two checks per 0.4 s step, and scores them against every
+predicted sample of every pedestrian: the chance of collision over samples, the clearance, the progress
+along the geodesic cost-to-go of the walkability map, and the change of command. Paths that go deeper
+into a wall than the ego already is are discarded. The predictor is whatever the env put in the
+observation; with ``use_predictions=False`` everybody is assumed to stand still.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from st_sim.apps.navigation.pedestrians import Pedestrians, pedestrians_of
+from st_sim.apps.navigation.world import NavWorld
+
+INFEASIBLE = 1e6  # cost of a candidate that goes into a wall [-]
+ARRIVAL_SHARE = 0.8  # a rollout this deep inside the goal radius has arrived and stops there [-]
+
+
+@dataclass(frozen=True)
+class MpcConfig:
+    """Tunables of the sampling MPC (costs are dimensionless; one unit = full-speed progress over the horizon)."""
+
+    horizon_steps: int = 8
+    """rollout length in 0.4 s steps (3.2 s)"""
+    checks_per_step: int = 2
+    """collision checks per step (positions interpolated linearly in between)"""
+    headings: int = 24
+    """candidate directions, evenly spaced [-]"""
+    speed_fractions: tuple[float, ...] = (1.0, 0.66, 0.33)
+    """candidate speeds as shares of the speed limit [-]"""
+    safety_margin_m: float = 0.15
+    """a sample closer than contact + this counts as a collision [m]"""
+    comfort_m: float = 0.6
+    """clearance (beyond contact) below which the clearance cost grows [m]"""
+    discount: float = 0.85
+    """weight of a collision or intrusion one step later, relative to now [-]"""
+    wall_margin_m: float = 0.08
+    """least wall clearance beyond the world's ``wall_clearance_m`` a path may enter [m]"""
+    wall_comfort_m: float = 0.3
+    """wall clearance beyond the world's ``wall_clearance_m`` below which the wall cost grows [m]"""
+    risk_weight: float = 6.0
+    """cost of a certain collision [-]"""
+    clearance_weight: float = 0.4
+    """cost of one pedestrian's sample paths all at contact [-]"""
+    progress_weight: float = 1.0
+    """cost of coming no closer to the goal (full-speed progress saves this much) [-]"""
+    smooth_weight: float = 0.15
+    """cost of a command change of one speed limit [-]"""
+    wall_weight: float = 0.5
+    """cost of touching the wall-comfort band [-]"""
+
+
+class MpcPlanner:
+    """Sampling MPC over candidate commands, scored against the predicted futures.
+
+    Args:
+        world: the env's facts (limits, radii, map).
+        use_predictions: False = the "none" predictor (pedestrians stand still).
+        cfg: tunables.
+    """
+
+    def __init__(self, world: NavWorld, use_predictions: bool = True, cfg: MpcConfig | None = None):
+        self.world, self.use_predictions, self.cfg = world, use_predictions, cfg or MpcConfig()
+        angles = np.linspace(0.0, 2 * np.pi, self.cfg.headings, endpoint=False)
+        unit = np.stack([np.cos(angles), np.sin(angles)], axis=1)
+        speeds = world.max_speed_mps * np.asarray(self.cfg.speed_fractions)
+        self._commands = np.concatenate([(speeds[:, None, None] * unit[None]).reshape(-1, 2), np.zeros((1, 2))])
+        steps = np.arange(1, self.cfg.horizon_steps * self.cfg.checks_per_step + 1) / self.cfg.checks_per_step
+        self._check_steps = steps  # (J,) time of each check in steps
+        self._weights = (self.cfg.discount ** (steps - 1 / self.cfg.checks_per_step)).astype(np.float32)  # (J,)
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the previous command (call at every episode start)."""
+        self._previous = np.zeros(2)
+
+    def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        """Velocity command (2,) [m/s], world frame."""
+        ego_xy, ego_v, goal = (obs["ego"][i:i + 2].astype(np.float64) for i in (0, 2, 4))
+        peds = pedestrians_of(obs, self.cfg.horizon_steps, self.use_predictions)
+        commands = np.concatenate([self._commands, self._previous[None]])
+        path = self._rollout(ego_xy, ego_v, commands, goal)  # (K, J, 2)
+        risk, crowding = self._risk_terms(path, ego_xy, peds)
+        cost = (self.cfg.risk_weight * risk + self.cfg.clearance_weight * crowding
+                + self.cfg.progress_weight * self._progress(path, ego_xy, goal)
+                + self.cfg.smooth_weight * self._smoothness(commands, ego_v)
+                + self._walls(path, ego_xy))
+        self._previous = commands[int(np.argmin(cost))]
+        return self._previous.astype(np.float32)
+
+    # ---------------------------------------------------------------- rollout
+    def _rollout(self, ego_xy: np.ndarray, ego_v: np.ndarray, commands: np.ndarray, goal: np.ndarray) -> np.ndarray:
+        """(K, J, 2) ego positions at the checks [m]: velocity moves toward the command within the accel limit.
+
+        A rollout that comes within ARRIVAL_SHARE of the goal radius stays there: the episode would end.
+        """
+        dt_s = self.world.step_s / self.cfg.checks_per_step
+        max_dv = self.world.max_accel_mps2 * dt_s
+        velocity = np.broadcast_to(ego_v, commands.shape).copy()
+        position = np.broadcast_to(ego_xy, commands.shape).copy()
+        arrived = np.zeros(len(commands), bool)
+        out = np.empty((len(commands), len(self._check_steps), 2))
+        for j in range(len(self._check_steps)):
+            change = commands - velocity
+            norm = np.linalg.norm(change, axis=1, keepdims=True)
+            velocity = velocity + change * np.minimum(1.0, max_dv / np.maximum(norm, 1e-9))
+            position = np.where(arrived[:, None], position, position + velocity * dt_s)
+            arrived |= np.linalg.norm(position - goal, axis=1) <= ARRIVAL_SHARE * self.world.goal_radius_m
+            out[:, j] = position
+        return out
+
+    # ---------------------------------------------------------------- costs, each (K,)
+    def _risk_terms(self, path: np.ndarray, ego_xy: np.ndarray, peds: Pedestrians) -> tuple[np.ndarray, np.ndarray]:
+        """Chance of collision over samples (K,) in [0, 1] and the clearance cost (K,) (sum over pedestrians).
+
+        A sample collides if it comes within contact + safety margin of the path at a check; its intrusion
+        is 1 at contact, falling to 0 at contact + comfort. Both are discounted by the check's time, and the
+        largest over the checks counts. Pedestrians are independent: risk = 1 - prod(1 - P(collide with p)).
+        """
+        k = len(path)
+        futures = self._interpolated(peds)  # (P, S, J, 2)
+        futures = futures[self._relevant(futures, ego_xy)]
+        if len(futures) == 0:
+            return np.zeros(k), np.zeros(k)
+        n_peds, n_samples = futures.shape[:2]
+        ego = path.astype(np.float32)[:, None]  # (K, 1, J, 2)
+        flat = futures.reshape(1, n_peds * n_samples, -1, 2)
+        distance = np.sqrt((ego[..., 0] - flat[..., 0]) ** 2 + (ego[..., 1] - flat[..., 1]) ** 2)  # (K, P*S, J)
+        reach_m = self.world.contact_m + self.cfg.comfort_m
+        intrusion = np.clip((reach_m - distance) / self.cfg.comfort_m, 0.0, 1.0)
+        hit_level = 1.0 - self.cfg.safety_margin_m / self.cfg.comfort_m
+        hit = np.max((intrusion > hit_level) * self._weights, axis=-1).reshape(k, n_peds, n_samples)
+        crowding = np.max(intrusion * self._weights, axis=-1).reshape(k, n_peds, n_samples)
+        risk = 1.0 - np.prod(1.0 - hit.mean(axis=2), axis=1)
+        return risk, crowding.mean(axis=2).sum(axis=1)
+
+    def _interpolated(self, peds: Pedestrians) -> np.ndarray:
+        """(P, S, J, 2) float32 pedestrian positions at the checks (linear between the predicted steps)."""
+        now = np.broadcast_to(peds.xy_m[:, None, None], (len(peds), peds.futures_m.shape[1], 1, 2))
+        track = np.concatenate([now, peds.futures_m], axis=2)  # (P, S, H + 1, 2), step 0 = now
+        low = np.floor(self._check_steps).astype(int)
+        high = np.minimum(low + 1, track.shape[2] - 1)
+        frac = (self._check_steps - low)[:, None]
+        return (track[:, :, low] * (1 - frac) + track[:, :, high] * frac).astype(np.float32)
+
+    def _relevant(self, futures: np.ndarray, ego_xy: np.ndarray) -> np.ndarray:
+        """(P,) bool: some sample comes within the ego's reach at some check (others cannot matter)."""
+        reach_m = (self.world.max_speed_mps * self.world.step_s * self._check_steps
+                   + self.world.contact_m + self.cfg.comfort_m)  # (J,)
+        distance = np.linalg.norm(futures - ego_xy.astype(np.float32), axis=-1)  # (P, S, J)
+        return (distance < reach_m).any(axis=(1, 2))
+
+    def _progress(self, path: np.ndarray, ego_xy: np.ndarray, goal: np.ndarray) -> np.ndarray:
+        """Change of geodesic cost-to-go over the horizon, in units of full-speed travel (-1 = best)."""
+        terrain = self.world.terrain
+        body_m = self.world.wall_clearance_m + self.cfg.wall_margin_m
+        now = terrain.cost_to_go(ego_xy, goal, body_m)
+        end = terrain.cost_to_go(path[:, -1], goal, body_m)
+        return (end - now) / (self.world.max_speed_mps * self.world.step_s * self.cfg.horizon_steps)
+
+    def _smoothness(self, commands: np.ndarray, ego_v: np.ndarray) -> np.ndarray:
+        """Squared command change from the current velocity and the previous command, in speed limits."""
+        scale = self.world.max_speed_mps ** 2
+        return (np.sum((commands - ego_v) ** 2, axis=1) + np.sum((commands - self._previous) ** 2, axis=1)) / scale
+
+    def _walls(self, path: np.ndarray, ego_xy: np.ndarray) -> np.ndarray:
+        """Wall-comfort cost, or INFEASIBLE for a path that goes deeper into a wall than the ego is now."""
+        terrain, radius = self.world.terrain, self.world.wall_clearance_m
+        clearance = terrain.clearance_at(path)  # (K, J)
+        allowed = min(radius + self.cfg.wall_margin_m, float(terrain.clearance_at(ego_xy)))
+        band = np.clip((radius + self.cfg.wall_comfort_m - clearance) / self.cfg.wall_comfort_m, 0.0, 1.0)
+        return np.where(clearance.min(axis=1) < allowed - 1e-6, INFEASIBLE, self.cfg.wall_weight * band.max(axis=1))

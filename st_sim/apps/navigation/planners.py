@@ -1,0 +1,51 @@
+"""The planners of the navigation benchmark by name, and what every planner offers.
+
+    planner = make_planner("mpc", world_of(env), "singular")
+    planner.reset()                        # at every episode start
+    action = planner.act(obs)              # (2,) velocity command [m/s], world frame
+
+Planner modules are imported on first use, so a planner's optional dependency (pyrvo for ORCA) is only
+needed when that planner runs.
+"""
+
+from __future__ import annotations
+
+from importlib import import_module
+from typing import TYPE_CHECKING, Protocol
+
+import numpy as np
+
+from st_sim.apps.navigation.predictors import PREDICTORS
+
+if TYPE_CHECKING:
+    from st_sim.apps.navigation.world import NavWorld
+
+PLANNERS: dict[str, str] = {
+    "straight": "st_sim.apps.navigation.straight:StraightPlanner",
+    "orca": "st_sim.apps.navigation.orca:OrcaPlanner",
+    "mpc": "st_sim.apps.navigation.mpc:MpcPlanner",
+    "ppo": "st_sim.apps.navigation.ppo:PpoPlanner",
+}
+"""planner name -> "module:class"; every class is built as ``cls(world, use_predictions)``"""
+USES_PREDICTIONS: dict[str, bool] = {"straight": False, "orca": False, "mpc": True, "ppo": True}
+"""planners whose actions depend on the predicted futures (the others give the same episodes for any predictor)"""
+
+
+class Planner(Protocol):
+    """A navigation policy: one velocity command per observation."""
+
+    def reset(self) -> None:
+        """Forget the last episode (called after every env reset)."""
+
+    def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        """(2,) float32 ego velocity command [m/s], world frame, from an STCrowd observation."""
+
+
+def make_planner(name: str, world: NavWorld, predictor: str = "singular") -> Planner:
+    """Build planner ``name`` for an env's ``world``; ``predictor`` "none" means the futures are not used."""
+    if name not in PLANNERS:
+        raise ValueError(f"planner={name!r}: expected one of {', '.join(PLANNERS)}")
+    if predictor not in PREDICTORS:
+        raise ValueError(f"predictor={predictor!r}: expected one of {', '.join(PREDICTORS)}")
+    module, cls = PLANNERS[name].split(":")
+    return getattr(import_module(module), cls)(world, predictor != "none")

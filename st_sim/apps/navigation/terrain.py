@@ -1,0 +1,147 @@
+"""The walkability map as a planner sees it: a metric grid with wall clearance and a geodesic cost-to-go.
+
+The scene's map is sampled at the centres of square cells (``cell_m``) over the env's bounds, so distances
+are in metres even where the homography has perspective (ETH, HOTEL). Off-map points count as walls.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import ndimage
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import dijkstra
+
+from replays.scenes import Scene
+
+CELL_M = 0.1  # grid spacing [m]
+# 16-neighbourhood, one direction per pair: move (dy, dx) -> cells it passes, which must be eligible too;
+# grid paths are then within 3 % of straight lines and never cut a wall's corner
+MOVES: dict[tuple[int, int], tuple[tuple[int, int], ...]] = {
+    (0, 1): (), (1, 0): (),
+    (1, 1): ((0, 1), (1, 0)), (1, -1): ((0, -1), (1, 0)),
+    (1, 2): ((0, 1), (1, 1)), (2, 1): ((1, 0), (1, 1)), (1, -2): ((0, -1), (1, -1)), (2, -1): ((1, 0), (1, -1)),
+}
+SOURCE_REACH_M = 1.0  # the goal feeds every eligible cell this close to it [m]
+UNREACHABLE_PENALTY_M = 100.0  # cost-to-go of a point with no grid path: its straight distance plus this [m]
+_ANGLES = np.linspace(0.0, 2 * np.pi, 64, endpoint=False)
+HEADINGS = np.stack([np.cos(_ANGLES), np.sin(_ANGLES)], axis=1)  # (64, 2) candidate directions of direction_to
+LOOKAHEAD_M = 0.5  # direction_to compares the cost-to-go this far ahead [m]
+LOOKUP_CELLS = 1  # cost-to-go of a point = least (cell cost + distance to the cell) over (2R+1)^2 cells
+
+
+class Terrain:
+    """Wall clearance of a scene on a metric grid, and geodesic cost-to-go fields to goals.
+
+    Args:
+        scene: walkability map with its homography.
+        bounds_m: (xmin, ymin, xmax, ymax) metres covered by the grid (the env's arena or layout bounds).
+        cell_m: grid spacing [m].
+
+    Attributes:
+        origin_m: (2,) centre of cell (0, 0) [m].
+        free: (Gy, Gx) bool, walkable cell centres.
+        clearance_m: (Gy, Gx) float64 distance from each cell centre to the nearest non-walkable cell [m]
+            (0 on non-walkable cells; the grid's outside counts as non-walkable).
+    """
+
+    def __init__(self, scene: Scene, bounds_m: tuple[float, float, float, float], cell_m: float = CELL_M):
+        xmin, ymin, xmax, ymax = (float(b) for b in bounds_m)
+        self.cell_m = cell_m
+        self.origin_m = np.array([xmin, ymin])
+        shape = (int(np.ceil((ymax - ymin) / cell_m)) + 1, int(np.ceil((xmax - xmin) / cell_m)) + 1)
+        iy, ix = np.indices(shape)
+        self._centres_m = self.origin_m + cell_m * np.stack([ix, iy], axis=-1)
+        self.free = scene.is_walkable(self._centres_m)
+        padded = np.pad(self.free, 1, constant_values=False)
+        self.clearance_m = ndimage.distance_transform_edt(padded)[1:-1, 1:-1] * cell_m
+        self._goal_key: tuple | None = None
+        self._goal_cost: np.ndarray | None = None
+
+    def __repr__(self) -> str:
+        return f"Terrain({self.free.shape[1]}x{self.free.shape[0]} cells of {self.cell_m} m)"
+
+    def _cells(self, xy_m: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(..., 2) metres -> row, column (...) clipped to the grid, and (...) bool inside the grid."""
+        ij = np.rint((np.asarray(xy_m, np.float64) - self.origin_m) / self.cell_m).astype(np.intp)
+        height, width = self.free.shape
+        inside = (ij[..., 0] >= 0) & (ij[..., 0] < width) & (ij[..., 1] >= 0) & (ij[..., 1] < height)
+        return np.clip(ij[..., 1], 0, height - 1), np.clip(ij[..., 0], 0, width - 1), inside
+
+    def clearance_at(self, xy_m: np.ndarray) -> np.ndarray:
+        """(..., 2) metres -> (...) distance to the nearest wall [m]; 0 off the grid."""
+        row, col, inside = self._cells(xy_m)
+        return np.where(inside, self.clearance_m[row, col], 0.0)
+
+    def cost_to_go(self, xy_m: np.ndarray, goal_m: np.ndarray, body_m: float) -> np.ndarray:
+        """Geodesic distance [m] from points to the goal along cells with ``body_m`` of wall clearance.
+
+        Args:
+            xy_m: (..., 2) points, metres.  goal_m: (2,) metres.  body_m: the robot's radius [m].
+
+        Returns:
+            (...) float64 metres; a point with no grid path gets its straight distance + 100 m.
+        """
+        cost = self._goal_field(np.asarray(goal_m, np.float64), body_m)
+        xy_m = np.asarray(xy_m, np.float64)
+        row, col, _ = self._cells(xy_m)
+        best = np.full(xy_m.shape[:-1], np.inf)
+        height, width = cost.shape
+        reach = range(-LOOKUP_CELLS, LOOKUP_CELLS + 1)
+        for dy in reach:
+            for dx in reach:
+                r, c = np.clip(row + dy, 0, height - 1), np.clip(col + dx, 0, width - 1)
+                best = np.minimum(best, cost[r, c] + np.linalg.norm(xy_m - self._centres_m[r, c], axis=-1))
+        straight = np.linalg.norm(xy_m - goal_m, axis=-1)
+        return np.where(np.isfinite(best), best, straight + UNREACHABLE_PENALTY_M)
+
+    def direction_to(self, xy_m: np.ndarray, goal_m: np.ndarray, body_m: float) -> np.ndarray:
+        """(2,) unit vector from ``xy_m`` (2,) along the shortest walkable path to the goal (zeros at the goal).
+
+        The best of DIRECTIONS headings by the cost-to-go one LOOKAHEAD_M ahead (or at the goal, if nearer).
+        """
+        to_goal = np.asarray(goal_m, np.float64) - xy_m
+        reach_m = min(LOOKAHEAD_M, float(np.linalg.norm(to_goal)))
+        if reach_m < 1e-6:
+            return np.zeros(2)
+        cost = self.cost_to_go(xy_m + reach_m * HEADINGS, goal_m, body_m)
+        return HEADINGS[int(np.argmin(cost))].copy()
+
+    def _goal_field(self, goal_m: np.ndarray, body_m: float) -> np.ndarray:
+        """(Gy, Gx) geodesic distance to ``goal_m`` [m] over cells with ``body_m`` of clearance; kept per goal."""
+        key = (*np.round(goal_m, 6).tolist(), body_m)
+        if key != self._goal_key:
+            self._goal_cost, self._goal_key = _geodesic(self.clearance_m >= body_m, self._centres_m, goal_m), key
+        return self._goal_cost
+
+
+def _geodesic(eligible: np.ndarray, centres_m: np.ndarray, goal_m: np.ndarray) -> np.ndarray:
+    """Dijkstra from the goal over ``eligible`` (Gy, Gx) cells along ``MOVES``.
+
+    The goal is a virtual node joined to every eligible cell within SOURCE_REACH_M (or to the nearest eligible
+    cell) by its straight distance, so a goal beside a wall still gets a field.
+    """
+    cells = np.flatnonzero(eligible)
+    if cells.size == 0:
+        return np.full(eligible.shape, np.inf)
+    width = eligible.shape[1]
+    cell_m = float(centres_m[0, 1, 0] - centres_m[0, 0, 0])
+    padded = np.pad(eligible, 2, constant_values=False)
+    y, x = np.divmod(cells, width)
+    heads, tails, lengths = [], [], []
+    for (dy, dx), passed in MOVES.items():
+        ok = padded[y + 2 + dy, x + 2 + dx]
+        for py, px in passed:
+            ok &= padded[y + 2 + py, x + 2 + px]
+        heads.append(cells[ok])
+        tails.append(cells[ok] + dy * width + dx)
+        lengths.append(np.full(int(ok.sum()), cell_m * np.hypot(dy, dx)))
+    goal_node = eligible.size
+    to_goal_m = np.linalg.norm(centres_m.reshape(-1, 2)[cells] - goal_m, axis=1)
+    near = to_goal_m <= SOURCE_REACH_M
+    near = near if near.any() else to_goal_m == to_goal_m.min()
+    heads.append(np.full(int(near.sum()), goal_node))
+    tails.append(cells[near])
+    lengths.append(np.maximum(to_goal_m[near], 1e-6))  # a zero weight would be no edge
+    graph = coo_matrix((np.concatenate(lengths), (np.concatenate(heads), np.concatenate(tails))),
+                       shape=(goal_node + 1, goal_node + 1)).tocsr()
+    return dijkstra(graph, directed=False, indices=goal_node)[:-1].reshape(eligible.shape)

@@ -1,0 +1,236 @@
+"""Train the PPO navigation policy (stable-baselines3) on vectorised STCrowd envs, with or without predictions.
+
+    python -m st_sim.apps.navigation.train_ppo --timesteps 300000 --out runs/nav/ppo-predictions
+    python -m st_sim.apps.navigation.train_ppo --no-predictions --timesteps 300000 --out runs/nav/ppo-no-predictions
+
+Writes into --out: ``policy.pt`` (loadable with ``ppo.load_policy``), ``curve.png`` and ``curve.json`` (the
+learning curve: success, collision and return over the last 100 training episodes against env steps) and
+``training.json`` (config, wall time, final figures). ``--ship NAME`` also copies the policy into the
+package's ``pretrained/`` folder and records it in the manifest. The two variants differ only in whether the
+features hold the predicted futures; same env, seed, budget and hyper-parameters.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import sys
+import time
+from collections import deque
+from dataclasses import asdict, dataclass, field
+from functools import partial
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from tqdm import tqdm
+
+from replays.atomic import write_text_atomic
+from st_sim.apps.navigation.features import FeatureConfig, NavFeatures
+from st_sim.apps.navigation.ppo import PRETRAINED_DIR, build_policy, save_policy
+from st_sim.apps.navigation.predictors import env_predictor
+
+CURVE_WINDOW = 100  # training episodes averaged per learning-curve point [-]
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """One PPO training run."""
+
+    use_predictions: bool = True
+    """features hold the predicted futures (the env runs SingularTrajectory); False: positions only"""
+    env_id: str = "STCrowd-SimCrossing-v0"
+    """training env"""
+    timesteps: int = 300_000
+    """env steps over all envs (the training budget)"""
+    num_envs: int = 4
+    """parallel envs (subprocesses)"""
+    seed: int = 0
+    """seed of PPO and of the envs (env i resets with seed + i first)"""
+    n_steps: int = 256
+    """steps per env per rollout"""
+    batch_size: int = 256
+    """minibatch size"""
+    n_epochs: int = 10
+    """passes over each rollout"""
+    learning_rate: float = 3e-4
+    """Adam learning rate"""
+    gamma: float = 0.99
+    """discount per 0.4 s step"""
+    net_arch: tuple[int, ...] = (128, 128)
+    """hidden layers of the actor and of the critic"""
+    log_std_init: float = -0.5
+    """initial log standard deviation of the Gaussian actions (std 0.6 of the speed limit)"""
+    initial_forward: float = 0.7
+    """initial mean action along the path to the goal, in speed limits (the untrained policy walks to the goal)"""
+    out: str = "runs/nav/ppo"
+    """output folder"""
+    ship_as: str | None = None
+    """also copy the policy into pretrained/ under this name"""
+    progress: bool = True
+    """show a progress bar"""
+    # to be filled in runtime
+    features: FeatureConfig = field(default_factory=FeatureConfig)
+    """derived from use_predictions"""
+
+
+def make_env(env_id: str, use_predictions: bool) -> gym.Env:
+    """One training env: the STCrowd env (SingularTrajectory or no predictor) seen through the features."""
+    import envs  # noqa: F401  (registers the ids in the subprocess)
+
+    env = gym.make(env_id, predictor=env_predictor("singular" if use_predictions else "none"))
+    return NavFeatures(env, FeatureConfig(use_predictions))
+
+
+def outcome(info: dict) -> str:
+    """goal / collision / timeout of a finished training episode (from the env's reward parts)."""
+    parts = info["reward_parts"]
+    return "goal" if parts["goal"] and not parts["collision"] else "collision" if parts["collision"] else "timeout"
+
+
+def curve_callback(cfg: TrainConfig, curve: list[dict]) -> Any:
+    """A stable-baselines3 callback: progress bar, and a curve point every rollout."""
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class Curve(BaseCallback):
+        def _on_training_start(self) -> None:
+            self.bar = tqdm(total=cfg.timesteps, unit="step", disable=not cfg.progress, desc="ppo")
+            self.recent: deque[tuple[str, float]] = deque(maxlen=CURVE_WINDOW)
+
+        def _on_step(self) -> bool:
+            self.bar.update(cfg.num_envs)
+            for done, info in zip(self.locals["dones"], self.locals["infos"], strict=True):
+                if done:
+                    self.recent.append((outcome(info), float(info["episode"]["r"])))
+            return True
+
+        def _on_rollout_end(self) -> None:
+            if self.recent:
+                kinds = [kind for kind, _ in self.recent]
+                curve.append({"timesteps": int(self.num_timesteps), "episodes": len(kinds),
+                              "success": kinds.count("goal") / len(kinds),
+                              "collision": kinds.count("collision") / len(kinds),
+                              "return": float(np.mean([r for _, r in self.recent]))})
+                self.bar.set_postfix(success=f"{curve[-1]['success']:.2f}", collision=f"{curve[-1]['collision']:.2f}")
+
+        def _on_training_end(self) -> None:
+            self.bar.close()
+
+    return Curve()
+
+
+def plot_curve(curve: list[dict], path: Path, title: str) -> Path:
+    """Learning-curve PNG (OpenCV): success and collision rates against env steps."""
+    import cv2
+
+    width, height, margin = 640, 400, 50
+    image = np.full((height, width, 3), 255, np.uint8)
+    cv2.rectangle(image, (margin, margin), (width - margin, height - margin), (0, 0, 0), 1)
+    last = max((p["timesteps"] for p in curve), default=1)
+    for frac in (0.0, 0.5, 1.0):
+        y = int(height - margin - frac * (height - 2 * margin))
+        cv2.putText(image, f"{frac:.1f}", (8, y + 4), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (0, 0, 0), 1)
+    cv2.putText(image, f"env steps (0 .. {last})", (width // 2 - 80, height - 15), cv2.FONT_HERSHEY_SIMPLEX,
+                0.45, (0, 0, 0), 1)
+    cv2.putText(image, title, (margin, 30), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (0, 0, 0), 1)
+    for key, colour, row in (("success", (0, 150, 0), 0), ("collision", (0, 0, 200), 1)):
+        points = np.array([[margin + p["timesteps"] / last * (width - 2 * margin),
+                            height - margin - p[key] * (height - 2 * margin)] for p in curve], np.int32)
+        if len(points) > 1:
+            cv2.polylines(image, [points], False, colour, 2, cv2.LINE_AA)
+        cv2.putText(image, key, (width - margin - 90, margin + 20 + 18 * row), cv2.FONT_HERSHEY_SIMPLEX, 0.45,
+                    colour, 1)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    cv2.imwrite(str(path), image)
+    return path
+
+
+def main(cfg: TrainConfig) -> Path:
+    """Train, write the policy, the curve and the run record; returns the policy path."""
+    import torch
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.vec_env import SubprocVecEnv, VecMonitor
+
+    # seeding: torch, numpy, envs (PPO's own generators through seed=)
+    torch.set_num_threads(1)
+    torch.manual_seed(cfg.seed)
+    out = Path(cfg.out)
+    run_name = f"{cfg.env_id}__ppo-{'predictions' if cfg.use_predictions else 'no-predictions'}__seed{cfg.seed}"
+    print(f"{run_name}: {json.dumps(asdict(cfg), default=str)}")
+
+    # envs: num_envs subprocesses, each an STCrowd env seen through the features
+    vec = VecMonitor(SubprocVecEnv([partial(make_env, cfg.env_id, cfg.use_predictions)] * cfg.num_envs))
+    vec.seed(cfg.seed)
+
+    # model: PPO with a tanh MLP actor-critic (same network for both variants)
+    net_arch = list(cfg.net_arch)
+    model = PPO("MlpPolicy", vec, n_steps=cfg.n_steps, batch_size=cfg.batch_size, n_epochs=cfg.n_epochs,
+                learning_rate=cfg.learning_rate, gamma=cfg.gamma, seed=cfg.seed, device="cpu", verbose=0,
+                policy_kwargs=dict(net_arch=dict(pi=net_arch, vf=net_arch), activation_fn=torch.nn.Tanh,
+                                   log_std_init=cfg.log_std_init))
+    with torch.no_grad():  # start from "walk along the path": exploration then learns when to deviate
+        model.policy.action_net.bias.copy_(torch.tensor([cfg.initial_forward, 0.0]))
+
+    # loop: rollouts -> PPO updates, a curve point per rollout
+    curve: list[dict] = []
+    start = time.perf_counter()
+    model.learn(total_timesteps=cfg.timesteps, callback=curve_callback(cfg, curve))
+    wall_time_s = time.perf_counter() - start
+    vec.close()
+
+    # checkpoint: the actor-critic alone, as plain tensors (atomic write), then the curve and the record
+    policy = build_policy(cfg.features, net_arch)
+    policy.load_state_dict(model.policy.state_dict())
+    sha256 = save_policy(policy, cfg.features, net_arch, out / "policy.pt")
+    write_text_atomic(out / "curve.json", json.dumps(curve, indent=1))
+    plot_curve(curve, out / "curve.png", run_name)
+    record = {"run": run_name, "config": asdict(cfg), "wall_time_s": wall_time_s, "sha256": sha256,
+              "final": curve[-1] if curve else None, "command": "python -m st_sim.apps.navigation.train_ppo "
+              + " ".join(sys.argv[1:])}
+    write_text_atomic(out / "training.json", json.dumps(record, indent=1, default=str))
+    if cfg.ship_as:
+        ship(out / "policy.pt", cfg.ship_as, record)
+    print(f"wrote {out}/policy.pt, curve.png, curve.json, training.json ({wall_time_s / 60:.1f} min)")
+    return out / "policy.pt"
+
+
+def ship(policy_path: Path, name: str, record: dict) -> Path:
+    """Copy a trained policy into the package's pretrained/ folder and record it in the manifest."""
+    folder = Path(str(resources.files(__package__).joinpath(PRETRAINED_DIR)))
+    folder.mkdir(exist_ok=True)
+    target = folder / f"{name}.pt"
+    shutil.copyfile(policy_path, target)
+    manifest_path = folder / "manifest.json"
+    manifest = json.loads(manifest_path.read_text()) if manifest_path.exists() else {"policies": {}}
+    manifest["policies"][name] = {"file": target.name, "sha256": record["sha256"], "command": record["command"],
+                                  "env_id": record["config"]["env_id"], "timesteps": record["config"]["timesteps"],
+                                  "wall_time_s": round(record["wall_time_s"], 1), "final_training": record["final"]}
+    write_text_atomic(manifest_path, json.dumps(manifest, indent=1, sort_keys=True) + "\n")
+    return target
+
+
+def parse_args(argv: list[str] | None = None) -> TrainConfig:
+    """TrainConfig from command-line flags (defaults as in the dataclass)."""
+    d = TrainConfig()
+    parser = argparse.ArgumentParser(prog="python -m st_sim.apps.navigation.train_ppo", description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--no-predictions", action="store_true", help="train without the predicted futures")
+    parser.add_argument("--env-id", default=d.env_id, help=f"training env (default: {d.env_id})")
+    parser.add_argument("--timesteps", type=int, default=d.timesteps, help=f"env steps (default: {d.timesteps})")
+    parser.add_argument("--num-envs", type=int, default=d.num_envs, help=f"parallel envs (default: {d.num_envs})")
+    parser.add_argument("--seed", type=int, default=d.seed, help=f"seed (default: {d.seed})")
+    parser.add_argument("--out", default=d.out, help=f"output folder (default: {d.out})")
+    parser.add_argument("--ship", default=None, help="also copy the policy into pretrained/ under this name")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    args = parser.parse_args(argv)
+    use_predictions = not args.no_predictions
+    return TrainConfig(use_predictions=use_predictions, env_id=args.env_id, timesteps=args.timesteps,
+                       num_envs=args.num_envs, seed=args.seed, out=args.out, ship_as=args.ship,
+                       progress=not args.quiet, features=FeatureConfig(use_predictions))
+
+
+if __name__ == "__main__":
+    main(parse_args())

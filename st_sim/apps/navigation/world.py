@@ -1,0 +1,66 @@
+"""What a planner knows besides the observation: the robot's body and limits, the pedestrians' size, the map."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+
+import gymnasium as gym
+import numpy as np
+
+from replays.constants import STEP_S
+from replays.scenes import Scene
+from st_sim.apps.navigation.terrain import Terrain
+from st_sim.sim import EgoConfig
+
+
+@dataclass(frozen=True, eq=False)
+class NavWorld:
+    """Static facts of one env for its planners (metres, seconds).
+
+    Attributes:
+        scene: the walkability map.  bounds_m: (xmin, ymin, xmax, ymax) where the ego can be [m].
+        ego_radius_m, pedestrian_radius_m: body radii [m].
+        max_speed_mps: the ego's speed limit [m/s].
+        max_accel_mps2: how fast the ego's velocity follows the command [m/s^2]; inf for the replays' point robot.
+        goal_radius_m: the goal counts as reached this close [m].
+        wall_clearance_m: least distance the ego's centre keeps from non-walkable ground [m]: its radius
+            where walls are solid (simulated crowds: touching one is a collision), 0 where they are only
+            marked on the map (replays: an off-map step costs reward but does not end the episode).
+    """
+
+    scene: Scene
+    bounds_m: tuple[float, float, float, float]
+    ego_radius_m: float = 0.3
+    pedestrian_radius_m: float = 0.25
+    max_speed_mps: float = 1.5
+    max_accel_mps2: float = float("inf")
+    goal_radius_m: float = 0.5
+    wall_clearance_m: float = 0.0
+    step_s: float = STEP_S
+
+    def __repr__(self) -> str:
+        return f"NavWorld({self.scene.name}, ego {self.ego_radius_m} m, {self.max_speed_mps} m/s)"
+
+    @property
+    def contact_m(self) -> float:
+        """Centre distance at which the ego touches a pedestrian [m]."""
+        return self.ego_radius_m + self.pedestrian_radius_m
+
+    @cached_property
+    def terrain(self) -> Terrain:
+        """Wall clearance and cost-to-go grid of the map (built on first use)."""
+        return Terrain(self.scene, self.bounds_m)
+
+
+def world_of(env: gym.Env) -> NavWorld:
+    """The ``NavWorld`` of an STCrowd env with an ego (a replay or a simulated crowd)."""
+    crowd_env = env.unwrapped
+    cfg = crowd_env.cfg
+    if hasattr(crowd_env, "layout"):  # simulated: the simulator's bodies, acceleration limit and layout bounds
+        return NavWorld(crowd_env.scene, tuple(crowd_env.layout.bounds_m), cfg.ego_radius_m,
+                        crowd_env.crowd_cfg.radius_m, cfg.max_speed_mps, EgoConfig().max_accel_mps2,
+                        cfg.goal_radius_m, cfg.ego_radius_m)
+    bounds = (*np.asarray(crowd_env.arena_low_m).tolist(), *np.asarray(crowd_env.arena_high_m).tolist())
+    return NavWorld(crowd_env.scene, bounds, cfg.ego_radius_m, cfg.pedestrian_radius_m, cfg.max_speed_mps,
+                    float("inf"), cfg.goal_radius_m, 0.0)

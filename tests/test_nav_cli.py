@@ -1,0 +1,64 @@
+"""The navigate command and its runner: paired seeded episodes, JSON output, env options, shipped policies."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from replays.scenes import Scene
+from st_sim.apps.cli import main
+from st_sim.apps.navigation.episodes import SEE_EGO_KWARG, NavRun, accepts_keyword, run_navigation
+from st_sim.apps.navigation.ppo import SHIPPED, PolicyFileError, load_policy
+from st_sim.apps.navigation.terrain import Terrain
+
+
+def test_navigate_prints_intervals_writes_json_and_recordings_and_repeats(tmp_path: Path,
+                                                                      capsys: pytest.CaptureFixture) -> None:
+    args = ["navigate", "--env", "STCrowd-SimCorridor-v0", "--policy", "straight", "--predictor", "none",
+            "--episodes", "2", "--seed", "5", "--quiet"]
+    assert main([*args, "--json", str(tmp_path / "a.json")]) == 0
+    out = capsys.readouterr().out
+    assert "95 % CI" in out and "with a pedestrian" in out and "jerk" in out
+    main([*args, "--json", str(tmp_path / "b.json"), "--rerun", str(tmp_path / "rrd")])
+    assert len(list((tmp_path / "rrd").glob("*seed[56].rrd"))) == 2, "one recording per episode"
+    a, b = (json.loads((tmp_path / name).read_text()) for name in ("a.json", "b.json"))
+    assert [e["seed"] for e in a["episodes"]] == [5, 6]
+    assert a["episodes"] == b["episodes"], "the same seeds must give the same episodes"
+    assert set(a["summary"]) >= {"success", "pedestrian_collision", "wall_collision", "timeout", "discomfort"}
+
+
+def test_runner_gives_every_planner_the_same_episode_starts() -> None:
+    runs = [run_navigation(NavRun("STCrowd-Zara1-v0", policy, "cvm", episodes=2, seed=3), progress=False)
+            for policy in ("straight", "mpc")]
+    starts = [[(e["seed"], e["outcome"] != "") for e in run["episodes"]] for run in runs]
+    assert starts[0] == starts[1]
+    assert runs[1]["pedestrians_see_ego"] is None, "replays have no pedestrians_see_ego option"
+
+
+def test_see_ego_keyword_is_detected_not_assumed() -> None:
+    assert accepts_keyword("STCrowd-Zara1-v0", "rerun")
+    assert not accepts_keyword("STCrowd-Zara1-v0", SEE_EGO_KWARG)
+    assert not accepts_keyword("STCrowd-Zara1-v0", "no_such_option")
+
+
+def test_terrain_cost_to_go_goes_around_a_wall(toy_scene: Scene) -> None:
+    terrain = Terrain(toy_scene, (0.0, 0.0, 4.9, 9.9))  # the toy scene's walkable left half
+    goal = np.array([1.0, 9.0])
+    assert terrain.cost_to_go(np.array([1.0, 1.0]), goal, 0.3) == pytest.approx(8.0, abs=0.1)
+    assert terrain.clearance_at(np.array([4.5, 5.0])) == pytest.approx(0.5, abs=0.11)
+    assert terrain.clearance_at(np.array([7.0, 5.0])) == 0.0, "the wall half is not walkable"
+    assert terrain.direction_to(np.array([1.0, 1.0]), goal, 0.3) @ np.array([0.0, 1.0]) > 0.99
+
+
+def test_shipped_policies_load_by_name_and_a_broken_file_is_refused(tmp_path: Path) -> None:
+    for use_predictions, name in SHIPPED.items():
+        policy, features = load_policy(name)
+        assert features.use_predictions == use_predictions
+        assert policy.observation_space.shape == (features.size,)
+    broken = tmp_path / "broken.pt"
+    broken.write_bytes(b"not a policy")
+    with pytest.raises(PolicyFileError, match=r"broken\.pt"):
+        load_policy(broken)

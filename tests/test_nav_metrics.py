@@ -1,0 +1,85 @@
+"""Navigation metrics on hand-made episodes: outcomes, per-episode figures, intervals, the paired test."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from replays.constants import STEP_S
+from st_sim.apps.navigation.metrics import (
+    EpisodeTrace,
+    Outcome,
+    episode_metrics,
+    outcome_of,
+    paired_collision_test,
+    rate_interval,
+    summarize,
+)
+
+PARTS = {"progress": 0.0, "goal": 0.0, "collision": 0.0, "off_map": 0.0, "time": 1.0}
+
+
+def straight_episode(steps: int, outcome: Outcome, clearance_m: float = 1.0) -> EpisodeTrace:
+    """The ego walks from (0, 0) along +x at 1 m/s; the goal is where it ends."""
+    xy = np.stack([np.arange(steps + 1) * STEP_S, np.zeros(steps + 1)], axis=1)
+    velocity = np.tile([1.0, 0.0], (steps + 1, 1))
+    return EpisodeTrace(xy, velocity, np.full(steps + 1, clearance_m), np.zeros(steps + 1, bool), xy[-1], outcome)
+
+
+def test_outcome_names_goal_pedestrian_wall_and_timeout() -> None:
+    assert outcome_of(PARTS, truncated=False, clearance_m=2.0, wall_gap_m=1.0) is None
+    assert outcome_of({**PARTS, "goal": 1.0}, False, 2.0, 1.0) is Outcome.GOAL
+    assert outcome_of({**PARTS, "collision": 1.0}, False, 0.02, 1.0) is Outcome.PEDESTRIAN
+    assert outcome_of({**PARTS, "collision": 1.0}, False, 1.5, 0.01) is Outcome.WALL
+    assert outcome_of({**PARTS, "collision": 1.0}, False, 0.2, 2.0) is Outcome.PEDESTRIAN, "touched mid-step"
+    assert outcome_of({**PARTS, "collision": 1.0}, False, 0.0, 0.05) is Outcome.PEDESTRIAN, "a body beats a wall"
+    assert outcome_of({**PARTS, "collision": 1.0, "goal": 1.0}, False, 0.0, 1.0) is Outcome.PEDESTRIAN
+    assert outcome_of(PARTS, truncated=True, clearance_m=2.0, wall_gap_m=1.0) is Outcome.TIMEOUT
+
+
+def test_straight_successful_episode_has_ratio_one_and_no_jerk() -> None:
+    metrics = episode_metrics(straight_episode(25, Outcome.GOAL))
+    assert metrics["outcome"] == "goal" and metrics["steps"] == 25
+    assert metrics["time_to_goal_s"] == pytest.approx(25 * STEP_S)
+    assert metrics["path_ratio"] == pytest.approx(1.0)
+    assert metrics["jerk_mps3"] == pytest.approx(0.0)
+    assert metrics["discomfort"] == 0.0 and metrics["min_clearance_m"] == pytest.approx(1.0)
+
+
+def test_failed_episode_has_no_time_to_goal_and_counts_discomfort() -> None:
+    trace = straight_episode(10, Outcome.PEDESTRIAN)
+    trace.clearance_m[-4:] = [0.3, 0.15, 0.1, -0.02]  # closing in: the last 3 steps are under 0.2 m
+    metrics = episode_metrics(trace)
+    assert np.isnan(metrics["time_to_goal_s"]) and np.isnan(metrics["path_ratio"])
+    assert metrics["discomfort"] == pytest.approx(3 / 10)
+    assert metrics["min_clearance_m"] == pytest.approx(-0.02)
+
+
+def test_jerk_of_a_stop_and_go_episode() -> None:
+    trace = straight_episode(4, Outcome.TIMEOUT)
+    trace.ego_velocity_mps[:, 0] = [0.0, 0.0, 1.0, 1.0, 1.0]  # one jump of 1 m/s: second differences 1, -1, 0
+    assert episode_metrics(trace)["jerk_mps3"] == pytest.approx((1 + 1 + 0) / 3 / STEP_S ** 2)
+
+
+def test_summary_rates_carry_wilson_intervals_around_them() -> None:
+    episodes = [episode_metrics(straight_episode(5, Outcome.GOAL))] * 8
+    episodes += [episode_metrics(straight_episode(5, kind)) for kind in (Outcome.WALL, Outcome.TIMEOUT)]
+    summary = summarize(episodes)
+    assert summary["success"]["value"] == pytest.approx(0.8)
+    assert summary["success"]["low"] < 0.8 < summary["success"]["high"] <= 1.0
+    assert summary["wall_collision"]["value"] == summary["collision"]["value"] == pytest.approx(0.1)
+    assert summary["pedestrian_collision"]["value"] == 0.0 and summary["pedestrian_collision"]["high"] > 0.0
+    assert summary["time_to_goal_s"]["n"] == 8, "time to goal averages the successful episodes only"
+    low, high = rate_interval(0, 500)
+    assert low == 0.0 and 0.0 < high < 0.01
+
+
+def test_paired_test_finds_the_safer_planner_and_refuses_unpaired_runs() -> None:
+    safe = [{"seed": s, "outcome": "goal"} for s in range(30)]
+    risky = [{"seed": s, "outcome": "pedestrian collision" if s % 3 == 0 else "goal"} for s in range(30)]
+    result = paired_collision_test(safe, risky)
+    assert (result["only_a"], result["only_b"]) == (0, 10) and result["p_value"] < 0.05
+    assert paired_collision_test(risky, safe)["p_value"] > 0.5
+    assert paired_collision_test(safe, safe)["p_value"] == 1.0
+    with pytest.raises(ValueError, match="same seeds"):
+        paired_collision_test(safe, risky[::-1])

@@ -1,0 +1,93 @@
+"""Planners: each one avoids a single crossing pedestrian that the straight planner walks into."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from replays.constants import STEP_S, T_OBS, T_PRED
+from replays.scenes import Scene
+from st_sim.apps.navigation.planners import PLANNERS, make_planner
+from st_sim.apps.navigation.world import NavWorld
+
+GOAL = np.array([12.0, 0.0])
+CROSSER_START = np.array([4.0, -2.7])  # walks north at 1 m/s and meets a full-speed straight ego at x = 4 m
+CROSSER_VELOCITY = np.array([0.0, 1.0])
+SAMPLES = 20
+
+
+@pytest.fixture(scope="module")
+def open_world() -> NavWorld:
+    """A 30 m x 30 m walkable square (0.1 m per pixel) around the crossing; a point robot without inertia."""
+    H = np.array([[0.1, 0.0, -10.0], [0.0, 0.1, -10.0], [0.0, 0.0, 1.0]])  # world = 0.1 * pixel - 10 m
+    return NavWorld(Scene("open", H, np.ones((300, 300), bool)), (-4.0, -8.0, 16.0, 8.0))
+
+
+def observation(ego_xy: np.ndarray, ego_v: np.ndarray, step: int) -> dict[str, np.ndarray]:
+    """The crossing at env step ``step``: one pedestrian with 8 observed steps and 20 constant-velocity futures
+    fanned out by +-10 degrees."""
+    times = (step + np.arange(-T_OBS + 1, T_PRED + 1)) * STEP_S
+    track = CROSSER_START + times[:, None] * CROSSER_VELOCITY  # (T_obs + 12, 2)
+    obs = {"ego": np.array([*ego_xy, *ego_v, *GOAL], np.float32),
+           "history": np.zeros((2, T_OBS, 2), np.float32), "history_mask": np.zeros((2, T_OBS), bool),
+           "futures": np.zeros((2, SAMPLES, T_PRED, 2), np.float32), "futures_mask": np.zeros(2, bool)}
+    obs["history"][0], obs["history_mask"][0] = track[:T_OBS], True
+    angles = np.radians(np.linspace(-10, 10, SAMPLES))
+    ahead = np.arange(1, T_PRED + 1)[:, None] * STEP_S
+    rotated = np.stack([np.cos(angles), np.sin(angles)], 1) @ np.array([[0.0, 1.0], [-1.0, 0.0]])  # fan around +y
+    obs["futures"][0] = track[T_OBS - 1] + ahead[None] * rotated[:, None] * np.linalg.norm(CROSSER_VELOCITY)
+    obs["futures_mask"][0] = True
+    return obs
+
+
+def closest_approach(planner_name: str, world: NavWorld, predictor: str) -> tuple[float, float]:
+    """(least centre distance to the crosser [m], final distance to the goal [m]) over 30 steps."""
+    planner = make_planner(planner_name, world, predictor)
+    planner.reset()
+    ego_xy, ego_v, closest = np.zeros(2), np.zeros(2), np.inf
+    for step in range(30):
+        command = np.asarray(planner.act(observation(ego_xy, ego_v, step)), np.float64)
+        speed = np.linalg.norm(command)
+        ego_v = command * min(1.0, world.max_speed_mps / speed) if speed > 0 else command
+        for fraction in np.linspace(0.1, 1.0, 10):  # check between the steps too
+            crosser = CROSSER_START + (step + fraction) * STEP_S * CROSSER_VELOCITY
+            closest = min(closest, float(np.linalg.norm(ego_xy + fraction * STEP_S * ego_v - crosser)))
+        ego_xy = ego_xy + STEP_S * ego_v
+    return closest, float(np.linalg.norm(GOAL - ego_xy))
+
+
+def test_straight_planner_walks_into_the_crosser(open_world: NavWorld) -> None:
+    closest, _ = closest_approach("straight", open_world, "none")
+    assert closest < open_world.contact_m, f"the scenario should make the straight planner collide ({closest:.2f} m)"
+
+
+UNTRAINED = pytest.mark.xfail(strict=True, reason="the shipped PPO policies had a 6k-step budget (RESULTS.md, "
+                              "Navigation benchmark) and do not avoid yet; retrain them and drop this mark")
+AVOIDERS = [("orca", "none"), ("mpc", "cvm"), ("mpc", "singular"),
+            pytest.param("ppo", "singular", marks=UNTRAINED), pytest.param("ppo", "none", marks=UNTRAINED)]
+
+
+@pytest.mark.parametrize(("planner", "predictor"), AVOIDERS,
+                         ids=["orca-none", "mpc-cvm", "mpc-singular", "ppo-singular", "ppo-none"])
+def test_planner_avoids_the_crosser_and_moves_on(open_world: NavWorld, planner: str, predictor: str) -> None:
+    if planner == "orca":
+        pytest.importorskip("pyrvo", reason='ORCA needs the optional extra: pip install -e ".[nav]"')
+    closest, to_goal = closest_approach(planner, open_world, predictor)
+    assert closest >= open_world.contact_m, f"{planner}/{predictor} touched the crosser ({closest:.2f} m)"
+    assert to_goal < 12.0 - 3.0, f"{planner}/{predictor} made no headway ({to_goal:.2f} m left)"
+
+
+def test_every_planner_is_registered_and_unknown_names_fail(open_world: NavWorld) -> None:
+    assert set(PLANNERS) == {"straight", "orca", "mpc", "ppo"}
+    with pytest.raises(ValueError, match="planner='teleport'"):
+        make_planner("teleport", open_world, "none")
+    with pytest.raises(ValueError, match="predictor='oracle'"):
+        make_planner("mpc", open_world, "oracle")
+
+
+def test_orca_without_pyrvo_names_the_extra(open_world: NavWorld, monkeypatch: pytest.MonkeyPatch) -> None:
+    import sys
+
+    monkeypatch.setitem(sys.modules, "pyrvo", None)  # import pyrvo now raises ImportError
+    with pytest.raises(ImportError, match=r'pip install -e "\.\[nav\]"'):
+        make_planner("orca", open_world, "none")
