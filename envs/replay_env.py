@@ -18,10 +18,12 @@ from envs.common.predictors import shipped_checkpoint
 from envs.common.tracks import Frame
 from replays.constants import COORD_DECIMALS, MIN_AGENTS_PER_WINDOW, STEP_S, T_PRED
 from replays.data_root import data_root
+from replays.errors import RecordingError
 from replays.recording import read_recording
 from replays.scenes import load_scene, scene_info
 
 MIN_REPLAY_STEPS = 50  # a random start leaves at least this many steps (20 s) of recording
+MIN_FRAMES = 2  # a replay starts at one listed frame and steps to the next
 
 
 @dataclass(frozen=True, eq=False)
@@ -47,10 +49,22 @@ class Replay:
         return Frame(int(self.frames[index]), self.agents[cols], self.xy_m[index, cols])
 
 
-@cache
 def load_replay(path: Path) -> Replay:
-    """Read a recording once per process and lay it on its frame grid."""
+    """Read a recording once per process (again if its size or times change) and lay it on its frame grid.
+
+    Raises:
+        RecordingError: the file is malformed, or has fewer than 2 listed frames (nothing to step to).
+    """
+    stat = path.stat()
+    return _load_replay(path, (stat.st_size, stat.st_mtime_ns, stat.st_ctime_ns))
+
+
+@cache
+def _load_replay(path: Path, version: tuple[int, int, int]) -> Replay:
     recording = read_recording(path)
+    if len(recording.frames) < MIN_FRAMES:
+        raise RecordingError(f"{path}: {len(recording.frames)} listed frame(s); a replay needs at least {MIN_FRAMES}",
+                             path=path)
     xy_m, present = recording.dense(COORD_DECIMALS)
     return Replay(path, recording.frames, recording.agents, xy_m, present)
 

@@ -125,9 +125,16 @@ class Scene:
     def __init__(self, name: str, H: np.ndarray, walkable: np.ndarray, photo: np.ndarray | None = None):
         self.name = name
         self.H = np.asarray(H, dtype=np.float64)
+        if self.H.shape != (3, 3) or not np.isfinite(self.H).all() or abs(np.linalg.det(self.H)) < 1e-12:
+            raise ValueError(f"scene {name}: H must be a finite, invertible 3x3 matrix, got shape {self.H.shape}")
         self.H_inv = np.linalg.inv(self.H)
         self.walkable = np.asarray(walkable, dtype=bool)
+        if self.walkable.ndim != 2 or 0 in self.walkable.shape:
+            raise ValueError(f"scene {name}: walkable must be a non-empty (H, W) map, got shape {self.walkable.shape}")
         self.photo = photo if photo is not None else np.repeat(self.walkable[..., None] * np.uint8(255), 3, -1)
+        if self.photo.shape != (*self.walkable.shape, 3):
+            raise ValueError(f"scene {name}: photo must be (H, W, 3) like the map {self.walkable.shape}, "
+                             f"got {self.photo.shape}")
 
     def __repr__(self) -> str:
         return f"Scene({self.name}, map {self.walkable.shape[1]}x{self.walkable.shape[0]} px)"

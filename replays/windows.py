@@ -123,9 +123,9 @@ _MEMORY: dict[tuple, dict[str, np.ndarray]] = {}
 
 
 def file_windows(path: Path, obs_len: int) -> dict[str, np.ndarray]:
-    """``cut_windows`` of one file, cached in memory and on disk (keyed by path, size, mtime, obs_len)."""
+    """``cut_windows`` of one file, cached in memory and on disk (keyed by path, size, mtime, ctime, obs_len)."""
     stat = path.stat()
-    key = (str(path.resolve()), stat.st_size, stat.st_mtime_ns, obs_len, CACHE_VERSION)
+    key = (str(path.resolve()), stat.st_size, stat.st_mtime_ns, stat.st_ctime_ns, obs_len, CACHE_VERSION)
     if key in _MEMORY:
         return _MEMORY[key]
     digest = hashlib.sha1(repr(key).encode()).hexdigest()[:20]

@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from test_data_root import linked_layout  # a data root of symlinks into the shared folder
 
 from replays import DataRootError, load_windows
 from replays.atomic import atomic_path, write_text_atomic
@@ -28,14 +29,6 @@ SUMS = expected_sums()
 ZARA1_TEST = "zara1/test/crowds_zara01.txt"
 
 
-def linked_root(dst: Path) -> Path:
-    """A data root of symlinks into the shared folder; replace a link to alter one file."""
-    for name in SUMS:
-        (dst / name).parent.mkdir(parents=True, exist_ok=True)
-        (dst / name).symlink_to(SHARED / name)
-    return dst
-
-
 def scale_recording(root: Path, name: str, factor: float) -> None:
     """Replace ``name`` by a copy with every position scaled by ``factor`` (the attack on ZARA1's test set)."""
     rows = np.loadtxt(SHARED / name)
@@ -46,7 +39,7 @@ def scale_recording(root: Path, name: str, factor: float) -> None:
 
 @pytest.fixture
 def scaled_root(tmp_path: Path) -> Path:
-    root = linked_root(tmp_path / "root")
+    root = linked_layout(tmp_path / "root")
     scale_recording(root, ZARA1_TEST, 1.5)
     return root
 
@@ -77,7 +70,7 @@ def test_modified_copy_opt_out_loads_it_and_warns_naming_the_file(
 
 
 def test_extra_recording_in_a_split_folder_is_refused(tmp_path: Path) -> None:
-    root = linked_root(tmp_path / "root")
+    root = linked_layout(tmp_path / "root")
     (root / "zara1/test/extra.txt").write_text("0\t1\t1.0\t1.0\n")
     with pytest.raises(DataRootError, match=r"zara1/test/extra\.txt \(extra file"):
         data_root(root)
@@ -86,7 +79,7 @@ def test_extra_recording_in_a_split_folder_is_refused(tmp_path: Path) -> None:
 @settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(victim=st.sampled_from(sorted(SUMS)), edit=st.sampled_from(["append", "truncate", "flip"]))
 def test_any_edited_file_is_named(tmp_path_factory, victim: str, edit: str) -> None:
-    root = linked_root(tmp_path_factory.mktemp("edit") / "root")
+    root = linked_layout(tmp_path_factory.mktemp("edit") / "root")
     data = (SHARED / victim).read_bytes()
     (root / victim).unlink()
     edited = {"append": data + b"\n", "truncate": data[: len(data) // 2], "flip": bytes([data[0] ^ 1]) + data[1:]}
@@ -98,7 +91,7 @@ def test_any_edited_file_is_named(tmp_path_factory, victim: str, edit: str) -> N
 
 def test_digests_are_cached_by_size_and_times(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv("STCROWD_CACHE", str(tmp_path / "cache"))
-    root = linked_root(tmp_path / "root")
+    root = linked_layout(tmp_path / "root")
     hashed: list[Path] = []
     monkeypatch.setattr(data_root_module, "sha256_of", lambda path: hashed.append(path) or sha256_of(path))
     assert modified_files(root) == {} and len(hashed) == len(SUMS)
@@ -135,7 +128,7 @@ def test_fetch_moves_an_edited_file_aside_and_says_so(tmp_path: Path, capsys: py
 
 
 def test_fetch_refuses_special_and_oversized_source_files(tmp_path: Path) -> None:
-    source = linked_root(tmp_path / "source")
+    source = linked_layout(tmp_path / "source")
     (source / ZARA1_TEST).unlink()
     os.mkfifo(source / ZARA1_TEST)
     with pytest.raises(FetchError, match=re.escape(ZARA1_TEST) + ".*FIFO"):
@@ -198,7 +191,7 @@ def test_temp_files_of_killed_writes_are_removed_by_the_next_write(tmp_path: Pat
 ], ids=["verify-missing", "verify-modified", "fetch-fifo"])
 def test_cli_errors_are_one_line_and_debug_shows_the_traceback(
         args: list[str], needle: str, tmp_path: Path, scaled_root: Path, capsys: pytest.CaptureFixture) -> None:
-    fifo_root = linked_root(tmp_path / "fifo_root")
+    fifo_root = linked_layout(tmp_path / "fifo_root")
     (fifo_root / ZARA1_TEST).unlink()
     os.mkfifo(fifo_root / ZARA1_TEST)
     paths = {"fifo_root": fifo_root, "scaled": scaled_root, "dest": tmp_path / "dest"}

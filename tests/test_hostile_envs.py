@@ -7,15 +7,18 @@ error naming the field at fault, before anything in the env changes.
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from dataclasses import fields
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
+from test_data_root import linked_layout  # a data root of symlinks into the shared folder
 
 import envs  # noqa: F401  (registers the ids)
 from envs.common.config import EnvConfig, RewardWeights
@@ -28,7 +31,8 @@ from envs.common.errors import (
     NeedsResetError,
     ResetOptionsError,
 )
-from replays import UnknownNameError
+from replays import RecordingError, UnknownNameError, data_root
+from replays.constants import POSITION_LIMIT_M
 
 SETTINGS = settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 ENV_IDS = ("STCrowd-Zara1-v0", "STCrowd-SimCorridor-v0")
@@ -315,3 +319,61 @@ def test_vector_env_reraises_the_envs_own_error(mode: str) -> None:
             vec.step(np.zeros((2, 2), np.float32))
     finally:
         vec.close()
+
+
+# ---------------------------------------------------------------- replays of hostile recordings
+
+ZARA1_TEST = "zara1/test/crowds_zara01.txt"
+
+
+@pytest.fixture(scope="module")
+def own_root(tmp_path_factory) -> Path:
+    """A data root whose ZARA1 test recording each example replaces, accepted as modified on purpose."""
+    root = linked_layout(tmp_path_factory.mktemp("own") / "root")
+    (root / ZARA1_TEST).unlink()
+    (root / ZARA1_TEST).write_text("0\t1\t1.0\t1.0\n10\t1\t1.0\t1.0\n")
+    data_root(root, verify=False)  # prints a warning naming the file
+    return root
+
+
+@st.composite
+def recordings(draw) -> str:
+    """A recording text: mostly valid rows (far-away, crowded, sparse), sometimes one broken row."""
+    n_frames, n_agents = draw(st.integers(1, 30)), draw(st.integers(1, 12))
+    centre = draw(st.tuples(st.floats(-900, 900), st.floats(-900, 900)) | st.just((5.0, 5.0)))
+    rows = []
+    for frame in range(n_frames):
+        for agent in draw(st.sets(st.integers(0, n_agents), max_size=n_agents)):
+            x, y = (np.clip(c + draw(st.floats(-50, 50)), -POSITION_LIMIT_M, POSITION_LIMIT_M) for c in centre)
+            rows.append(f"{10 * frame}\t{agent * 1000}\t{x:.4f}\t{y:.4f}")
+    if rows and draw(st.integers(0, 4)) == 4:
+        rows[draw(st.integers(0, len(rows) - 1))] = draw(st.sampled_from(["0\t-1\t1\t1", "nan 1 1 1", "0 1 2"]))
+    return "\n".join(rows) + "\n"
+
+
+@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(text=recordings(), ego=st.booleans(), seed=st.integers(0, 3))
+def test_any_recording_replays_inside_the_space_or_is_refused_by_name(own_root: Path, text: str, ego: bool,
+                                                                      seed: int) -> None:
+    path = own_root / ZARA1_TEST
+    (own_root / "new.tmp").write_text(text)
+    os.replace(own_root / "new.tmp", path)  # a new file: the replay cache reads it again
+    try:
+        env = gym.make("STCrowd-Zara1-v0", root=own_root, predictor="cvm", ego=ego).unwrapped
+        obs, info = env.reset(seed=seed)
+    except RecordingError as err:
+        assert str(err).startswith(str(path)), str(err)
+        event("refused: recording")
+        return
+    except EgoPlacementError as err:  # ego mode: no walkable pixel inside the recorded area
+        assert ego and "walkable" in str(err), str(err)
+        event("refused: ego placement")
+        return
+    event(f"replayed, ego={ego}")
+    env.action_space.seed(seed)
+    for t in range(30):
+        assert env.observation_space.contains(obs), f"[step {t}] observation left its space"
+        assert (info["agent_ids"] >= -1).all() and np.array_equal(info["agent_ids"] >= 0, obs["history_mask"][:, -1])
+        obs, _, terminated, truncated, info = env.step(env.action_space.sample())
+        if terminated or truncated:
+            break

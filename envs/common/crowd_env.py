@@ -85,7 +85,10 @@ class CrowdEnv(gym.Env):
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         options = self._checked_options(options)
-        super().reset(seed=seed)
+        if seed is not None and (isinstance(seed, bool | np.bool_) or not isinstance(seed, int | np.integer)
+                                 or seed < 0):
+            raise EnvInputError(f"{self.where}: seed={seed!r}: expected None or an int >= 0")
+        super().reset(seed=None if seed is None else int(seed))
         self._obs, self._episode_over = None, False
         self.tracks.clear()
         self.metrics.reset()
