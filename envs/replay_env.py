@@ -173,14 +173,18 @@ class ReplayCrowdEnv(CrowdEnv):
         self.candidates_m = walkable_points(self.scene, (*self.arena_low_m, *self.arena_high_m))
         self.index = 0
 
+    def _check_options(self, options: dict[str, Any]) -> None:
+        if "start_index" not in options:
+            return
+        start, last = options["start_index"], len(self.replay.frames) - 1
+        if isinstance(start, bool | np.bool_) or not isinstance(start, int | np.integer) or not 0 <= start < last:
+            raise ResetOptionsError(f"{self.replay.path}: reset option start_index={start!r}: expected an int "
+                                    f"in [0, {last - 1}]")
+
     def _reset_world(self, options: dict) -> list[Frame]:
         last = len(self.replay.frames) - 1
         if "start_index" in options:
-            start = options["start_index"]
-            if isinstance(start, bool | np.bool_) or not isinstance(start, int | np.integer) or not 0 <= start < last:
-                raise ResetOptionsError(f"{self.replay.path}: reset option start_index={start!r}: expected an int "
-                                        f"in [0, {last - 1}]")
-            self.index = int(start)
+            self.index = int(options["start_index"])  # checked by _check_options
         else:
             low = min(self.t_obs - 1, last - 1)
             self.index = int(self.np_random.integers(low, max(low, last - MIN_REPLAY_STEPS) + 1))

@@ -137,6 +137,18 @@ def test_reset_options_must_be_a_dict(bare_envs, options) -> None:
         bare_envs[("STCrowd-Zara1-v0", True)].reset(options=options)
 
 
+@pytest.mark.parametrize("bad", [{"options": {"start_index": 10**9}}, {"options": {"bogus": 1}}, {"seed": -1},
+                                 {"seed": "5"}, {"seed": 2.5}],
+                         ids=["range", "key", "seed-neg", "seed-str", "seed-float"])
+def test_refused_reset_leaves_the_episode_running(bad: dict) -> None:
+    env = unwrapped("STCrowd-Zara1-v0", ego=False)
+    _, info = env.reset(seed=0, options={"start_index": 100})
+    with pytest.raises(EnvInputError):
+        env.reset(**bad)
+    _, _, _, _, info = env.step(np.zeros(2))
+    assert info["frame"] == int(env.replay.frames[101]), "the refused reset changed the episode"
+
+
 # ---------------------------------------------------------------- actions
 
 def action_strategy() -> st.SearchStrategy:

@@ -2,8 +2,8 @@
 
 A subclass provides the crowd (and moves the ego) through four hooks: ``_reset_world`` (frames up to
 now, drawn from ``self.np_random``), ``_step_world`` (one 0.4 s step), ``_ego_collided`` and
-``_world_ended``. It keeps ``ego_xy_m``, ``ego_velocity_mps`` and ``goal_m`` up to date, and lists the
-``reset`` options it reads in ``RESET_OPTIONS``.
+``_world_ended``. It keeps ``ego_xy_m``, ``ego_velocity_mps`` and ``goal_m`` up to date, lists the
+``reset`` options it reads in ``RESET_OPTIONS`` and checks their values in ``_check_options``.
 
 Input contract (both vectorisation modes of gymnasium): every check of an argument, option or action runs
 before anything changes, and raises the env's own ``envs.common.errors.EnvInputError`` (a ValueError) or
@@ -141,6 +141,9 @@ class CrowdEnv(gym.Env):
 
     # hooks -------------------------------------------------------------------------------------------
 
+    def _check_options(self, options: dict[str, Any]) -> None:
+        """Raise ``ResetOptionsError`` for a reset option value this env cannot use (keys are checked already)."""
+
     def _reset_world(self, options: dict) -> list[Frame]:
         """Start a new episode (randomness from ``self.np_random``); frames oldest first, the last is now."""
         raise NotImplementedError
@@ -176,7 +179,9 @@ class CrowdEnv(gym.Env):
         if unknown:
             accepted = ", ".join(f"{k!r} ({v})" for k, v in self.RESET_OPTIONS.items()) or "none"
             raise ResetOptionsError(f"{self.where}: unknown reset option {unknown[0]!r}; this env accepts {accepted}")
-        return dict(options)
+        options = dict(options)
+        self._check_options(options)
+        return options
 
     def _observe(self) -> dict[str, np.ndarray]:
         """Observation of the newest frame; runs the predictor once for every agent with T_obs frames."""
