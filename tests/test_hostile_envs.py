@@ -128,7 +128,7 @@ def test_reset_options_take_only_known_keys_and_int_start_index(bare_envs, key: 
             continue
         with pytest.raises(ResetOptionsError, match=key) as err:
             env.reset(options={key: value})
-        assert str(value)[:10] in str(err.value) or key not in env.RESET_OPTIONS, str(err.value)
+        assert repr(value)[:10] in str(err.value) or key not in env.RESET_OPTIONS, str(err.value)
 
 
 @pytest.mark.parametrize("options", [[("start_index", 3)], "start_index", 5], ids=["list", "str", "int"])
