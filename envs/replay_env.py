@@ -6,21 +6,24 @@ import os
 from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
 from envs.common.config import EnvConfig
-from envs.common.crowd_env import CrowdEnv
-from envs.common.ego import spawn_start_goal, walkable_points
+from envs.common.crowd_env import CrowdEnv, check_flag
+from envs.common.ego import move_within, spawn_start_goal, walkable_points
+from envs.common.errors import EnvInputError, ResetOptionsError
 from envs.common.predictors import shipped_checkpoint
 from envs.common.tracks import Frame
 from replays.constants import COORD_DECIMALS, MIN_AGENTS_PER_WINDOW, STEP_S, T_PRED
 from replays.data_root import data_root
+from replays.errors import RecordingError
 from replays.recording import read_recording
 from replays.scenes import load_scene, scene_info
 
 MIN_REPLAY_STEPS = 50  # a random start leaves at least this many steps (20 s) of recording
+MIN_FRAMES = 2  # a replay starts at one listed frame and steps to the next
 
 
 @dataclass(frozen=True, eq=False)
@@ -46,12 +49,24 @@ class Replay:
         return Frame(int(self.frames[index]), self.agents[cols], self.xy_m[index, cols])
 
 
-@cache
 def load_replay(path: Path) -> Replay:
-    """Read a recording once per process and lay it on its frame grid."""
+    """Read a recording once per process (again if its size or times change) and lay it on its frame grid.
+
+    Raises:
+        RecordingError: the file is malformed, or has fewer than 2 listed frames (nothing to step to).
+    """
+    stat = path.stat()
+    return _load_replay(path, (stat.st_size, stat.st_mtime_ns, stat.st_ctime_ns))
+
+
+@cache
+def _load_replay(path: Path, version: tuple[int, int, int]) -> Replay:
     recording = read_recording(path)
-    xy_m, present = recording.dense()
-    return Replay(path, recording.frames, recording.agents, np.round(xy_m, COORD_DECIMALS), present)
+    if len(recording.frames) < MIN_FRAMES:
+        raise RecordingError(f"{path}: {len(recording.frames)} listed frame(s); a replay needs at least {MIN_FRAMES}",
+                             path=path)
+    xy_m, present = recording.dense(COORD_DECIMALS)
+    return Replay(path, recording.frames, recording.agents, xy_m, present)
 
 
 class ReplayCrowdEnv(CrowdEnv):
@@ -62,11 +77,14 @@ class ReplayCrowdEnv(CrowdEnv):
     windows ignore them). Every pedestrian of the current frame is in the observation; one with T_obs
     consecutive listed frames up to now also gets S predicted futures (one batched predictor call per
     step, all agents in one group). The ego is a point robot of radius 0.3 m that moves at the commanded
-    velocity and cannot leave the arena (recorded area + 1 m); pedestrians do not react to it.
+    velocity and cannot leave the arena (recorded area + 1 m, within the scene's image: a move off the image
+    keeps only the axis that stays on it); pedestrians do not react to it.
 
     ## Action Space
     Box(-1.5, 1.5, (2,), float32): ego velocity (vx, vy) [m/s], world frame; scaled down to
-    ``config.max_speed_mps`` (1.5) if faster. NaN/inf actions raise ValueError. Ignored when ``ego=False``.
+    ``config.max_speed_mps`` (1.5) if faster. Anything but 2 real numbers (complex, text, bools, objects,
+    another shape) raises ``ActionError`` (a ValueError); so does NaN/inf, except when ``ego=False``, where
+    the action's value is ignored.
 
     ## Observation Space
     Dict, all positions in metres, world frame, N_max = most pedestrians in one frame of the scene's
@@ -76,7 +94,9 @@ class ReplayCrowdEnv(CrowdEnv):
     - "history_mask": (N_max, T_obs) bool, agent present in that frame.
     - "futures": (N_max, S, 12, 2) float32 predicted positions, 12 steps of 0.4 s; 0 where not predicted.
     - "futures_mask": (N_max,) bool, row has predictions.
-    Row i belongs to agent ``info["agent_ids"][i]`` (-1: empty row); an agent keeps its row while present.
+    Row i belongs to agent ``info["agent_ids"][i]`` (-1: empty row; recordings hold ids >= 0 only); an agent
+    keeps its row while present. Every value lies in the space: positions are within +-1000 m (the parser
+    refuses recordings beyond), and histories are also clipped to that bound.
 
     ## Rewards
     Weighted sum of ``info["reward_parts"]`` (weights in ``config.reward``): progress to the goal [m] x 1,
@@ -85,17 +105,29 @@ class ReplayCrowdEnv(CrowdEnv):
 
     ## Starting State
     A listed frame drawn from ``np_random`` (at least T_obs - 1 frames in, 50 before the end) or
-    ``options["start_index"]``; histories are filled from the recording's earlier frames. The ego starts
-    at a walkable point at least 1 m from every pedestrian, its goal at least half the arena diagonal away.
+    ``options["start_index"]`` (an int in [0, F - 2]; the only reset option: other keys, and values that are
+    not ints - "5", 3.7, True, lists - raise ``ResetOptionsError``, a ValueError); histories are filled from
+    the recording's earlier frames. The ego starts at a walkable point at least 1 m from every pedestrian,
+    its goal at least half the arena diagonal away; an ego start or goal off the walkable map raises
+    ``EgoPlacementError``.
 
     ## Episode End
     Terminated when the ego reaches its goal (0.5 m) or touches a pedestrian (centre distance < 0.55 m).
-    Truncated at the recording's last frame, or by the registered time limit (200 steps).
+    Truncated at the recording's last frame, or by the registered time limit (200 steps). ``step`` before
+    ``reset``, or after the env ended the episode, raises ``NeedsResetError`` (gymnasium's ResetNeeded).
 
     ## Info
     frame (recording frame id), agent_ids and predicted_ids (N_max,) int64 (-1 where none),
-    reward_parts, metrics (running ADE/FDE of matured predictions, map violation, ego collisions and
-    least ego-pedestrian distance; see ``envs.common.running_metrics``).
+    reward_parts, metrics: a read-only mapping (``envs.common.running_metrics.Metrics``) of the running
+    ADE/FDE of matured predictions, map violation, ego collisions and least ego-pedestrian distance; a
+    value with nothing to measure yet is None ("n/a"), never 0.0.
+
+    ## Errors and vector envs
+    Every argument, option and action is checked before anything changes, and a bad one raises the env's
+    own error (``envs.common.errors``: ValueError subclasses, and ``NeedsResetError``) with the field at fault
+    in the message. ``gym.make_vec(..., vectorization_mode="sync")`` re-raises it and stays usable;
+    ``"async"`` re-raises it with the same type and message, but gymnasium then shuts that worker down, so an
+    async vector env must be closed and made again after an error. Validate actions first to avoid that.
 
     ## Arguments
     scene (eth, hotel, univ, zara1, zara2), recording (univ: students001 (default) or students003),
@@ -103,44 +135,56 @@ class ReplayCrowdEnv(CrowdEnv):
     saw it, for 8 or 2 observed frames; "cvm", "cvm-s", "linear", "singular" or an object with ``predict``),
     task (stochastic:
     T_obs 8, S 20; deterministic: 8, 1; momentary: 2, 20), ego, render_mode ("rgb_array"), config
-    (``EnvConfig``), root: the ETH/UCY data root (default $STCROWD_DATA or the user cache),
+    (``EnvConfig``; its fields are checked, ``ConfigError`` names a bad one), root: the ETH/UCY data root
+    (default $STCROWD_DATA or the user cache; checked against the project's SHA-256 sums on first use),
     benchmark_windows (spectator only: predict exactly the agents of each benchmark window, as the
     offline evaluation does, instead of every agent with T_obs frames), rerun (a .rrd path or "spawn": log
-    every step, with predictions and SingularTrajectory's anchors, to Rerun).
+    every step, with predictions and SingularTrajectory's anchors, to Rerun; an existing recording is never
+    overwritten: the new one is numbered, ``run-1.rrd``, and ``rerun_paths`` lists what was written).
 
     ## Version History
     - v0: initial version.
     """
 
+    RESET_OPTIONS: ClassVar[dict[str, str]] = {"start_index": "int, the listed frame to start at"}
+
     def __init__(self, scene: str = "zara1", recording: str | None = None, predictor: Any = "auto",
                  task: str = "stochastic", ego: bool = True, render_mode: str | None = None,
                  config: EnvConfig | None = None, root: str | os.PathLike | None = None,
-                 benchmark_windows: bool = False, rerun: str | None = None):
+                 benchmark_windows: bool = False, rerun: str | os.PathLike | None = None):
+        check_flag("benchmark_windows", benchmark_windows)
+        check_flag("ego", ego)
         if benchmark_windows and ego:
-            raise ValueError("benchmark_windows=True is a spectator mode: pass ego=False")
+            raise EnvInputError("benchmark_windows=True is a spectator mode: pass ego=False")
         self.benchmark_windows = benchmark_windows
         info = scene_info(scene)
         root = data_root(root)
-        recording = recording or info.recordings[0]
+        recording = info.recordings[0] if recording is None else recording
         if recording not in info.recordings:
-            raise ValueError(f"recording={recording!r}: scene {info.name} has {', '.join(info.recordings)}")
+            raise EnvInputError(f"recording={recording!r}: scene {info.name} has {', '.join(info.recordings)}")
         replays = {name: load_replay(root / info.name / "test" / f"{name}.txt") for name in info.recordings}
         self.replay = replays[recording]
         n_max = max(int(r.present.sum(axis=1).max()) for r in replays.values())
         super().__init__(load_scene(info.name, root), n_max, str(self.replay.path), predictor, task, ego,
                          render_mode, config, pretrained=shipped_checkpoint(task, info.name), rerun=rerun)
         observed = self.replay.xy_m[self.replay.present]
-        margin = self.cfg.arena_margin_m
+        margin = self.cfg.arena_margin_m  # checked by EnvConfig: [0, 100] m
         self.arena_low_m, self.arena_high_m = observed.min(axis=0) - margin, observed.max(axis=0) + margin
         self.candidates_m = walkable_points(self.scene, (*self.arena_low_m, *self.arena_high_m))
         self.index = 0
 
+    def _check_options(self, options: dict[str, Any]) -> None:
+        if "start_index" not in options:
+            return
+        start, last = options["start_index"], len(self.replay.frames) - 1
+        if isinstance(start, bool | np.bool_) or not isinstance(start, int | np.integer) or not 0 <= start < last:
+            raise ResetOptionsError(f"{self.replay.path}: reset option start_index={start!r}: expected an int "
+                                    f"in [0, {last - 1}]")
+
     def _reset_world(self, options: dict) -> list[Frame]:
         last = len(self.replay.frames) - 1
         if "start_index" in options:
-            self.index = int(options["start_index"])
-            if not 0 <= self.index < last:
-                raise ValueError(f"{self.replay.path}: start_index {self.index} outside [0, {last - 1}]")
+            self.index = int(options["start_index"])  # checked by _check_options
         else:
             low = min(self.t_obs - 1, last - 1)
             self.index = int(self.np_random.integers(low, max(low, last - MIN_REPLAY_STEPS) + 1))
@@ -155,10 +199,10 @@ class ReplayCrowdEnv(CrowdEnv):
         return [self.replay.frame(i) for i in range(first, self.index + 1)]
 
     def _step_world(self, ego_velocity_mps: np.ndarray | None) -> Frame:
-        assert not self._world_ended(), "The recording has ended; call reset before stepping again."
-        self.index += 1
+        self.index += 1  # the base class refuses a step once the recording has ended
         if ego_velocity_mps is not None:
-            moved = np.clip(self.ego_xy_m + ego_velocity_mps * STEP_S, self.arena_low_m, self.arena_high_m)
+            moved = move_within(self.scene, self.ego_xy_m, ego_velocity_mps, STEP_S, self.arena_low_m,
+                                self.arena_high_m)
             self.ego_velocity_mps = (moved - self.ego_xy_m) / STEP_S
             self.ego_xy_m = moved
         return self.replay.frame(self.index)

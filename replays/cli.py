@@ -1,4 +1,7 @@
-"""``python -m replays <command>``: fetch the ETH/UCY files into a data root, verify a data root."""
+"""``python -m replays <command>``: fetch the ETH/UCY files into a data root, verify a data root.
+
+Every failure prints one ``error: ...`` line and exits with code 1; ``--debug`` shows the traceback instead.
+"""
 
 from __future__ import annotations
 
@@ -7,20 +10,24 @@ import os
 import sys
 
 from replays.data_root import DEFAULT_CACHE, ENV_VAR, data_root, verify_data_root
-from replays.errors import DataRootError
+from replays.errors import DataFormatError, DataRootError
 from replays.fetch import FetchError, fetch
+
+USER_ERRORS = (FetchError, DataRootError, DataFormatError, OSError)  # OSError: a folder cannot be written
 
 
 def run_fetch(args: argparse.Namespace) -> int:
     """Fetch and verify every file; an interrupted run resumes where it stopped."""
     try:
         report = fetch(args.source, args.dest, quiet=args.quiet)
-    except (FetchError, OSError) as err:  # OSError: the destination cannot be written
-        print(f"error: {err}", file=sys.stderr)
-        return 1
     except KeyboardInterrupt:
+        if args.debug:
+            raise
         print("error: interrupted; run the same command again to resume (finished files are kept)", file=sys.stderr)
         return 1
+    for path in report.moved_aside:
+        print(f"note: a file with other bytes than the project's sum was in the way; it is kept as {path}",
+              file=sys.stderr)
     if not args.quiet:
         print(f"OK: {report.fetched} files fetched, {report.skipped} already present, "
               f"{report.bytes_moved / 1e6:.1f} MB moved, into {report.dest}")
@@ -32,12 +39,8 @@ def run_fetch(args: argparse.Namespace) -> int:
 
 def run_verify(args: argparse.Namespace) -> int:
     """Check every file's SHA-256; print OK or the first bad file."""
-    try:
-        root = data_root(args.root, check=False)
-        verify_data_root(root)
-    except DataRootError as err:
-        print(f"error: {err}", file=sys.stderr)
-        return 1
+    root = data_root(args.root, check=False)
+    verify_data_root(root)
     print(f"OK: every file in {root} matches the project's SHA-256 sums")
     return 0
 
@@ -48,8 +51,11 @@ COMMANDS = {"fetch": run_fetch, "verify": run_verify}
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="python -m replays", description=__doc__)
     commands = parser.add_subparsers(dest="command", required=True)
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument("--debug", action="store_true", help="show tracebacks instead of one error line (default: off)")
 
-    fetch_cmd = commands.add_parser("fetch", help="download or copy the ETH/UCY files and verify their SHA-256")
+    fetch_cmd = commands.add_parser("fetch", parents=[common],
+                                    help="download or copy the ETH/UCY files and verify their SHA-256")
     fetch_cmd.add_argument("--from", dest="source", metavar="DIR_OR_ARCHIVE_OR_URL", default=None,
                            help="a folder laid out like the data root, a .zip/.tar(.gz) archive of one, or an "
                                 "http(s) base URL (default: the public mirrors, Social-STGCNN and LMTrajectory "
@@ -58,7 +64,8 @@ def build_parser() -> argparse.ArgumentParser:
                            help=f"data root to fill (default: {DEFAULT_CACHE})")
     fetch_cmd.add_argument("--quiet", action="store_true", help="no progress bar or summary (default: off)")
 
-    verify = commands.add_parser("verify", help="check every file of a data root against the project's SHA-256 sums")
+    verify = commands.add_parser("verify", parents=[common],
+                                 help="check every file of a data root against the project's SHA-256 sums")
     verify.add_argument("--root", metavar="DIR", default=None,
                         help=f"data root to check (default: ${ENV_VAR} if set, else {DEFAULT_CACHE})")
     return parser
@@ -66,4 +73,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    return COMMANDS[args.command](args)
+    try:
+        return COMMANDS[args.command](args)
+    except USER_ERRORS as err:
+        if args.debug:
+            raise
+        print(f"error: {err}", file=sys.stderr)
+        return 1

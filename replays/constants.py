@@ -12,6 +12,8 @@ T_PRED: Final[int] = 12  # predicted steps (4.8 s)
 MIN_AGENTS_PER_WINDOW: Final[int] = 2  # Social-GAN's min_ped = 1 with a strict '>' test
 FEWSHOT_EVERY: Final[int] = 10  # few-shot keeps every 10th training window
 COORD_DECIMALS: Final[int] = 4  # Social-GAN rounds positions to 4 decimals before windowing
+POSITION_LIMIT_M: Final[float] = 1000.0  # |x| and |y| of every recorded and observed position [m]
+ID_LIMIT: Final[int] = 2**53  # frame and agent ids are whole numbers in [0, 2^53): float64 holds them exactly
 
 TASKS: Final[dict[str, dict]] = {
     # task: observed steps, samples S, split layout

@@ -1,22 +1,36 @@
-"""Where the ETH/UCY files live: argument > ``STCROWD_DATA`` > per-user cache.
+"""Where the ETH/UCY files live (argument > ``STCROWD_DATA`` > per-user cache), and whether they are the real ones.
 
-The project keeps the SHA-256 sum of every file it uses (``replays/eth_ucy.sha256``); a data root is
-valid when every listed file is present. ``verify_data_root`` also checks the sums.
+The project keeps the SHA-256 sum of every file it uses (``replays/eth_ucy.sha256``). The first time a process
+uses a data root, ``data_root`` checks that every listed file is present and holds the listed bytes, and that
+no unlisted recording sits in a split folder (the loaders read every ``*.txt`` there). Digests are cached on
+disk (``$STCROWD_CACHE``), keyed by each file's size, mtime and ctime, so only new or changed files are hashed
+again; after the first use in a process the root is not looked at again.
+
+A root that differs is refused with the names of the files and the fix. People who edit their own copy on
+purpose opt out with ``STCROWD_ALLOW_MODIFIED_DATA=1`` or ``data_root(root, verify=False)``; a warning naming
+the modified files is then printed once per process.
 """
 
 from __future__ import annotations
 
 import hashlib
+import json
 import os
+import sys
 from functools import cache
 from importlib import resources
 from pathlib import Path
+from typing import Final
 
+from replays.atomic import atomic_path
 from replays.errors import DataRootError
+from replays.files import open_regular
 
-ENV_VAR = "STCROWD_DATA"
-DEFAULT_CACHE = Path("~/.cache/stcrowd/eth_ucy")
-FIX_HINT = (
+ENV_VAR: Final = "STCROWD_DATA"
+ALLOW_MODIFIED_ENV_VAR: Final = "STCROWD_ALLOW_MODIFIED_DATA"
+CACHE_ENV_VAR: Final = "STCROWD_CACHE"
+DEFAULT_CACHE: Final = Path("~/.cache/stcrowd/eth_ucy")
+FIX_HINT: Final = (
     "Fetch the data with `python -m replays fetch` (or `python -m replays fetch --from DIR_OR_ARCHIVE`), "
     f"or point {ENV_VAR} at a folder holding the ETH/UCY files."
 )
@@ -34,20 +48,28 @@ def expected_sums() -> dict[str, str]:
 
 
 def sha256_of(path: Path, chunk_bytes: int = 1 << 20) -> str:
-    """Hex SHA-256 of a file, read in chunks."""
+    """Hex SHA-256 of a regular file, read in chunks (a FIFO or device raises ``NotRegularFileError``)."""
     digest = hashlib.sha256()
-    with open(path, "rb") as f:
+    with open_regular(path) as f:
         while block := f.read(chunk_bytes):
             digest.update(block)
     return digest.hexdigest()
 
 
-def data_root(path: str | os.PathLike | None = None, *, check: bool = True) -> Path:
+def cache_dir() -> Path:
+    """Folder of derived files (cut windows, data-root digests): ``$STCROWD_CACHE`` or ``~/.cache/stcrowd/windows``."""
+    return Path(os.environ.get(CACHE_ENV_VAR) or "~/.cache/stcrowd/windows").expanduser()
+
+
+def data_root(path: str | os.PathLike | None = None, *, check: bool = True, verify: bool | None = None) -> Path:
     """Resolve the data root: ``path`` if given, else ``$STCROWD_DATA``, else ``~/.cache/stcrowd/eth_ucy``.
 
     Args:
         path: explicit folder, highest priority.
-        check: raise ``DataRootError`` if a listed file is missing (cheap: existence only).
+        check: on the first use in this process, raise ``DataRootError`` if a listed file is missing or
+            differs from the project's SHA-256 sums (cached; see the module docstring).
+        verify: False accepts a modified root for the rest of the process (a warning names the modified
+            files); None (default) does the same only when ``$STCROWD_ALLOW_MODIFIED_DATA=1``.
 
     Returns:
         The absolute folder.
@@ -59,25 +81,95 @@ def data_root(path: str | os.PathLike | None = None, *, check: bool = True) -> P
     else:
         root, source = DEFAULT_CACHE, "the default cache"
     root = root.expanduser().resolve()
-    if check and root not in _COMPLETE_ROOTS:
+    if check and root not in _ACCEPTED_ROOTS:
         missing = [name for name in expected_sums() if not (root / name).is_file()]
         if missing:
             raise DataRootError(
                 f"ETH/UCY data root {root} (from {source}) is missing {len(missing)} of "
                 f"{len(expected_sums())} files, first: {missing[0]}. {FIX_HINT}"
             )
-        _COMPLETE_ROOTS.add(root)
+        _accept_or_refuse(root, source, modified_files(root), verify)
+        _ACCEPTED_ROOTS.add(root)
     return root
 
 
-_COMPLETE_ROOTS: set[Path] = set()  # roots found complete in this process (files are not re-stat'ed)
+_ACCEPTED_ROOTS: set[Path] = set()  # roots checked (or accepted as modified) in this process
+
+
+def _accept_or_refuse(root: Path, source: str, modified: dict[str, str], verify: bool | None) -> None:
+    if not modified:
+        return
+    listed = ", ".join(f"{name} ({why})" for name, why in list(modified.items())[:5])
+    more = f" and {len(modified) - 5} more" if len(modified) > 5 else ""
+    allowed = verify is False or (verify is None and os.environ.get(ALLOW_MODIFIED_ENV_VAR) == "1")
+    if not allowed:
+        raise DataRootError(
+            f"ETH/UCY data root {root} (from {source}) differs from the project's SHA-256 sums in "
+            f"{len(modified)} file(s): {listed}{more}. Results from it would not be the benchmark's. Restore the "
+            f"files with `python -m replays fetch --dest {root}` (edited files are kept as NAME.modified), or, to "
+            f"use an edited copy on purpose, set {ALLOW_MODIFIED_ENV_VAR}=1 or pass verify=False."
+        )
+    print(f"WARNING: using the MODIFIED ETH/UCY data root {root}: {len(modified)} file(s) differ from the "
+          f"project's SHA-256 sums: {listed}{more}. Results are not comparable with published numbers.",
+          file=sys.stderr, flush=True)
+
+
+def modified_files(root: Path, use_cache: bool = True) -> dict[str, str]:
+    """Files of ``root`` that are not the project's: relative path -> reason, in the sums file's order.
+
+    Reasons: the SHA-256 of a listed file differs, or an extra ``*.txt`` sits in a folder the loaders read
+    whole. Missing listed files are not reported here (``data_root`` does that).
+    With ``use_cache`` a file whose size, mtime and ctime match the cached entry is not hashed again.
+    """
+    sums = expected_sums()
+    cache_file = cache_dir() / f"sums-{hashlib.sha1(str(root).encode()).hexdigest()[:16]}.json"
+    cached = _read_digest_cache(cache_file) if use_cache else {}
+    fresh: dict[str, list] = {}
+    modified: dict[str, str] = {}
+    for name, digest in sums.items():
+        file = root / name
+        if not file.is_file():
+            continue
+        info = file.stat()
+        key = [info.st_size, info.st_mtime_ns, info.st_ctime_ns]
+        entry = cached.get(name)
+        got = entry[3] if entry and entry[:3] == key else sha256_of(file)
+        fresh[name] = [*key, got]
+        if got != digest:
+            modified[name] = "SHA-256 differs from the project's sum"
+    folders = {str(Path(name).parent) for name in sums if name.endswith(".txt")}
+    for folder in sorted(folders):
+        for extra in sorted((root / folder).glob("*.txt")):
+            name = f"{folder}/{extra.name}"
+            if name not in sums:
+                modified[name] = "extra file, not in the project's list"
+    if fresh != cached:
+        _write_digest_cache(cache_file, fresh)
+    return modified
+
+
+def _read_digest_cache(path: Path) -> dict[str, list]:
+    try:
+        files = json.loads(path.read_text())["files"]
+        return {str(k): list(v) for k, v in files.items() if isinstance(v, list) and len(v) == 4}
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        return {}  # no or unreadable cache: hash again
+
+
+def _write_digest_cache(path: Path, files: dict[str, list]) -> None:
+    try:
+        with atomic_path(path) as tmp:
+            tmp.write_text(json.dumps({"files": files}))
+    except OSError:
+        pass  # a read-only cache only costs speed
 
 
 def verify_data_root(root: Path) -> None:
-    """Check every file under ``root`` against the project's SHA-256 sums; raise on the first mismatch."""
-    for name, digest in expected_sums().items():
-        file = root / name
-        if not file.is_file():
-            raise DataRootError(f"{file}: missing. {FIX_HINT}")
-        if sha256_of(file) != digest:
-            raise DataRootError(f"{file}: SHA-256 does not match the project's sum (corrupt or altered). {FIX_HINT}")
+    """Hash every file under ``root`` again and raise ``DataRootError`` naming the first missing or modified one."""
+    for name in expected_sums():
+        if not (root / name).is_file():
+            raise DataRootError(f"{root / name}: missing. {FIX_HINT}")
+    modified = modified_files(root, use_cache=False)
+    if modified:
+        name, why = next(iter(modified.items()))
+        raise DataRootError(f"{root / name}: {why} (corrupt or altered). {FIX_HINT}")

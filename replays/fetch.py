@@ -10,14 +10,16 @@ Sources (``python -m replays fetch --from ...``):
 Each file is written to ``<file>.part`` beside its final name, its SHA-256 is checked, and only then does
 ``os.replace`` give it its final name, so a final name never holds a partial or unchecked file. Files that
 already hold the right bytes are skipped; an interrupted ``.part`` download resumes with an HTTP Range
-request when the server honours it and restarts otherwise.
+request when the server honours it and restarts otherwise. Nothing of the user's is deleted: a file at a
+final name with other bytes (an edited copy, say) is renamed ``<file>.modified`` once its replacement has
+been verified, and the report lists it. Only regular files are read from a source folder, and no file
+larger than ``MAX_FILE_BYTES`` is accepted from any source.
 """
 
 from __future__ import annotations
 
 import os
 import posixpath
-import shutil
 import tarfile
 import time
 import zipfile
@@ -35,6 +37,8 @@ from urllib.request import Request, urlopen
 from tqdm import tqdm
 
 from replays.data_root import DEFAULT_CACHE, expected_sums, sha256_of
+from replays.errors import DataFormatError
+from replays.files import open_regular
 
 SOCIAL_STGCNN_URL: Final = "https://raw.githubusercontent.com/abduallahmohamed/Social-STGCNN/master/datasets/"
 LMTRAJECTORY_URL: Final = "https://raw.githubusercontent.com/InhwanBae/LMTrajectory/main/datasets/"
@@ -52,6 +56,8 @@ MIRRORS: Final[tuple[tuple[str, str, tuple[str, str] | None], ...]] = (
 TIMEOUT_S: Final = 30.0  # per connection attempt and per blocking read
 RETRY_DELAYS_S: Final = (0.5, 2.0)  # pauses before the 2nd and 3rd attempt at one file
 CHUNK_BYTES: Final = 1 << 16
+MAX_FILE_BYTES: Final = 64 << 20  # no file of the data set comes near this (the largest is 0.9 MB) [B]
+MODIFIED_SUFFIX: Final = ".modified"  # an existing file with other bytes is renamed <file>.modified
 USER_AGENT: Final = "stcrowd-fetch/0.1 (python urllib)"
 ARCHIVE_ERRORS: Final = (tarfile.TarError, zipfile.BadZipFile, EOFError, zlib.error)  # damaged archive
 SOURCE_HINT: Final = "--from takes a folder laid out like the data root, a .zip/.tar(.gz) of one, or an http(s) URL"
@@ -73,6 +79,8 @@ class FetchReport:
     """files already present with the right SHA-256"""
     bytes_moved: int
     """bytes transferred in this run [B]"""
+    moved_aside: tuple[Path, ...] = ()
+    """files that held other bytes under a final name, renamed ``<file>.modified`` (never deleted)"""
 
 
 class Opened(NamedTuple):
@@ -160,11 +168,14 @@ class FolderSource:
     @contextmanager
     def open(self, name: str, offset: int) -> Iterator[Opened]:
         path = self.root / name
-        if not path.is_file():
+        if not path.exists():
             raise FetchError(f"{path}: missing from the source folder {self.root}. {SOURCE_HINT}.")
-        with open(path, "rb") as stream:
-            stream.seek(offset)
-            yield Opened(stream, offset, None)
+        try:
+            with open_regular(path, MAX_FILE_BYTES, "data-set file") as stream:
+                stream.seek(offset)
+                yield Opened(stream, offset, None)
+        except DataFormatError as err:  # a FIFO, device or folder, or a huge file
+            raise FetchError(f"{err}. {SOURCE_HINT}.") from err
 
 
 class ArchiveSource:
@@ -255,38 +266,57 @@ def fetch(source: str | os.PathLike | None = None, dest: str | os.PathLike | Non
         FetchError: on the first file that cannot be fetched or fails its check; files verified so far stay.
     """
     dest = Path(dest if dest is not None else DEFAULT_CACHE).expanduser().resolve()
+    if source is not None and Path(source).expanduser().resolve() == dest:
+        raise FetchError(f"--from and --dest are the same folder ({dest}): nothing can be fetched from a folder "
+                         f"into itself. Fetch from another copy, or check it with `python -m replays verify`.")
     sums = expected_sums()
     fetched = skipped = moved = 0
+    aside: list[Path] = []
     with open_source(source) as src, tqdm(total=len(sums), unit="file", desc="fetch", disable=quiet) as bar:
         for name in src.order(list(sums)):
             final = dest / name
-            if _keep_existing(final, sums[name]):
+            if _holds(final, sums[name]):
                 skipped += 1
             else:
-                moved += _fetch_file(src, name, sums[name], final)
-                fetched += 1
+                more, moved_aside = _fetch_file(src, name, sums[name], final)
+                moved, fetched = moved + more, fetched + 1
+                aside += [moved_aside] if moved_aside else []
             bar.update(1)
             bar.set_postfix_str(f"{moved / 1e6:.1f} MB", refresh=False)
-    return FetchReport(dest, fetched, skipped, moved)
+    return FetchReport(dest, fetched, skipped, moved, tuple(aside))
 
 
-def _keep_existing(final: Path, digest: str) -> bool:
-    """True if ``final`` already holds the right bytes; a file with the wrong bytes is deleted."""
-    if not final.is_file():
+def _holds(final: Path, digest: str) -> bool:
+    """True if ``final`` already holds the right bytes (a stale ``.part`` beside it is then removed)."""
+    if not final.is_file() or sha256_of(final) != digest:
         return False
-    if sha256_of(final) == digest:
-        _part_of(final).unlink(missing_ok=True)  # stale leftover of an earlier run
-        return True
-    final.unlink()
-    return False
+    _part_of(final).unlink(missing_ok=True)  # stale leftover of an earlier run
+    return True
+
+
+def _move_aside(final: Path) -> Path | None:
+    """Rename whatever sits at ``final`` to ``<final>.modified`` (numbered if taken); None if nothing is there."""
+    if not os.path.lexists(final):
+        return None
+    target = final.with_name(final.name + MODIFIED_SUFFIX)
+    number = 0
+    while os.path.lexists(target):
+        number += 1
+        target = final.with_name(f"{final.name}{MODIFIED_SUFFIX}.{number}")
+    os.rename(final, target)
+    return target
 
 
 def _part_of(final: Path) -> Path:
     return final.with_name(final.name + ".part")
 
 
-def _fetch_file(src: Source, name: str, digest: str, final: Path) -> int:
-    """Transfer one file into its ``.part``, check its SHA-256, move it into place; returns bytes moved."""
+def _fetch_file(src: Source, name: str, digest: str, final: Path) -> tuple[int, Path | None]:
+    """Transfer one file into its ``.part``, check its SHA-256, move it into place.
+
+    Returns:
+        Bytes moved, and where a different file that sat at ``final`` was moved (None if there was none).
+    """
     part = _part_of(final)
     final.parent.mkdir(parents=True, exist_ok=True)
     moved, start = _transfer(src, name, part)
@@ -302,8 +332,9 @@ def _fetch_file(src: Source, name: str, digest: str, final: Path) -> int:
             f"The download was deleted and {final} was not written; the source copy is corrupt or a different "
             "version. Run the command again, or fetch from another copy with --from DIR_OR_ARCHIVE_OR_URL."
         )
+    aside = _move_aside(final)
     os.replace(part, final)
-    return moved
+    return moved, aside
 
 
 def _transfer(src: Source, name: str, part: Path) -> tuple[int, int]:
@@ -313,7 +344,12 @@ def _transfer(src: Source, name: str, part: Path) -> tuple[int, int]:
         offset = part.stat().st_size if part.is_file() else 0
         try:
             with src.open(name, offset) as opened, open(part, "ab" if opened.start else "wb") as out:
-                shutil.copyfileobj(opened.stream, out, CHUNK_BYTES)
+                while block := opened.stream.read(CHUNK_BYTES):
+                    if out.tell() + len(block) > MAX_FILE_BYTES:
+                        part.unlink()
+                        raise FetchError(f"{name}: {src.where(name)} is larger than {MAX_FILE_BYTES:,} bytes, far "
+                                         "more than any file of the data set: not the ETH/UCY file. " + SOURCE_HINT)
+                    out.write(block)
                 out.flush()
                 os.fsync(out.fileno())
                 moved = out.tell() - opened.start

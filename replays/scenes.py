@@ -6,15 +6,23 @@ component, gives (column u, row v); ``world = H (u, v, 1)``.
 
 from __future__ import annotations
 
+import io
 import os
 from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
+from typing import Final
 
 import numpy as np
 
 from replays.data_root import data_root
-from replays.errors import DataFormatError
+from replays.errors import DataFormatError, UnknownNameError
+from replays.files import parse_numbers, read_bytes, require_budget
+
+MAX_HOMOGRAPHY_BYTES: Final = 4096  # a 3x3 matrix in text [B]
+MAX_IMAGE_BYTES: Final = 64 << 20  # largest photo or map file read [B]; ETH/UCY's largest is 0.6 MB
+IMAGE_BYTES_PER_PIXEL: Final = 16  # decoded image (up to 4 x 16 bit) + RGB copy + map, per pixel [B]
+PNG_SIGNATURE: Final = b"\x89PNG\r\n\x1a\n"
 
 
 @dataclass(frozen=True)
@@ -53,26 +61,27 @@ LETTERS: dict[str, str] = {s.letter: s.name for s in SCENES.values()}
 
 def scene_info(name: str) -> SceneInfo:
     """Look a scene up by name (``"zara1"``) or letter (``"D"``)."""
-    key = LETTERS.get(name, name.lower())
+    key = LETTERS.get(name, name.lower()) if isinstance(name, str) else None
     if key not in SCENES:
-        raise KeyError(f"unknown scene {name!r}; expected one of {', '.join(SCENES)} or letters A-E")
+        raise UnknownNameError(f"unknown scene {name!r}; expected one of {', '.join(SCENES)} or letters A-E")
     return SCENES[key]
 
 
 def scene_of_recording(recording: str) -> SceneInfo:
     """Scene a recording belongs to; accepts split suffixes (``crowds_zara03_train``)."""
-    base = recording.removesuffix("_train").removesuffix("_val")
+    base = str(recording).removesuffix("_train").removesuffix("_val")
     for info in SCENES.values():
         if base in info.train_recordings:
             return info
-    raise KeyError(f"recording {recording!r} belongs to no ETH/UCY scene")
+    raise UnknownNameError(f"recording {recording!r} belongs to no ETH/UCY scene")
 
 
 def read_homography(path: Path) -> np.ndarray:
     """(3, 3) float64 matrix H with world = H @ pixel, from a whitespace-separated text file."""
+    text = read_bytes(path, MAX_HOMOGRAPHY_BYTES, "homography")
     try:
-        H = np.loadtxt(path, dtype=np.float64)
-    except (OSError, ValueError) as err:
+        H = parse_numbers(io.StringIO(text.decode("utf-8")))
+    except ValueError as err:  # also UnicodeDecodeError
         raise DataFormatError(f"{path}: cannot read a 3x3 homography ({err})") from err
     if H.shape != (3, 3) or not np.isfinite(H).all() or abs(np.linalg.det(H)) < 1e-12:
         raise DataFormatError(f"{path}: expected a finite, invertible 3x3 matrix, got shape {H.shape}")
@@ -80,15 +89,24 @@ def read_homography(path: Path) -> np.ndarray:
 
 
 def read_image(path: Path, grayscale: bool) -> np.ndarray:
-    """Read a PNG with OpenCV: (H, W) uint8 if grayscale else (H, W, 3) uint8 RGB."""
+    """Read a PNG with OpenCV: (H, W) uint8 if grayscale else (H, W, 3) uint8 RGB.
+
+    Its size is read from the PNG header first: an image whose decoding would pass
+    ``replays.files.MEMORY_BUDGET_BYTES`` (16 bytes per pixel) is refused before it is decoded.
+    """
     import cv2
 
+    data = read_bytes(path, MAX_IMAGE_BYTES, "photo or map")
+    if len(data) < 24 or data[:8] != PNG_SIGNATURE or data[12:16] != b"IHDR":
+        raise DataFormatError(f"{path}: not a PNG image")
+    width, height = int.from_bytes(data[16:20], "big"), int.from_bytes(data[20:24], "big")
+    require_budget(width * height * IMAGE_BYTES_PER_PIXEL, f"{path}: decoding a {width} x {height} px image")
     flag = cv2.IMREAD_UNCHANGED if grayscale else cv2.IMREAD_COLOR
-    image = cv2.imread(str(path), flag)
-    if image is None:
-        raise DataFormatError(f"{path}: missing or not a readable image")
-    if grayscale and image.ndim != 2:
-        raise DataFormatError(f"{path}: expected a single-channel map, got shape {image.shape}")
+    image = cv2.imdecode(np.frombuffer(data, np.uint8), flag)
+    if image is None or image.shape[:2] != (height, width):
+        raise DataFormatError(f"{path}: damaged or unreadable PNG image")
+    if grayscale and (image.ndim != 2 or image.dtype != np.uint8):
+        raise DataFormatError(f"{path}: expected a single-channel 8-bit map, got shape {image.shape} {image.dtype}")
     return image if grayscale else cv2.cvtColor(image, cv2.COLOR_BGR2RGB)
 
 
@@ -107,9 +125,16 @@ class Scene:
     def __init__(self, name: str, H: np.ndarray, walkable: np.ndarray, photo: np.ndarray | None = None):
         self.name = name
         self.H = np.asarray(H, dtype=np.float64)
+        if self.H.shape != (3, 3) or not np.isfinite(self.H).all() or abs(np.linalg.det(self.H)) < 1e-12:
+            raise ValueError(f"scene {name}: H must be a finite, invertible 3x3 matrix, got shape {self.H.shape}")
         self.H_inv = np.linalg.inv(self.H)
         self.walkable = np.asarray(walkable, dtype=bool)
+        if self.walkable.ndim != 2 or 0 in self.walkable.shape:
+            raise ValueError(f"scene {name}: walkable must be a non-empty (H, W) map, got shape {self.walkable.shape}")
         self.photo = photo if photo is not None else np.repeat(self.walkable[..., None] * np.uint8(255), 3, -1)
+        if self.photo.shape != (*self.walkable.shape, 3):
+            raise ValueError(f"scene {name}: photo must be (H, W, 3) like the map {self.walkable.shape}, "
+                             f"got {self.photo.shape}")
 
     def __repr__(self) -> str:
         return f"Scene({self.name}, map {self.walkable.shape[1]}x{self.walkable.shape[0]} px)"

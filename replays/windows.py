@@ -17,14 +17,16 @@ import numpy as np
 
 from replays.atomic import atomic_path
 from replays.constants import COORD_DECIMALS, DOMAIN_TASKS, FEWSHOT_EVERY, MIN_AGENTS_PER_WINDOW, SPLITS, T_PRED, TASKS
-from replays.data_root import data_root
+from replays.data_root import cache_dir, data_root
 from replays.errors import DataRootError
-from replays.recording import Recording, read_recording
+from replays.files import require_budget
+from replays.recording import DENSE_BYTES_PER_CELL, Recording, read_recording
 from replays.scenes import SCENES, scene_info
 
 ALL_SCENES = "all"  # pseudo-scene: all five scenes at once (universal model)
 CACHE_VERSION = 1  # bump when the windowing changes, to invalidate disk caches
-CACHE_ENV_VAR = "STCROWD_CACHE"
+GRID_BYTES_PER_CELL = DENSE_BYTES_PER_CELL + 5  # + int32 presence counts + bool "full", per (frame, agent)
+SAMPLE_BYTES_PER_STEP = 32  # int64 frame index + float64 (x, y) + float32 (x, y), per sample step
 
 
 @dataclass(frozen=True, eq=False)
@@ -82,18 +84,23 @@ def cut_windows(recording: Recording, obs_len: int) -> dict[str, np.ndarray]:
 
     Returns:
         obs (S, obs_len, 2), fut (S, 12, 2) float32 metres; group, frame, agent (S,) int64.
+
+    Raises:
+        MemoryBudgetError: the (frame x agent) grid or the samples would pass ``MEMORY_BUDGET_BYTES``.
     """
     seq_len = obs_len + T_PRED
-    xy, present = recording.dense()
-    xy = np.round(xy, COORD_DECIMALS)
+    recording.grid_budget(GRID_BYTES_PER_CELL, "windowing grid")
+    xy, present = recording.dense(COORD_DECIMALS)
     n_frames = len(recording.frames)
     n_windows = n_frames - seq_len + 1
     if n_windows <= 0:
         return _empty(obs_len)
-    counts = np.cumsum(np.vstack([np.zeros((1, present.shape[1]), np.int64), present]), axis=0)
+    counts = np.cumsum(np.vstack([np.zeros((1, present.shape[1]), np.int32), present]), axis=0, dtype=np.int32)
     full = (counts[seq_len:] - counts[:n_windows]) == seq_len  # (n_windows, A)
     full &= (full.sum(axis=1) >= MIN_AGENTS_PER_WINDOW)[:, None]
     w_idx, a_idx = np.nonzero(full)  # row-major: by window, then agent id
+    require_budget(len(w_idx) * seq_len * SAMPLE_BYTES_PER_STEP,
+                   f"{recording.path or recording.name}: {len(w_idx)} samples of {seq_len} steps")
     paths = xy[w_idx[:, None] + np.arange(seq_len), a_idx[:, None]].astype(np.float32)
     return {
         "obs": paths[:, :obs_len],
@@ -112,18 +119,13 @@ def _empty(obs_len: int) -> dict[str, np.ndarray]:
     }
 
 
-def cache_dir() -> Path:
-    """Disk cache for cut windows: ``$STCROWD_CACHE`` or ``~/.cache/stcrowd/windows``."""
-    return Path(os.environ.get(CACHE_ENV_VAR, "~/.cache/stcrowd/windows")).expanduser()
-
-
 _MEMORY: dict[tuple, dict[str, np.ndarray]] = {}
 
 
 def file_windows(path: Path, obs_len: int) -> dict[str, np.ndarray]:
-    """``cut_windows`` of one file, cached in memory and on disk (keyed by path, size, mtime, obs_len)."""
+    """``cut_windows`` of one file, cached in memory and on disk (keyed by path, size, mtime, ctime, obs_len)."""
     stat = path.stat()
-    key = (str(path.resolve()), stat.st_size, stat.st_mtime_ns, obs_len, CACHE_VERSION)
+    key = (str(path.resolve()), stat.st_size, stat.st_mtime_ns, stat.st_ctime_ns, obs_len, CACHE_VERSION)
     if key in _MEMORY:
         return _MEMORY[key]
     digest = hashlib.sha1(repr(key).encode()).hexdigest()[:20]

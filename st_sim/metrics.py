@@ -1,4 +1,8 @@
-"""Prediction metrics: best-of-S ADE/FDE, map violations, pairwise collisions (all in metres)."""
+"""Prediction metrics: best-of-S ADE/FDE, map violations, pairwise collisions (all in metres).
+
+A rate or mean over nothing is None, not 0.0 (which would read as a perfect score); ``format_metric`` prints
+None as "n/a".
+"""
 
 from __future__ import annotations
 
@@ -41,16 +45,25 @@ def off_map(points_m: np.ndarray, scene: Scene) -> np.ndarray:
     return ~scene.is_walkable(points_m)
 
 
-def map_violation(points_m: np.ndarray, scene: Scene) -> float:
-    """Share of points (..., 2) that fall on non-walkable or out-of-image pixels."""
-    bad = off_map(points_m, scene)
-    return float(bad.mean()) if bad.size else 0.0
+def mean_or_none(values: np.ndarray) -> float | None:
+    """Mean of an array, or None when it is empty (nothing was measured)."""
+    values = np.asarray(values, dtype=np.float64)
+    return float(values.mean()) if values.size else None
 
 
-def path_map_violation(paths_m: np.ndarray, scene: Scene) -> float:
-    """Share of paths (..., T, 2) with at least one point on a non-walkable or out-of-image pixel."""
-    bad = off_map(paths_m, scene).any(axis=-1)
-    return float(bad.mean()) if bad.size else 0.0
+def format_metric(value: float | None, spec: str = ".3f", scale: float = 1.0) -> str:
+    """``value * scale`` formatted with ``spec``, or "n/a" for None (e.g. ADE over no matured prediction)."""
+    return "n/a" if value is None else format(value * scale, spec)
+
+
+def map_violation(points_m: np.ndarray, scene: Scene) -> float | None:
+    """Share of points (..., 2) that fall on non-walkable or out-of-image pixels; None for no points."""
+    return mean_or_none(off_map(points_m, scene))
+
+
+def path_map_violation(paths_m: np.ndarray, scene: Scene) -> float | None:
+    """Share of paths (..., T, 2) with at least one point on a non-walkable or out-of-image pixel; None for none."""
+    return mean_or_none(off_map(paths_m, scene).any(axis=-1))
 
 
 def same_group_pairs(group: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -71,7 +84,7 @@ def same_group_pairs(group: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def collision_rate(pred: np.ndarray, group: np.ndarray, threshold_m: float = COLLISION_DISTANCE_M,
-                   chunk_pairs: int = 20_000) -> float:
+                   chunk_pairs: int = 20_000) -> float | None:
     """Share of (agent pair, sample) combinations whose predicted paths come within ``threshold_m``.
 
     Pairs are agents of the same window; sample s of one agent is compared with sample s of the other
@@ -81,12 +94,12 @@ def collision_rate(pred: np.ndarray, group: np.ndarray, threshold_m: float = COL
         pred: (N, S, T, 2) metres.  group: (N,) window id per agent.
 
     Returns:
-        Rate in [0, 1]; 0.0 when no window holds two agents.
+        Rate in [0, 1]; None when no window holds two agents.
     """
     pred = np.asarray(pred, np.float32)
     first, second = same_group_pairs(group)
     if len(first) == 0:
-        return 0.0
+        return None
     hits = 0
     for start in range(0, len(first), chunk_pairs):
         a, b = first[start:start + chunk_pairs], second[start:start + chunk_pairs]

@@ -18,6 +18,12 @@ Timelines: ``step`` (sequence) and ``time`` (seconds, step * 0.4). Entities, all
 Entities logged at one step and absent from the next are cleared, so agents that left the scene do not
 linger in the viewer. Colours follow ``st_sim.plot.agent_colors``.
 
+Files: a recording is written in place under its final name and flushed at least every ``FLUSH_EVERY_S``,
+so a run that is interrupted, garbage-collected without ``close`` or even killed leaves a readable file. A
+finished recording is never overwritten: if the path exists, the next free ``<stem>-<n><suffix>`` is used
+(``RerunLogger.path`` says which). Two live writers to one path are refused: the first holds an exclusive
+lock on ``.<name>.lock`` beside it until it closes (the lock dies with its process).
+
 Placing the photo: Rerun's transforms are affine, the ETH/UCY homographies are not always. When an affine
 map fits the homography to within ``PROJECTIVE_TOL_M`` over the whole photo (zara1, zara2, univ: exactly
 affine) the photo is logged as is under that affine map. Otherwise (eth, hotel: clearly projective) photo
@@ -28,13 +34,17 @@ pixel covering the photo's footprint, which is then placed with a scale and a tr
 from __future__ import annotations
 
 import os
+import time
+import weakref
 from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
 import numpy as np
 
+from replays.atomic import try_lock
 from replays.constants import STEP_S
+from replays.errors import MemoryBudgetError
 from replays.scenes import Scene
 from st_sim.plot import ADAPTED_RGB, BLOCKED_TINT_RGB, GT_RGB, PROTOTYPE_RGB, agent_colors
 
@@ -46,13 +56,19 @@ except ImportError as err:
 
 PROJECTIVE_TOL_M = 0.05  # largest affine-fit error [m] over the photo for which the photo is logged unwarped
 WARP_M_PER_PX = 0.025  # resolution of the world-aligned raster of projective scenes [m per pixel]
-MAX_RASTER_PX = 8000  # a raster side longer than this means a broken homography
+MAX_RASTER_PX = 8000  # a raster side longer than this means a broken homography (<= 256 MB of raster)
+FLUSH_EVERY_S = 1.0  # longest wall time between flushes of a file recording [s]
+MAX_NUMBERED = 10_000  # most numbered siblings tried for a new recording name
 AGENT_RADIUS_M = 0.25  # drawn radius of a pedestrian [m]
 EGO_RADIUS_M = 0.4  # drawn radius of the ego robot [m]
 TRAIL_RADIUS_M = 0.05  # half-width of history lines [m]
 PATH_RADIUS_M = 0.025  # half-width of predicted futures and anchors [m]
 PREDICTION_ALPHA = 110  # opacity (0-255) of predicted futures
 WALKABLE, BLOCKED, OFF_PHOTO = 0, 1, 2  # classes of the logged walkability image
+
+
+class RecordingPathError(ValueError):
+    """A Rerun recording path is in use by another live writer, or is not a path a file can be written to."""
 
 
 @dataclass(frozen=True)
@@ -70,7 +86,13 @@ class SceneRaster:
 
 
 def scene_raster(scene: Scene) -> SceneRaster:
-    """The scene's photo and map as Rerun logs them (see the module docstring for the choice)."""
+    """The scene's photo and map as Rerun logs them (see the module docstring for the choice).
+
+    Raises:
+        ValueError: the photo crosses the homography's horizon.
+        MemoryBudgetError: a warped raster would have a side over ``MAX_RASTER_PX`` (8000 px, 256 MB of
+            photo and classes); checked before anything is allocated.
+    """
     height, width = scene.walkable.shape
     affine, error_m = _affine_fit(scene.H, width, height)
     classes = np.where(scene.walkable, WALKABLE, BLOCKED).astype(np.uint8)
@@ -84,7 +106,8 @@ def scene_raster(scene: Scene) -> SceneRaster:
     low_m = corners_m.min(axis=0)
     size_px = np.ceil((corners_m.max(axis=0) - low_m) / WARP_M_PER_PX).astype(int) + 1
     if size_px.max() > MAX_RASTER_PX:
-        raise ValueError(f"scene {scene.name}: photo covers {size_px * WARP_M_PER_PX} m, too large to rasterise")
+        raise MemoryBudgetError(f"scene {scene.name}: photo covers {size_px * WARP_M_PER_PX} m, a raster of "
+                                f"{size_px.tolist()} px at {WARP_M_PER_PX} m/px; at most {MAX_RASTER_PX} px a side")
     world_from_raster = np.array([[WARP_M_PER_PX, 0, low_m[0]], [0, WARP_M_PER_PX, low_m[1]], [0, 0, 1]])
     centre_shift = np.array([[1.0, 0.0, 0.5], [0.0, 1.0, 0.5], [0.0, 0.0, 1.0]])  # raster index -> image coord
     source_from_raster = scene.H_inv @ world_from_raster @ centre_shift  # raster index -> photo index
@@ -117,9 +140,16 @@ class RerunLogger:
                              metrics={"ade_m": ade})
 
     Args:
-        target: path of the .rrd file to write (replaced atomically on ``close``), or "spawn" to open a viewer.
+        target: path of the .rrd file to write (see "Files" in the module docstring), or "spawn" to open a
+            viewer.
         scene: scene whose photo and walkability map are logged once, or None.
         app_id: Rerun application id.
+
+    Attributes:
+        path: the file being written (``target``, or a numbered sibling if it existed); None for "spawn".
+
+    Raises:
+        RecordingPathError: another live logger writes to ``target``, or it is a folder or a special file.
     """
 
     def __init__(self, target: str | os.PathLike, scene: Scene | None, app_id: str = "stcrowd"):
@@ -127,19 +157,25 @@ class RerunLogger:
         self._rec.set_log_time_enabled(False)  # only the step and time timelines
         self._rec.set_log_tick_enabled(False)
         blueprint = _blueprint(scene)
-        self._path: Path | None = None
+        self.path: Path | None = None
+        lock = None
         if str(target) == "spawn":
             self._rec.spawn(default_blueprint=blueprint)
         else:
-            self._path = Path(target)
-            self._path.parent.mkdir(parents=True, exist_ok=True)
-            self._tmp = self._path.with_name(f".{self._path.name}.part")
-            self._rec.save(self._tmp, default_blueprint=blueprint)
+            lock = _claim(Path(target))
+            try:
+                self.path = _new_file(Path(target))
+            except BaseException:
+                _release(None, lock)
+                raise
+            self._rec.save(self.path, default_blueprint=blueprint)
+        # closes the file and frees the lock on close(), garbage collection or interpreter exit
+        self._finish = weakref.finalize(self, _release, self._rec, lock)
         self._live: set[str] = set()  # per-step entities logged at the previous step
-        self._closed = False
         self._rec.log("world", rr.Transform3D(scale=[1.0, -1.0, 1.0]), static=True)
         if scene is not None:
             self._log_scene(scene)
+        self._flush()
 
     def __enter__(self) -> RerunLogger:
         return self
@@ -148,14 +184,12 @@ class RerunLogger:
         self.close()
 
     def close(self) -> None:
-        """Flush, finish the file (footer) and move it to its final path; later calls do nothing."""
-        if self._closed:
-            return
-        self._closed = True
+        """Flush and finish the file (footer), free its path's lock; later calls do nothing."""
+        self._finish()
+
+    def _flush(self) -> None:
         self._rec.flush()
-        self._rec.disconnect()
-        if self._path is not None:
-            os.replace(self._tmp, self._path)
+        self._flushed_at = time.monotonic()
 
     def log_step(self, step: int, positions_m: np.ndarray, ids: np.ndarray, *,
                  trails: list[np.ndarray] | np.ndarray | None = None, trail_mask: np.ndarray | None = None,
@@ -199,6 +233,8 @@ class RerunLogger:
         for path in sorted(self._live - logged):
             self._rec.log(path, rr.Clear(recursive=False))
         self._live = logged
+        if self.path is not None and time.monotonic() - self._flushed_at >= FLUSH_EVERY_S:
+            self._flush()  # a killed run keeps all but the last second
 
     def _log_scene(self, scene: Scene) -> None:
         raster = scene_raster(scene)
@@ -259,6 +295,43 @@ class RerunLogger:
         self._rec.log("world/ego/goal", rr.Points2D(goal, radii=EGO_RADIUS_M / 2, colors=GT_RGB, labels="goal",
                                                     draw_order=11.0))
         return {"world/ego", "world/ego/goal"}
+
+
+def _claim(target: Path) -> tuple[int, Path]:
+    """Lock ``.<name>.lock`` beside ``target`` for this writer; returns (descriptor, lock path)."""
+    if target.is_dir() or (target.exists() and not target.is_file()):
+        raise RecordingPathError(f"rerun target {target} is a folder or a special file; give a .rrd file path")
+    target.parent.mkdir(parents=True, exist_ok=True)
+    lock_path = target.with_name(f".{target.name}.lock")
+    fd = os.open(lock_path, os.O_RDWR | os.O_CREAT, 0o644)
+    if not try_lock(fd):
+        os.close(fd)
+        raise RecordingPathError(f"{target}: another logger (this process or another) is writing to this path; "
+                                 "give each env or run its own rerun= path")
+    return fd, lock_path
+
+
+def _new_file(target: Path) -> Path:
+    """Create ``target``, or the first free ``<stem>-<n><suffix>`` if it exists, exclusively; returns its path."""
+    for number in range(MAX_NUMBERED):
+        path = target if number == 0 else target.with_name(f"{target.stem}-{number}{target.suffix}")
+        try:
+            os.close(os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644))
+        except FileExistsError:
+            continue
+        return path
+    raise RecordingPathError(f"{target}: {MAX_NUMBERED} numbered recordings exist already; choose another name")
+
+
+def _release(recording: rr.RecordingStream | None, lock: tuple[int, Path] | None) -> None:
+    """Finish the recording (flush, footer) and delete and unlock the lock file."""
+    if recording is not None:
+        recording.flush()
+        recording.disconnect()
+    if lock is not None:
+        fd, lock_path = lock
+        lock_path.unlink(missing_ok=True)
+        os.close(fd)
 
 
 def _as_points(array, name: str, shape: tuple[int | None, ...], allow_nan: bool = False) -> np.ndarray:

@@ -8,6 +8,7 @@ import pytest
 
 import envs  # noqa: F401  (registers the ids)
 import predictor
+from envs.common.errors import ActionError
 from envs.common.predictors import PredictorUnavailableError
 from envs.common.tracks import Frame, TooManyAgentsError, TrackBuffer
 from predictor.baselines import ConstantVelocity
@@ -109,6 +110,8 @@ def test_replay_spectator_ignores_action_and_gives_no_reward() -> None:
     assert reward == 0.0 and not terminated
     assert not obs["ego"].any()
     assert set(info["reward_parts"].values()) == {0.0}
+    with pytest.raises(ActionError, match="dtype"):  # the value is unused, but the kind is still checked
+        env.step(np.array([1 + 1j, 0]))
 
 
 def test_replay_collision_terminates_with_penalty() -> None:

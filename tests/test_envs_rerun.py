@@ -17,7 +17,7 @@ def test_replay_env_rerun_recording_holds_predictions_and_anchors(tmp_path):
     out = tmp_path / "zara1.rrd"
     env = gym.make("STCrowd-Zara1-v0", ego=False, rerun=str(out))
     env.reset(seed=0, options={"start_index": 20})
-    for _ in range(5):
+    for _ in range(15):  # predictions of the first step mature after 12 more
         env.step(np.zeros(2, np.float32))
     env.close()
     paths = entity_paths(out)

@@ -120,15 +120,18 @@ def test_fetch_from_folder_verifies_every_file_then_skips_all(tmp_path: Path) ->
     assert mtimes(dest) == before
 
 
-def test_fetch_removes_then_replaces_a_corrupt_existing_file(filled: Path, tmp_path: Path) -> None:
-    (filled / VICTIM).write_bytes(b"1\t2\t3.0\t4.0\n")
+def test_fetch_keeps_a_different_existing_file_as_modified(filled: Path, tmp_path: Path) -> None:
+    edited = b"1\t2\t3.0\t4.0\n"
+    (filled / VICTIM).write_bytes(edited)
     (tmp_path / "empty").mkdir()
     with pytest.raises(FetchError, match="missing from the source folder"):
         fetch(tmp_path / "empty", filled, quiet=True)
-    assert not (filled / VICTIM).exists(), "a file with the wrong SHA-256 stayed under its final name"
+    assert (filled / VICTIM).read_bytes() == edited, "a failed fetch touched the user's file"
     report = fetch(SHARED, filled, quiet=True)
     assert (report.fetched, report.skipped) == (1, len(SUMS) - 1)
     assert sha256_of(filled / VICTIM) == SUMS[VICTIM]
+    assert report.moved_aside == (filled / (VICTIM + ".modified"),)
+    assert (filled / (VICTIM + ".modified")).read_bytes() == edited
 
 
 def test_fetch_over_http_succeeds_then_fails_on_a_corrupt_served_file(

@@ -45,4 +45,4 @@ def test_collision_rate_hand_case():
         np.stack([walk, walk]),                         # agent 2, alone in its window
     ])
     assert collision_rate(pred, np.array([0, 0, 1])) == pytest.approx(0.5)
-    assert collision_rate(pred, np.array([0, 1, 2])) == 0.0
+    assert collision_rate(pred, np.array([0, 1, 2])) is None, "no window holds two agents: n/a, not 0"

@@ -1,13 +1,58 @@
-"""Tunables of the crowd environments: ego robot, spawning, reward weights."""
+"""Tunables of the crowd environments: ego robot, spawning, reward weights.
+
+Both dataclasses check every field on construction: a wrong type or a value outside the field's range raises
+``ConfigError`` (a ValueError) naming the field, the value and the allowed range.
+"""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
+from numbers import Real
+
+from envs.common.errors import ConfigError
+
+WEIGHT_LIMIT = 1e6  # |weight| bound of every reward part
+
+
+@dataclass(frozen=True)
+class Interval:
+    """Allowed values of a number: ``low`` to ``high``, each end open or closed."""
+
+    low: float
+    high: float
+    low_open: bool = False
+    high_open: bool = False
+
+    def __contains__(self, value: float) -> bool:
+        above = value > self.low if self.low_open else value >= self.low
+        below = value < self.high if self.high_open else value <= self.high
+        return above and below
+
+    def __str__(self) -> str:
+        return f"{'(' if self.low_open else '['}{self.low:g}, {self.high:g}{')' if self.high_open else ']'}"
+
+
+def check_fields(config: object, ranges: dict[str, Interval]) -> None:
+    """Check the named number fields of a frozen dataclass and store them as ``float``.
+
+    Raises:
+        ConfigError: a field is not a real number (bools, strings and NaN are refused) or is outside its range.
+    """
+    owner = type(config).__name__
+    for name, allowed in ranges.items():
+        value = getattr(config, name)
+        if isinstance(value, bool) or not isinstance(value, Real) or value not in allowed:  # NaN is in no range
+            shown = repr(value) if len(repr(value)) <= 40 else repr(value)[:40] + "..."
+            raise ConfigError(f"{owner}.{name}={shown}: expected a number in {allowed}")
+        object.__setattr__(config, name, float(value))
 
 
 @dataclass(frozen=True)
 class RewardWeights:
-    """Weight of each named reward part; reward = sum of weight x part (parts in ``info["reward_parts"]``)."""
+    """Weight of each named reward part; reward = sum of weight x part (parts in ``info["reward_parts"]``).
+
+    Every weight is a finite number with |weight| <= 1e6.
+    """
 
     progress: float = 1.0
     """per metre the ego came closer to its goal this step (negative when it moved away)"""
@@ -20,24 +65,39 @@ class RewardWeights:
     time: float = -0.1
     """per step (0.4 s)"""
 
+    def __post_init__(self) -> None:
+        check_fields(self, {f.name: Interval(-WEIGHT_LIMIT, WEIGHT_LIMIT) for f in fields(self)})
+
 
 @dataclass(frozen=True)
 class EnvConfig:
-    """Ego robot and episode settings shared by the replay and simulated environments."""
+    """Ego robot and episode settings shared by the replay and simulated environments (ranges in brackets)."""
 
     max_speed_mps: float = 1.5
-    """ego speed limit; actions are velocity vectors scaled down to this norm [m/s]"""
+    """ego speed limit; actions are velocity vectors scaled down to this norm [m/s], (0, 20]"""
     ego_radius_m: float = 0.3
-    """ego body radius [m]"""
+    """ego body radius [m], (0, 5]"""
     pedestrian_radius_m: float = 0.25
-    """pedestrian radius used for the ego collision test in replays [m] (the simulator has its own bodies)"""
+    """pedestrian radius used for the ego collision test in replays [m], (0, 5] (the simulator has its own bodies)"""
     goal_radius_m: float = 0.5
-    """the goal is reached when the ego centre is this close [m]"""
+    """the goal is reached when the ego centre is this close [m], (0, 100]"""
     spawn_clearance_m: float = 1.0
-    """least distance between the spawned ego and any pedestrian [m]"""
+    """least distance between the spawned ego and any pedestrian [m], [0, 100]"""
     goal_min_fraction: float = 0.5
-    """least start-goal distance as a share of the arena diagonal ("across the scene")"""
+    """least start-goal distance as a share of the arena diagonal ("across the scene"), [0, 1]"""
     arena_margin_m: float = 1.0
-    """replay arena = bounding box of the recorded positions grown by this margin; the ego stays inside [m]"""
+    """replay arena = bounding box of the recorded positions grown by this margin, within the scene's image;
+    the ego stays inside [m], [0, 100]"""
     reward: RewardWeights = field(default_factory=RewardWeights)
     """weights of the reward parts"""
+
+    def __post_init__(self) -> None:
+        positive = {"low": 0.0, "low_open": True}
+        check_fields(self, {
+            "max_speed_mps": Interval(high=20.0, **positive), "ego_radius_m": Interval(high=5.0, **positive),
+            "pedestrian_radius_m": Interval(high=5.0, **positive), "goal_radius_m": Interval(high=100.0, **positive),
+            "spawn_clearance_m": Interval(0.0, 100.0), "goal_min_fraction": Interval(0.0, 1.0),
+            "arena_margin_m": Interval(0.0, 100.0),
+        })
+        if not isinstance(self.reward, RewardWeights):
+            raise ConfigError(f"EnvConfig.reward={self.reward!r}: expected a RewardWeights")

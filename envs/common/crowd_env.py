@@ -2,11 +2,21 @@
 
 A subclass provides the crowd (and moves the ego) through four hooks: ``_reset_world`` (frames up to
 now, drawn from ``self.np_random``), ``_step_world`` (one 0.4 s step), ``_ego_collided`` and
-``_world_ended``. It keeps ``ego_xy_m``, ``ego_velocity_mps`` and ``goal_m`` up to date.
+``_world_ended``. It keeps ``ego_xy_m``, ``ego_velocity_mps`` and ``goal_m`` up to date, lists the
+``reset`` options it reads in ``RESET_OPTIONS`` and checks their values in ``_check_options``.
+
+Input contract (both vectorisation modes of gymnasium): every check of an argument, option or action runs
+before anything changes, and raises the env's own ``envs.common.errors.EnvInputError`` (a ValueError) or
+``NeedsResetError``. A sync vector env stays usable after such an error; gymnasium's async vector env
+re-raises it in the main process with the same type and message, but shuts the worker down, so an async
+vector env must be closed and made again after an error.
 """
 
 from __future__ import annotations
 
+import os
+from collections.abc import Mapping
+from pathlib import Path
 from typing import Any, ClassVar
 
 import gymnasium as gym
@@ -14,11 +24,12 @@ import numpy as np
 from gymnasium import spaces
 
 from envs.common.config import EnvConfig
-from envs.common.ego import action_to_velocity
-from envs.common.predictors import POSITION_LIMIT_M, predict_futures, resolve_predictor, task_sizes
+from envs.common.ego import action_to_velocity, checked_action, on_image, require_on_map
+from envs.common.errors import ConfigError, EgoPlacementError, EnvInputError, NeedsResetError, ResetOptionsError
+from envs.common.predictors import predict_futures, resolve_predictor, task_sizes
 from envs.common.running_metrics import RunningMetrics
 from envs.common.tracks import Frame, TrackBuffer
-from replays.constants import STEP_S, T_PRED
+from replays.constants import POSITION_LIMIT_M, STEP_S, T_PRED
 from replays.scenes import Scene
 
 EGO_FIELDS = ("x_m", "y_m", "vx_mps", "vy_mps", "goal_x_m", "goal_y_m")  # layout of obs["ego"]
@@ -29,12 +40,20 @@ class CrowdEnv(gym.Env):
     """Base class; see ``ReplayCrowdEnv`` and ``SimCrowdEnv`` for the manual."""
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": round(1 / STEP_S, 1)}
+    RESET_OPTIONS: ClassVar[dict[str, str]] = {}
+    """reset options a subclass reads: name -> what it takes; any other key is refused"""
 
     def __init__(self, scene: Scene, n_max: int, where: str, predictor: Any = "auto",
                  task: str = "stochastic", ego: bool = True, render_mode: str | None = None,
-                 config: EnvConfig | None = None, pretrained: str = "universal", rerun: str | None = None):
+                 config: EnvConfig | None = None, pretrained: str = "universal",
+                 rerun: str | os.PathLike | None = None):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode={render_mode!r}: expected None or 'rgb_array'")
+            raise EnvInputError(f"render_mode={render_mode!r}: expected None or 'rgb_array'")
+        check_flag("ego", ego)
+        if config is not None and not isinstance(config, EnvConfig):
+            raise ConfigError(f"config={config!r}: expected an envs.common.config.EnvConfig or None")
+        if rerun is not None and not isinstance(rerun, str | os.PathLike):
+            raise EnvInputError(f"rerun={rerun!r}: expected a .rrd path, 'spawn' or None")
         self.scene, self.n_max, self.where = scene, n_max, where
         self.cfg = config or EnvConfig()
         self.t_obs, self.num_samples = task_sizes(task)
@@ -58,16 +77,26 @@ class CrowdEnv(gym.Env):
         self.ego_velocity_mps = np.zeros(2)
         self.goal_m = np.zeros(2)
         self._obs: dict[str, np.ndarray] | None = None
+        self._episode_over = False  # terminated, or the world ended: step needs a reset first
         self.anchors: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # (ids, prototype, adapted)
         self.rerun_target, self._rerun, self._rerun_step = rerun, None, 0
+        self.rerun_paths: list[Path] = []
+        """recordings this env has written (a step after ``close`` starts a new, numbered one)"""
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
-        super().reset(seed=seed)
+        options = self._checked_options(options)
+        if seed is not None and (isinstance(seed, bool | np.bool_) or not isinstance(seed, int | np.integer)
+                                 or seed < 0):
+            raise EnvInputError(f"{self.where}: seed={seed!r}: expected None or an int >= 0")
+        super().reset(seed=None if seed is None else int(seed))
+        self._obs, self._episode_over = None, False
         self.tracks.clear()
         self.metrics.reset()
-        for frame in self._reset_world(options or {}):
+        for frame in self._reset_world(options):
             self.tracks.push(frame)
         if self.ego:
+            require_on_map(self.scene, self.ego_xy_m, "the ego's start", walkable=True)
+            require_on_map(self.scene, self.goal_m, "the ego's goal", walkable=True)
             self.metrics.update_ego(False, self.ego_xy_m, self.tracks.now.xy_m)
         self._obs = self._observe()
         info = self._info(dict.fromkeys(REWARD_PARTS, 0.0))
@@ -75,19 +104,28 @@ class CrowdEnv(gym.Env):
         return self._obs, info
 
     def step(self, action: np.ndarray):
-        assert self._obs is not None, "Call reset before using step method."
-        velocity = action_to_velocity(action, self.cfg.max_speed_mps) if self.ego else None
+        if self._obs is None:
+            raise NeedsResetError(f"{self.where}: call reset() before step()")
+        if self._episode_over:
+            raise NeedsResetError(f"{self.where}: the episode has ended (goal, collision or end of the "
+                                  "recording); call reset() before stepping again")
+        velocity = action_to_velocity(action, self.cfg.max_speed_mps) if self.ego else checked_action(action)
+        if self.ego and not on_image(self.scene, self.ego_xy_m):
+            raise EgoPlacementError(f"{self.where}: the ego is at {self.ego_xy_m.tolist()} m, off the scene's "
+                                    "image; it can only be moved there by assigning ego_xy_m")
         previous_xy_m = self.ego_xy_m.copy()
-        self.tracks.push(self._step_world(velocity))
+        self.tracks.push(self._step_world(velocity if self.ego else None))
         self._obs = self._observe()
         parts = self._reward_parts(previous_xy_m) if self.ego else dict.fromkeys(REWARD_PARTS, 0.0)
         reward = float(sum(getattr(self.cfg.reward, name) * value for name, value in parts.items()))
-        terminated = bool(parts["goal"] or parts["collision"])
+        terminated, truncated = bool(parts["goal"] or parts["collision"]), self._world_ended()
+        self._episode_over = terminated or truncated
         info = self._info(parts)
         self._log_rerun(info, reward)
-        return self._obs, reward, terminated, self._world_ended(), info
+        return self._obs, reward, terminated, truncated, info
 
     def close(self) -> None:
+        """Finish the Rerun recording, if any; a later step starts a new, numbered one."""
         if self._rerun is not None:
             self._rerun.close()
             self._rerun = None
@@ -95,12 +133,16 @@ class CrowdEnv(gym.Env):
     def render(self) -> np.ndarray | None:
         if self.render_mode != "rgb_array":
             return None
-        assert self._obs is not None, "Call reset before using render method."
+        if self._obs is None:
+            raise NeedsResetError(f"{self.where}: call reset() before render()")
         from envs.common.render import draw_observation
 
         return draw_observation(self.scene, self._obs, self.ego, self.cfg.ego_radius_m)
 
     # hooks -------------------------------------------------------------------------------------------
+
+    def _check_options(self, options: dict[str, Any]) -> None:
+        """Raise ``ResetOptionsError`` for a reset option value this env cannot use (keys are checked already)."""
 
     def _reset_world(self, options: dict) -> list[Frame]:
         """Start a new episode (randomness from ``self.np_random``); frames oldest first, the last is now."""
@@ -126,6 +168,20 @@ class CrowdEnv(gym.Env):
         return self.tracks.predictable_rows()
 
     # helpers -----------------------------------------------------------------------------------------
+
+    def _checked_options(self, options: Any) -> dict[str, Any]:
+        """``options`` as a dict after refusing a non-mapping and keys this env does not read."""
+        if options is None:
+            return {}
+        if not isinstance(options, Mapping):
+            raise ResetOptionsError(f"{self.where}: reset options must be a dict, got {type(options).__name__}")
+        unknown = [key for key in options if key not in self.RESET_OPTIONS]
+        if unknown:
+            accepted = ", ".join(f"{k!r} ({v})" for k, v in self.RESET_OPTIONS.items()) or "none"
+            raise ResetOptionsError(f"{self.where}: unknown reset option {unknown[0]!r}; this env accepts {accepted}")
+        options = dict(options)
+        self._check_options(options)
+        return options
 
     def _observe(self) -> dict[str, np.ndarray]:
         """Observation of the newest frame; runs the predictor once for every agent with T_obs frames."""
@@ -165,9 +221,13 @@ class CrowdEnv(gym.Env):
             from st_sim.rerun_log import RerunLogger
 
             self._rerun = RerunLogger(self.rerun_target, self.scene)
+            self._rerun_step = 0
+            if self._rerun.path is not None:
+                self.rerun_paths.append(self._rerun.path)
         obs, present = self._obs, info["agent_ids"] >= 0
         predicted = obs["futures_mask"]
-        metrics = {name: float(value) for name, value in info["metrics"].items() if np.isfinite(value)}
+        metrics = {name: float(value) for name, value in info["metrics"].items()
+                   if value is not None and np.isfinite(value)}  # nothing logged until there is a value
         prototype = adapted = None
         if self.anchors is not None:
             prototype, adapted = self.anchors[1], self.anchors[2]
@@ -189,3 +249,9 @@ class CrowdEnv(gym.Env):
             "reward_parts": dict(reward_parts),
             "metrics": self.metrics.summary(),
         }
+
+
+def check_flag(name: str, value: Any) -> None:
+    """Refuse a non-boolean for a yes/no argument (``ego="no"`` would otherwise be true)."""
+    if not isinstance(value, bool | np.bool_):
+        raise EnvInputError(f"{name}={value!r}: expected True or False")

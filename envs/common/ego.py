@@ -1,30 +1,84 @@
-"""The ego robot's action check, and where it starts and where it goes."""
+"""The ego robot's action check, where it starts and where it goes, and how far it may move."""
 
 from __future__ import annotations
+
+from typing import Any
 
 import numpy as np
 from scipy.spatial import cKDTree
 
+from envs.common.errors import ActionError, EgoPlacementError
 from replays.scenes import Scene
 
 CANDIDATE_STRIDE_PX = 4  # spawn candidates: every 4th walkable pixel in each direction
+NUMBER_KINDS = "iuf"  # numpy dtype kinds an action may have: signed, unsigned, float (not bool, complex, text)
 
 
-def action_to_velocity(action: np.ndarray, max_speed_mps: float) -> np.ndarray:
+def checked_action(action: Any) -> np.ndarray:
+    """The action as a (2,) float64 array, after refusing anything that is not 2 real numbers.
+
+    Raises:
+        ActionError: complex, text, bool or object values, or a shape other than (2,).
+    """
+    try:
+        array = np.asarray(action)
+    except (ValueError, TypeError) as err:  # ragged nesting and the like
+        raise ActionError(f"action must be an ego velocity (vx, vy) in m/s, got {type(action).__name__}") from err
+    if array.dtype.kind not in NUMBER_KINDS:
+        raise ActionError(f"action must be 2 real numbers (vx, vy) in m/s, got dtype {array.dtype} "
+                          "(bool, complex, text and objects are refused)")
+    if array.shape != (2,):
+        raise ActionError(f"action must be an ego velocity (vx, vy) in m/s of shape (2,), got shape {array.shape}")
+    return array.astype(np.float64)
+
+
+def action_to_velocity(action: Any, max_speed_mps: float) -> np.ndarray:
     """Ego velocity (2,) float64 m/s from an action, scaled down (direction kept) to ``max_speed_mps``.
 
     Raises:
-        ValueError: the action is not 2 numbers, or holds NaN/inf (a broken policy should fail loudly).
+        ActionError: not 2 real numbers (see ``checked_action``), or NaN/inf (a broken policy should fail
+            loudly). Nothing in the env changes before this check.
     """
-    velocity = np.asarray(action, dtype=np.float64)
-    if velocity.shape != (2,):
-        raise ValueError(f"action must be an ego velocity (vx, vy) in m/s of shape (2,), got shape {velocity.shape}")
+    velocity = checked_action(action)
     if not np.isfinite(velocity).all():
-        raise ValueError(f"action must be finite, got {velocity.tolist()}")
-    if np.hypot(*velocity) <= max_speed_mps:
+        raise ActionError(f"action must be finite, got {velocity.tolist()}")
+    largest = np.abs(velocity).max()
+    if largest <= max_speed_mps and np.hypot(*velocity) <= max_speed_mps:
         return velocity
-    direction = velocity / np.abs(velocity).max()  # no overflow for huge actions
+    direction = velocity / largest  # no overflow for huge actions
     return direction * (max_speed_mps / np.hypot(*direction))
+
+
+def on_image(scene: Scene, xy_m: np.ndarray) -> np.ndarray:
+    """(..., 2) world metres -> (...) bool: the point is finite and maps inside the scene's image."""
+    xy_m = np.asarray(xy_m, dtype=np.float64)
+    with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
+        uv = scene.world_to_pixel(xy_m)
+    height, width = scene.walkable.shape
+    return (np.isfinite(xy_m).all(-1) & (uv[..., 0] >= 0) & (uv[..., 0] <= width - 1)
+            & (uv[..., 1] >= 0) & (uv[..., 1] <= height - 1))
+
+
+def require_on_map(scene: Scene, xy_m: np.ndarray, what: str, walkable: bool) -> None:
+    """Raise ``EgoPlacementError`` unless ``xy_m`` (2,) metres is on the image (and on a walkable pixel)."""
+    inside = bool(on_image(scene, xy_m))
+    if not inside or (walkable and not scene.is_walkable(xy_m)):
+        where = "off the scene's image" if not inside else "on a non-walkable pixel (inside a wall or obstacle)"
+        raise EgoPlacementError(f"{what} {np.asarray(xy_m).tolist()} m is {where} of scene {scene.name}")
+
+
+def move_within(scene: Scene, xy_m: np.ndarray, velocity_mps: np.ndarray, dt_s: float,
+                low_m: np.ndarray, high_m: np.ndarray) -> np.ndarray:
+    """(2,) metres after moving at ``velocity_mps`` for ``dt_s``, kept in the box [low_m, high_m] and on the image.
+
+    A move that would leave the image keeps whichever single axis stays on it (sliding along the edge), or
+    none: the image border is a wall.
+    """
+    target = np.clip(xy_m + velocity_mps * dt_s, low_m, high_m)
+    for candidate in (target, np.array([target[0], xy_m[1]]), np.array([xy_m[0], target[1]])):
+        if on_image(scene, candidate):
+            return candidate
+    return xy_m.copy()
 
 
 def walkable_points(scene: Scene, bounds_m: tuple[float, float, float, float]) -> np.ndarray:
@@ -54,9 +108,12 @@ def spawn_start_goal(candidates_m: np.ndarray, peds_xy_m: np.ndarray, clearance_
 
     Returns:
         start_m: (2,) float64 metres.  goal_m: (2,) float64 metres.
+
+    Raises:
+        EgoPlacementError: no candidate (no walkable pixel inside the arena).
     """
     if len(candidates_m) == 0:
-        raise ValueError("no walkable point to spawn the ego on (empty walkability map inside the arena)")
+        raise EgoPlacementError("no walkable point to spawn the ego on (empty walkability map inside the arena)")
     room = cKDTree(peds_xy_m).query(candidates_m)[0] if len(peds_xy_m) else np.full(len(candidates_m), np.inf)
     free = np.flatnonzero(room >= clearance_m)
     start = candidates_m[rng.choice(free)] if len(free) else candidates_m[np.argmax(room)]

@@ -6,11 +6,10 @@ from typing import Any
 
 import numpy as np
 
-from replays.constants import T_PRED, TASKS
+from replays.constants import POSITION_LIMIT_M, T_PRED, TASKS
 from replays.scenes import Scene
 
 ENV_TASKS: tuple[str, ...] = ("stochastic", "deterministic", "momentary")  # tasks an env can play
-POSITION_LIMIT_M = 1000.0  # bound of every position in the observation space [m]; predictions are clipped to it
 
 
 class PredictorUnavailableError(RuntimeError):

@@ -2,12 +2,14 @@
 
 Predictions are scored the way the benchmark windows are: a prediction made at step t is scored at
 step t + 12 if its agent was present in all 12 following frames ("matured"), and only when at least two
-predictions of step t matured (a Social-GAN window holds at least two agents).
+predictions of step t matured (a Social-GAN window holds at least two agents). A value with nothing to
+average yet is None ("n/a"), never a 0.0 that would read as a perfect score.
 """
 
 from __future__ import annotations
 
 from collections import deque
+from collections.abc import Iterator, Mapping
 
 import numpy as np
 
@@ -15,6 +17,30 @@ from envs.common.tracks import TrackBuffer
 from replays.constants import MIN_AGENTS_PER_WINDOW, T_PRED
 from replays.scenes import Scene
 from st_sim.metrics import ade_fde, off_map
+
+
+class Metrics(Mapping):
+    """Read-only metric values by name; None where nothing has been measured yet ("n/a", JSON null).
+
+    A mapping but not a dict, on purpose: gymnasium's vector envs batch dict entries into typed arrays, and
+    a float from one env and a None from another cannot share one. A ``Metrics`` stays whole, one per env
+    in an object array (``infos["metrics"][i]["ade_m"]``). ``dict(metrics)`` gives a plain, JSON-ready dict.
+    """
+
+    def __init__(self, values: dict[str, float | int | None]):
+        self._values = dict(values)
+
+    def __getitem__(self, name: str) -> float | int | None:
+        return self._values[name]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._values)
+
+    def __len__(self) -> int:
+        return len(self._values)
+
+    def __repr__(self) -> str:
+        return f"Metrics({self._values})"
 
 
 class RunningMetrics:
@@ -61,18 +87,18 @@ class RunningMetrics:
             nearest = float(np.min(np.linalg.norm(peds_xy_m - ego_xy_m, axis=1)))
             self.min_ego_distance_m = min(self.min_ego_distance_m, nearest)
 
-    def summary(self) -> dict[str, float | int]:
-        """Current values; ADE/FDE are 0.0 until a prediction matures (see ``matured``), distances in metres.
+    def summary(self) -> Metrics:
+        """Current values, distances in metres; None where there is nothing to report yet.
 
-        Keys: ade_m, fde_m (best of S, mean over matured predictions), matured (count), map_violation
-        (share of predicted points off the walkable map), ego_collisions, min_ego_ped_distance_m (inf
-        without ego or pedestrians).
+        Keys: ade_m, fde_m (best of S, mean over matured predictions; None until one matures), matured
+        (count), map_violation (share of predicted points off the walkable map; None before any prediction),
+        ego_collisions (count), min_ego_ped_distance_m (inf without ego or pedestrians: nobody came near).
         """
-        return {
-            "ade_m": self.ade_sum_m / self.matured if self.matured else 0.0,
-            "fde_m": self.fde_sum_m / self.matured if self.matured else 0.0,
+        return Metrics({
+            "ade_m": self.ade_sum_m / self.matured if self.matured else None,
+            "fde_m": self.fde_sum_m / self.matured if self.matured else None,
             "matured": self.matured,
-            "map_violation": self.off_map_points / self.predicted_points if self.predicted_points else 0.0,
+            "map_violation": self.off_map_points / self.predicted_points if self.predicted_points else None,
             "ego_collisions": self.ego_collisions,
             "min_ego_ped_distance_m": self.min_ego_distance_m,
-        }
+        })

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from replays.constants import T_PRED
+from replays.constants import POSITION_LIMIT_M, T_PRED
 
 
 class TooManyAgentsError(ValueError):
@@ -20,7 +20,7 @@ class Frame:
 
     Attributes:
         frame: frame id of the recording (replays) or step count (simulation).
-        ids: (N,) int64 agent ids, unique.
+        ids: (N,) int64 agent ids, unique, >= 0.
         xy_m: (N, 2) float64 positions, metres, world frame.
     """
 
@@ -42,6 +42,7 @@ class TrackBuffer:
 
     An agent keeps its row while it is present in consecutive pushed frames; a newcomer takes the lowest
     free row. ``run`` counts consecutive pushed frames of presence up to now (1 = appeared this frame).
+    ``row_ids`` holds -1 in empty rows, so agent ids must be >= 0 (``push`` refuses others).
     """
 
     def __init__(self, n_max: int, t_obs: int, where: str):
@@ -57,9 +58,24 @@ class TrackBuffer:
         self._run = np.zeros(0, np.int64)
 
     def push(self, frame: Frame) -> None:
-        """Append a frame (any id order); raises ``TooManyAgentsError`` beyond N_max agents."""
+        """Append a frame (any id order).
+
+        Raises:
+            TooManyAgentsError: more than N_max agents.
+            ValueError: a negative or repeated id, or a position that is not a finite (N, 2) array.
+        """
         order = np.argsort(frame.ids, kind="stable")
         ids = np.asarray(frame.ids, np.int64)[order]
+        xy_m = np.asarray(frame.xy_m, np.float64)
+        if len(ids) and ids[0] < 0:
+            raise ValueError(f"{self.where}: frame {frame.frame} has agent id {ids[0]}; ids must be >= 0 "
+                             "(-1 marks an empty observation row)")
+        if xy_m.size or len(ids):
+            if xy_m.shape != (len(ids), 2) or not np.isfinite(xy_m).all():
+                raise ValueError(f"{self.where}: frame {frame.frame}: positions must be finite, one (x, y) per agent")
+            xy_m = xy_m[order]
+        else:
+            xy_m = np.zeros((0, 2))
         if len(ids) > self.n_max:
             raise TooManyAgentsError(
                 f"{self.where}: frame {frame.frame} holds {len(ids)} pedestrians, more than N_max = {self.n_max}; "
@@ -74,7 +90,7 @@ class TrackBuffer:
         self.row_ids[~np.isin(self.row_ids, ids)] = -1
         newcomers = ids[~np.isin(ids, self.row_ids)]
         self.row_ids[np.flatnonzero(self.row_ids < 0)[:len(newcomers)]] = newcomers
-        self.frames.append(Frame(frame.frame, ids, np.asarray(frame.xy_m, np.float64)[order]))
+        self.frames.append(Frame(frame.frame, ids, xy_m))
 
     @property
     def now(self) -> Frame:
@@ -90,7 +106,8 @@ class TrackBuffer:
         """Observed positions of the present agents, one row per agent (see ``row_ids``).
 
         Returns:
-            xy_m: (N_max, T_obs, 2) float32 metres, oldest step first, last column = now; 0 where unobserved.
+            xy_m: (N_max, T_obs, 2) float32 metres, oldest step first, last column = now; 0 where unobserved;
+                clipped to +-POSITION_LIMIT_M (the observation space's bound).
             mask: (N_max, T_obs) bool, True where the agent was present in that frame.
         """
         xy = np.zeros((self.n_max, self.t_obs, 2), np.float32)
@@ -101,7 +118,7 @@ class TrackBuffer:
         for col, frame in enumerate(recent, start=self.t_obs - len(recent)):
             idx = lookup(frame.ids, ids)
             seen = idx >= 0
-            xy[rows[seen], col] = frame.xy_m[idx[seen]]
+            xy[rows[seen], col] = np.clip(frame.xy_m[idx[seen]], -POSITION_LIMIT_M, POSITION_LIMIT_M)
             mask[rows[seen], col] = True
         return xy, mask
 

@@ -1,0 +1,33 @@
+"""Errors an environment raises for bad input or misuse; each names the argument, field or option at fault.
+
+Every class takes the message as its only positional argument, so it pickles and survives gymnasium's async
+vector env, which re-raises a worker's error as ``type(err)(err)``.
+"""
+
+from __future__ import annotations
+
+from gymnasium.error import ResetNeeded
+
+
+class EnvInputError(ValueError):
+    """A constructor argument, config field, reset option or action is of the wrong kind or out of range."""
+
+
+class ConfigError(EnvInputError):
+    """A config dataclass field has the wrong type or a value outside its allowed range."""
+
+
+class ResetOptionsError(EnvInputError):
+    """``reset(options=...)`` holds an unknown key or a value of the wrong type or range."""
+
+
+class ActionError(EnvInputError):
+    """The action is not an ego velocity: wrong dtype (complex, text, bool, object), shape, or NaN/inf."""
+
+
+class EgoPlacementError(EnvInputError):
+    """The ego starts, or has been put, off the walkable map or off the scene's image."""
+
+
+class NeedsResetError(ResetNeeded):
+    """``step`` before the first ``reset``, or after the episode ended (terminated, or the recording ended)."""
