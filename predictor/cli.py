@@ -22,15 +22,18 @@ def run_train(args: argparse.Namespace) -> int:
 
 def run_evaluate(args: argparse.Namespace) -> int:
     from predictor.checkpoint import load, read_checkpoint
+    from st_sim.metrics import format_metric
     from st_sim.scoring import evaluate_offline
 
     state = read_checkpoint(args.checkpoint)
     task, scene = state["train_config"]["task"], args.scene or state["train_config"]["scene"]
     model = load(args.checkpoint)
     r = evaluate_offline(model, task, scene, steps=args.steps, root=args.data_root)
-    print(f"{task}/{scene}: {r.samples} samples  ADE {r.ade:.4f}  FDE {r.fde:.4f}  "
-          f"map-violation {100 * r.map_violation:.2f}% (GT {100 * r.gt_map_violation:.2f}%)  "
-          f"collisions {100 * r.collision_rate:.2f}%  paper {r.paper_ade} / {r.paper_fde}  ({r.wall_s:.1f} s)")
+    print(f"{task}/{scene}: {r.samples} samples  ADE {format_metric(r.ade, '.4f')}  FDE {format_metric(r.fde, '.4f')}  "
+          f"map-violation {format_metric(r.map_violation, '.2f', 100)}% "
+          f"(GT {format_metric(r.gt_map_violation, '.2f', 100)}%)  "
+          f"collisions {format_metric(r.collision_rate, '.2f', 100)}%  paper {r.paper_ade} / {r.paper_fde}  "
+          f"({r.wall_s:.1f} s)")
     return 0
 
 

@@ -15,7 +15,7 @@ import numpy as np
 from replays.constants import DOMAIN_TASKS, TASKS
 from replays.scenes import Scene, load_scene, scene_info
 from replays.windows import Windows, load_windows
-from st_sim.metrics import ade_fde, collision_rate, map_violation, path_map_violation
+from st_sim.metrics import ade_fde, collision_rate, map_violation, mean_or_none, path_map_violation
 from st_sim.paper import paper_numbers
 
 
@@ -25,15 +25,15 @@ class SceneResult:
 
     scene: str
     samples: int
-    ade: float
-    fde: float
-    map_violation: float
+    ade: float | None
+    fde: float | None
+    map_violation: float | None
     """share of predicted points on non-walkable or off-image pixels"""
-    path_map_violation: float
+    path_map_violation: float | None
     """share of predicted paths with at least one such point"""
-    gt_map_violation: float
+    gt_map_violation: float | None
     """the same share for the ground-truth futures (annotation noise)"""
-    collision_rate: float
+    collision_rate: float | None
     """share of (same-window agent pair, sample) whose predictions come within 0.2 m"""
     wall_s: float
     paper_ade: float | None = None
@@ -46,11 +46,11 @@ class SceneResult:
     stream_fde: float | None = None
 
 
-def score_predictions(pred: np.ndarray, windows: Windows, scene: Scene) -> dict[str, float]:
-    """Metrics of predictions (N, S, 12, 2) against ``windows.fut``, on ``scene``'s map."""
+def score_predictions(pred: np.ndarray, windows: Windows, scene: Scene) -> dict[str, float | None]:
+    """Metrics of predictions (N, S, 12, 2) against ``windows.fut``, on ``scene``'s map (None: nothing to score)."""
     ade, fde = ade_fde(pred, windows.fut)
     return {
-        "ade": float(ade.mean()), "fde": float(fde.mean()),
+        "ade": mean_or_none(ade), "fde": mean_or_none(fde),
         "map_violation": map_violation(pred, scene), "path_map_violation": path_map_violation(pred, scene),
         "gt_map_violation": map_violation(windows.fut, scene),
         "collision_rate": collision_rate(pred, windows.group),

@@ -17,6 +17,7 @@ from st_sim.apps.navigation.episodes import NavRun, make_nav_env, run_episode
 from st_sim.apps.navigation.metrics import episode_metrics
 from st_sim.apps.navigation.planners import make_planner
 from st_sim.apps.navigation.world import world_of
+from st_sim.metrics import format_metric
 
 ENV_ID = "STCrowd-SimCrossing-v0"
 PLANNER, PREDICTOR = "mpc", "singular"  # the benchmark's best pair (RESULTS.md, "Navigation benchmark")
@@ -39,12 +40,13 @@ def run_demo(steps: int = 150, rerun_path: str | None = None, seed: int = 0) -> 
     start = time.perf_counter()
     while used < steps:
         trace, _ = run_episode(env, planner, world, seed + len(episodes))
-        metrics = {"seed": seed + len(episodes), **episode_metrics(trace), **env.unwrapped.metrics.summary()}
+        metrics = {"seed": seed + len(episodes), **episode_metrics(trace), **dict(env.unwrapped.metrics.summary())}
         episodes.append(metrics)
         used += metrics["steps"]
         print(f"episode {len(episodes) - 1} (seed {metrics['seed']}): {metrics['steps']} steps, {metrics['outcome']}, "
               f"closest pedestrian {metrics['min_clearance_m']:.2f} m from the robot's body, "
-              f"ADE/FDE {metrics['ade_m']:.2f}/{metrics['fde_m']:.2f} m over {metrics['matured']} predictions")
+              f"ADE/FDE {format_metric(metrics['ade_m'], '.2f')}/{format_metric(metrics['fde_m'], '.2f')} m over "
+              f"{metrics['matured']} predictions")
     elapsed_s = time.perf_counter() - start
     env.close()
     counts = {outcome: sum(e["outcome"] == outcome for e in episodes) for outcome in OUTCOMES}
@@ -52,7 +54,7 @@ def run_demo(steps: int = 150, rerun_path: str | None = None, seed: int = 0) -> 
     print(f"{PLANNER} + {PREDICTOR} on {ENV_ID}: {n} episodes, goal {counts['goal']}/{n} "
           f"({100 * counts['goal'] / n:.0f} %), pedestrian collisions {counts['pedestrian collision']}, "
           f"wall collisions {counts['wall collision']}, timeouts {counts['timeout']}")
-    if rerun_path is not None:
-        print(f"wrote {rerun_path}")
+    for path in env.unwrapped.rerun_paths:  # an existing recording is never overwritten: the new one is numbered
+        print(f"wrote {path}")
     return {"env_id": ENV_ID, "planner": PLANNER, "predictor": PREDICTOR, "steps": used, "seed": seed,
             "episodes": episodes, "counts": counts, "steps_per_s": used / elapsed_s if elapsed_s > 0 else float("inf")}

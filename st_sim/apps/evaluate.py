@@ -21,6 +21,7 @@ from replays.atomic import write_text_atomic
 from replays.constants import DOMAIN_TASKS
 from replays.scenes import SCENE_NAMES, scene_info
 from st_sim.apps.grid import Job
+from st_sim.metrics import format_metric
 from st_sim.paper import paper_numbers
 from st_sim.scoring import SceneResult, evaluate_offline, target_scene
 
@@ -56,8 +57,9 @@ def evaluate_scene(predictor: Predictor, task: str, scene: str, num_samples: int
         streamed = evaluate_stream(predictor, task, target_scene(task, scene), root, rerun_path, progress)
         result.stream_samples, result.stream_ade, result.stream_fde = (
             streamed["samples"], streamed["ade"], streamed["fde"])
-        if (streamed["samples"] != result.samples or abs(streamed["ade"] - result.ade) > STREAM_TOLERANCE_M
-                or abs(streamed["fde"] - result.fde) > STREAM_TOLERANCE_M):
+        if streamed["samples"] != result.samples or (result.samples and (
+                abs(streamed["ade"] - result.ade) > STREAM_TOLERANCE_M
+                or abs(streamed["fde"] - result.fde) > STREAM_TOLERANCE_M)):
             raise StreamMismatchError(f"{task}/{scene}: stream {streamed} disagrees with offline "
                                       f"({result.samples}, {result.ade}, {result.fde})")
         result.wall_s = time.perf_counter() - start
@@ -207,7 +209,8 @@ def aggregate(task: str, predictor: str, per_cell: dict[tuple[str, int], dict[st
         for metric in ("ade", "fde"):
             row[metric], row[f"{metric}_sd"] = _mean_sd([r[metric] for r in runs.values()])
         for metric in ("map_violation", "path_map_violation", "gt_map_violation", "collision_rate"):
-            row[metric] = statistics.fmean(r[metric] for r in runs.values())
+            values = [r[metric] for r in runs.values() if r[metric] is not None]
+            row[metric] = statistics.fmean(values) if values else None
         table[scene] = row
     per_seed = {str(seed): {m: statistics.fmean(per_cell[(s, seed)][m] for s in scenes) for m in ("ade", "fde")}
                 for seed in seeds}
@@ -254,11 +257,12 @@ def markdown_table(result: dict) -> str:
         checkpoint = r["checkpoints"][0] or "–"
         if several and r["checkpoints"][0]:
             checkpoint += f" (+{len(seeds) - 1} seeds)"
+        percent = {k: format_metric(r[k], ".1f" if k == "path_map_violation" else ".2f", 100)
+                   for k in ("map_violation", "path_map_violation", "gt_map_violation", "collision_rate")}
         lines.append(
             f"| {name} | {r['samples']} | {scores} | {paper} | {_delta(r)} | "
-            f"{100 * r['map_violation']:.2f}% ({100 * r['path_map_violation']:.1f}%) | "
-            f"{100 * r['gt_map_violation']:.2f}% | {100 * r['collision_rate']:.2f}% | "
-            f"{'yes' if r['stream_checked'] else 'not run'} | {checkpoint} |")
+            f"{percent['map_violation']}% ({percent['path_map_violation']}%) | {percent['gt_map_violation']}% | "
+            f"{percent['collision_rate']}% | {'yes' if r['stream_checked'] else 'not run'} | {checkpoint} |")
     avg = result["avg"]
     paper = _pair(avg["paper_ade"], avg["paper_fde"]) if "paper_ade" in avg else "–"
     scores = _pair(avg["ade"], avg["fde"], avg["ade_sd"], avg["fde_sd"]) if several else _pair(avg["ade"], avg["fde"])

@@ -51,8 +51,10 @@ def evaluate_stream(predictor: Predictor, task: str, test_scene: str, root=None,
             if terminated or truncated:
                 break
         metrics = info_step["metrics"]
-        samples += metrics["matured"]
-        ade_sum += metrics["ade_m"] * metrics["matured"]
-        fde_sum += metrics["fde_m"] * metrics["matured"]
+        if metrics["matured"]:  # ade_m / fde_m are None until a prediction matures
+            samples += metrics["matured"]
+            ade_sum += metrics["ade_m"] * metrics["matured"]
+            fde_sum += metrics["fde_m"] * metrics["matured"]
         env.close()
-    return {"samples": samples, "ade": ade_sum / max(samples, 1), "fde": fde_sum / max(samples, 1)}
+    return {"samples": samples, "ade": ade_sum / samples if samples else None,
+            "fde": fde_sum / samples if samples else None}
