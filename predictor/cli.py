@@ -72,6 +72,9 @@ def build_parser() -> argparse.ArgumentParser:
                        help=f"anchor end points off the image (default: {defaults.anchor_off_image})")
     train.add_argument("--anchor-bend", choices=["ramp", "scale"],
                        help=f"anchor bending shape (default: {defaults.anchor_bend})")
+    train.add_argument("--init-noise", type=float,
+                       help=f"scale of the sampler's starting noise, 0 = a deterministic chain "
+                            f"(default: {defaults.init_noise})")
     train.add_argument("--seed", type=int, help=f"random seed (default: {defaults.seed})")
     train.add_argument("--threads", type=int, help=f"torch threads (default: {defaults.threads})")
     train.add_argument("--data-root", help="ETH/UCY folder (default: $STCROWD_DATA or the cache)")
