@@ -72,6 +72,8 @@ def build_parser() -> argparse.ArgumentParser:
                        help=f"anchor end points off the image (default: {defaults.anchor_off_image})")
     train.add_argument("--anchor-bend", choices=["ramp", "scale"],
                        help=f"anchor bending shape (default: {defaults.anchor_bend})")
+    train.add_argument("--no-adapt-output", dest="adapt_output", action="store_const", const=False,
+                       help="do not bend the refined futures onto the map at inference (default: bend them)")
     train.add_argument("--init-noise", type=float,
                        help=f"scale of the sampler's starting noise, 0 = a deterministic chain "
                             f"(default: {defaults.init_noise})")

@@ -11,7 +11,7 @@ from dataclasses import dataclass, fields
 import numpy as np
 import torch
 
-from predictor.anchors import BEND_SHAPES, OFF_IMAGE_MODES, adaptive_anchors
+from predictor.anchors import BEND_SHAPES, OFF_IMAGE_MODES, adapt_paths, adaptive_anchors
 from predictor.config_check import check_config
 from predictor.normalize import AgentFrame, agent_frames, rotate
 from predictor.protocol import check_inputs, empty_prediction
@@ -47,6 +47,8 @@ class ModelConfig:
     """prototype end points off the scene image: "pull" them onto the nearest walkable pixel, or "keep" them"""
     anchor_bend: str = "ramp"
     """how a path is bent onto its target end point: "ramp" (linear offset) or "scale" (per image axis)"""
+    adapt_output: bool = True
+    """bend the refined futures onto the map the same way at inference (end points on walkable pixels)"""
     dim: int = 256
     """width of the refiner's context transformer"""
     denoiser_dim: int = 128
@@ -191,8 +193,11 @@ class SingularTrajectory:
             ctx = self.refiner.context(t["history"][idx], t["anchors"][idx], t["group"][idx])
             residual = self.refiner.sample(t["anchors"][idx], ctx, noise[idx], steps)
             local[idx] = self.paths_local(t["anchors"][idx], residual, t["population"][idx])
-        local = local.double().numpy()
-        futures = inputs.frames.to_world(local).astype(np.float32)
+        futures = inputs.frames.to_world(local.double().numpy())  # (N, S, 12, 2) world metres
+        if self.cfg.adapt_output and self.cfg.adapt_anchors and scene is not None:
+            futures, _ = adapt_paths(futures, scene, inputs.frames.origin_m, self.cfg.anchor_off_image,
+                                     self.cfg.anchor_bend)
+        futures = futures.astype(np.float32)
         keep = slice(0, num_samples)  # anchors are ordered by cluster size: the first are the likeliest
         return Prediction(futures[:, keep], inputs.anchor_paths_m[0][:, keep].astype(np.float32),
                           inputs.anchor_paths_m[1][:, keep].astype(np.float32))

@@ -78,6 +78,8 @@ class TrainConfig:
     """anchor end points off the scene image: "pull" onto the nearest walkable pixel, or "keep" (agents leave view)"""
     anchor_bend: str = "ramp"
     """anchor bending shape: "ramp" (linear offset over time) or "scale" (about the last observed point)"""
+    adapt_output: bool = True
+    """at inference, bend the refined futures onto the map as the anchors are (training is unaffected)"""
     slow_speed_m: float | None = None
     """slow-population threshold [m per 0.4 s step]; None: 0.1 for single-sample tasks, 0.3 otherwise"""
     slow_scale_floor_m: float | None = None
@@ -252,7 +254,9 @@ def main(cfg: TrainConfig) -> Path:
     refiner = model.refiner
     resume = read_checkpoint(out / "last.pt") if (out / "last.pt").is_file() else None
     if resume is not None:  # an interrupted run: same data -> same spaces and anchors; restore the weights
-        changed = sorted(k for k, v in recorded["train_config"].items() if resume["train_config"].get(k) != v)
+        defaults = model_fields(TrainConfig())  # a field newer than the run counts as its default
+        changed = sorted(k for k, v in recorded["train_config"].items()
+                         if resume["train_config"].get(k, defaults[k]) != v)
         if resume["data_checksums"] != checksums:
             changed.append("training data")
         if changed:

@@ -133,3 +133,16 @@ def test_small_training_sets_get_epochs_up_to_min_steps(tmp_path):
     assert batches < 5  # ETH's own train portion is small: one epoch is fewer than five steps
     last = read_checkpoint(tmp_path / "last.pt")
     assert len(last["history"]) == last["epochs"] == math.ceil(5 / batches)
+
+
+def test_predicted_end_points_are_pulled_onto_walkable_pixels(trained):
+    from dataclasses import replace
+
+    model = load(f"{trained.out}/best.pt")
+    test = load_windows("stochastic", "eth", "test")  # ETH's camera sees a small part of a long walkway
+    eth = load_scene("eth")
+    ends = model.predict(test.obs, test.group, eth, 20)[:, :, -1]
+    assert eth.is_walkable(ends).all()  # walls and off-image end points alike are pulled back
+    model.cfg = replace(model.cfg, adapt_output=False)
+    raw_ends = model.predict(test.obs, test.group, eth, 20)[:, :, -1]
+    assert not eth.is_walkable(raw_ends).all()  # without the output adaptation some leave the walkway
