@@ -13,6 +13,7 @@ import json
 import statistics
 import time
 from dataclasses import asdict, dataclass
+from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -159,15 +160,27 @@ class Plan:
 
 
 def source_label(source: str) -> str:
-    """File-name-safe label of a predictor source; checkpoints are labelled by the hash of their bytes."""
-    if source.startswith("shipped:"):
-        from predictor.checkpoint import pretrained_manifest
+    """File-name-safe label of a predictor source.
 
-        return "shipped-" + pretrained_manifest()["checkpoints"][source.removeprefix("shipped:")]["sha256"][:12]
-    path = Path(source)
-    if path.is_file():
-        return "checkpoint-" + hashlib.sha256(path.read_bytes()).hexdigest()[:12]
-    return source
+    A checkpoint is labelled by the hash of its bytes and of its effective configuration (the stored one with
+    today's defaults for newer fields), so a result is not reused once the code would predict differently.
+    """
+    if source.startswith("shipped:"):
+        from predictor.checkpoint import PRETRAINED_DIR, pretrained_manifest
+
+        entry = pretrained_manifest()["checkpoints"][source.removeprefix("shipped:")]
+        path = Path(str(resources.files("predictor").joinpath(PRETRAINED_DIR, entry["file"])))
+        prefix = "shipped"
+    else:
+        path, prefix = Path(source), "checkpoint"
+    if not path.is_file():
+        return source
+    from predictor.checkpoint import read_checkpoint
+    from predictor.model import ModelConfig
+
+    config = asdict(ModelConfig(**read_checkpoint(path)["model"]["config"]))
+    config_hash = hashlib.sha256(json.dumps(config, sort_keys=True).encode()).hexdigest()[:8]
+    return f"{prefix}-{hashlib.sha256(path.read_bytes()).hexdigest()[:12]}-{config_hash}"
 
 
 def evaluate_job(source: str, task: str, scene: str, root: str | None, stream: bool, momentary_from_8: bool,
