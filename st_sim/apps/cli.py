@@ -182,7 +182,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     navigation_cli.add_parser(commands)
     demo = commands.add_parser("demo", help="simulated crossing with an ego robot and predictions (no data needed)")
-    demo.add_argument("--steps", type=int, default=150, help="env steps of 0.4 s (default: 150)")
+    demo.add_argument("--steps", type=positive_int, default=150,
+                      help="step budget of 0.4 s env steps; whole episodes run until it is used (default: 150)")
     demo.add_argument("--rerun", default="stcrowd_demo.rrd", help="Rerun recording path (default: stcrowd_demo.rrd)")
     demo.add_argument("--seed", type=int, default=0, help="episode seed (default: 0)")
     return parser
