@@ -6,16 +6,18 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from st_sim.sim.config import WALL_RADIUS_M
-from st_sim.sim.layout import Layout
+from st_sim.sim.layout import Layout, Period
+from st_sim.sim.pairs import Neighbours
 from st_sim.sim.walls import point_segment
 
 
-def max_overlap_m(xy_m: np.ndarray, radius_m: float) -> float:
-    """Deepest interpenetration of equal discs at xy_m (N, 2) [m]: max(2 r - centre distance, 0) [m]."""
+def max_overlap_m(xy_m: np.ndarray, radius_m: float, period: Period | None = None) -> float:
+    """Deepest interpenetration of equal discs at xy_m (N, 2) [m]: max(2 r - centre distance, 0) [m]
+    (across the seam of a periodic layout too)."""
     if len(xy_m) < 2:
         return 0.0
-    dist, _ = cKDTree(xy_m).query(xy_m, k=2)
-    return float(max(0.0, 2 * radius_m - dist[:, 1].min()))
+    nb = Neighbours.within(xy_m, np.full(len(xy_m), radius_m), 2 * radius_m, period)
+    return float(max(0.0, 2 * radius_m - nb.dist_m.min(initial=np.inf)))
 
 
 def escaped(layout: Layout, xy_m: np.ndarray) -> np.ndarray:

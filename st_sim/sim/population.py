@@ -1,4 +1,5 @@
-"""Who is in the crowd: per-body arrays in pymunk's body order, and where new pedestrians may appear."""
+"""Who is in the crowd: per-body arrays in pymunk's body order, preferred speeds, exits, and where pedestrians
+may be placed or appear."""
 
 from __future__ import annotations
 
@@ -6,14 +7,18 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-from st_sim.sim.config import CrowdConfig
-from st_sim.sim.layout import MIN_ROUTE_M, Region
+from st_sim.sim.config import PopulationConfig
+from st_sim.sim.layout import MIN_ROUTE_M, Period, Region
 from st_sim.sim.navigation import NavigationField
 
 CANDIDATES_PER_SPAWN = 8  # random points tried per new pedestrian before giving up for this step
 MIN_LATTICE_GAP_M = 0.01  # closest initial packing: gap between neighbouring bodies [m]
 LATTICE_TRIES = 8  # lattice spacings tried when placing the initial crowd
 PROGRESS_M = 0.5  # coming this much closer to one's exit counts as progress [m]
+
+
+class PopulationError(ValueError):
+    """A requested population does not fit: more than the layout holds, or more than the cap."""
 
 
 @dataclass
@@ -29,6 +34,9 @@ class Roster:
         best_to_exit_m: (K,) shortest walking distance to the exit reached so far [m].
         progress_step: (K,) int64 step at which best_to_exit_m last dropped by PROGRESS_M.
         moved_mps: (K, 2) velocity each body last moved with [m/s] (pymunk's body velocity is the one asked for).
+        group: (K,) int64 group id shared by pedestrians who walk together; -1 for those alone.
+        stop_step: (K,) int64 step at which the pedestrian will stop and stand; -1: no stop planned.
+        go_step: (K,) int64 step until which the pedestrian stands (it stands while step < go_step).
     """
 
     body_id: np.ndarray
@@ -39,19 +47,30 @@ class Roster:
     best_to_exit_m: np.ndarray
     progress_step: np.ndarray
     moved_mps: np.ndarray
+    group: np.ndarray
+    stop_step: np.ndarray
+    go_step: np.ndarray
 
     @classmethod
     def of(cls, body_id: np.ndarray, ped_id: np.ndarray, exit_idx: np.ndarray, speed_mps: np.ndarray,
-           radius_m: np.ndarray, moved_mps: np.ndarray, step: int) -> Roster:
-        """New rows (M,) that have made no progress yet, as of step."""
+           radius_m: np.ndarray, moved_mps: np.ndarray, step: int, group: np.ndarray | None = None,
+           stop_step: np.ndarray | None = None, go_step: np.ndarray | None = None) -> Roster:
+        """New rows (M,) that have made no progress yet, as of step (alone, no stop planned, walking by default)."""
+        m = len(body_id)
         return cls(np.asarray(body_id, np.int64), np.asarray(ped_id, np.int64), np.asarray(exit_idx, np.int64),
                    np.asarray(speed_mps, np.float64), np.asarray(radius_m, np.float64),
-                   np.full(len(body_id), np.inf), np.full(len(body_id), step, np.int64),
-                   np.asarray(moved_mps, np.float64).reshape(-1, 2))
+                   np.full(m, np.inf), np.full(m, step, np.int64), np.asarray(moved_mps, np.float64).reshape(-1, 2),
+                   np.full(m, -1, np.int64) if group is None else np.asarray(group, np.int64),
+                   np.full(m, -1, np.int64) if stop_step is None else np.asarray(stop_step, np.int64),
+                   np.zeros(m, np.int64) if go_step is None else np.asarray(go_step, np.int64))
 
     @classmethod
     def empty(cls) -> Roster:
         return cls.of(np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0), np.zeros((0, 2)), 0)
+
+    def standing(self, step: int) -> np.ndarray:
+        """(K,) bool, True for pedestrians standing at step."""
+        return self.go_step > step
 
     def __len__(self) -> int:
         return len(self.body_id)
@@ -72,10 +91,10 @@ class Roster:
         return self.take(rows)
 
 
-def preferred_speeds(cfg: CrowdConfig, n: int, rng: np.random.Generator) -> np.ndarray:
-    """(n,) preferred speeds ~ N(mean, std) clipped to cfg.preferred_speed_range_mps [m/s]."""
-    low, high = cfg.preferred_speed_range_mps
-    return np.clip(rng.normal(cfg.preferred_speed_mean_mps, cfg.preferred_speed_std_mps, n), low, high)
+def preferred_speeds(pop: PopulationConfig, n: int, rng: np.random.Generator) -> np.ndarray:
+    """(n,) preferred walking speeds ~ N(mean, std) clipped to pop.speed_range_mps [m/s]."""
+    low, high = pop.speed_range_mps
+    return np.clip(rng.normal(pop.speed_mean_mps, pop.speed_std_mps, n), low, high)
 
 
 def choose_exits(nav: NavigationField, xy_m: np.ndarray, allowed: np.ndarray,
@@ -95,22 +114,35 @@ def choose_exits(nav: NavigationField, xy_m: np.ndarray, allowed: np.ndarray,
 
 
 def _lattice_sites(nav: NavigationField, spacing_m: float, blocked_m: np.ndarray,
-                   blocked_gap_m: np.ndarray) -> np.ndarray:
-    """(M, 2) sites of a hexagonal lattice with spacing_m on free cells, away from blocked_m (B, 2) [m]."""
+                   blocked_gap_m: np.ndarray, period: Period | None, region: Region | None) -> np.ndarray:
+    """(M, 2) sites of a hexagonal lattice with spacing_m on startable cells (inside region, if given), away
+    from blocked_m (B, 2) [m].
+
+    In a periodic layout the sites lie in [x0, x0 + length - spacing_m], so that they keep the spacing across
+    the seam too.
+    """
     (xmin, ymin), (xmax, ymax) = nav.origin_m, nav.origin_m + nav.cell_m * np.array(nav.free.shape[::-1])
+    if region is not None:
+        (xmin, ymin), (xmax, ymax) = region.polygon_m.min(axis=0), region.polygon_m.max(axis=0)
+    if period is not None:
+        xmin, xmax = period.x0_m, period.x0_m + period.length_m - spacing_m + 1e-9
     rows, cols = np.meshgrid(np.arange(ymin, ymax, spacing_m * np.sqrt(3) / 2), np.arange(xmin, xmax, spacing_m),
                              indexing="ij")
     cols = cols + (np.arange(rows.shape[0]) % 2)[:, None] * spacing_m / 2
     sites = np.stack([cols.ravel(), rows.ravel()], axis=-1)
-    ok = nav.free_at(sites)
+    ok = nav.startable_at(sites)
+    ok &= sites[:, 0] <= xmax
+    if region is not None:
+        ok &= region.contains(sites)
     for point, gap in zip(blocked_m, blocked_gap_m, strict=True):
         ok &= np.linalg.norm(sites - point, axis=1) >= gap
     return sites[ok]
 
 
 def lattice_positions(nav: NavigationField, n: int, diameter_m: float, max_gap_m: float, blocked_m: np.ndarray,
-                      blocked_gap_m: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    """Up to n non-overlapping positions: random sites of a hexagonal lattice on free cells, jittered.
+                      blocked_gap_m: np.ndarray, rng: np.random.Generator, period: Period | None = None,
+                      region: Region | None = None) -> np.ndarray:
+    """Up to n non-overlapping positions: random sites of a hexagonal lattice on startable cells, jittered.
 
     The lattice gap (spacing minus diameter) is the largest of LATTICE_TRIES values from max_gap_m down to
     MIN_LATTICE_GAP_M that offers n sites; each site then moves by up to half the gap.
@@ -118,19 +150,22 @@ def lattice_positions(nav: NavigationField, n: int, diameter_m: float, max_gap_m
     Args:
         diameter_m: body diameter [m].  max_gap_m: widest gap between neighbouring bodies [m].
         blocked_m: (B, 2) points to keep away from (e.g. the ego) [m]; blocked_gap_m: (B,) distances [m].
+        period: the layout's wrap-around, or None.  region: where to place them; None = anywhere startable.
 
     Returns:
         (min(n, available sites), 2) positions [m]; fewer than n when the layout is full.
     """
     for gap in np.linspace(max_gap_m, MIN_LATTICE_GAP_M, LATTICE_TRIES):
-        sites = _lattice_sites(nav, diameter_m + gap, blocked_m, blocked_gap_m)
+        sites = _lattice_sites(nav, diameter_m + gap, blocked_m, blocked_gap_m, period, region)
         if len(sites) >= n:
             break
     chosen = sites[rng.permutation(len(sites))[:n]]
     angle = rng.uniform(0.0, 2 * np.pi, len(chosen))
     reach = 0.5 * gap * np.sqrt(rng.random(len(chosen)))
     moved = chosen + reach[:, None] * np.stack([np.cos(angle), np.sin(angle)], axis=-1)
-    return np.where(nav.free_at(moved)[:, None], moved, chosen)
+    inside = nav.startable_at(moved) & (True if region is None else region.contains(moved))
+    placed = np.where(inside[:, None], moved, chosen)
+    return placed if period is None else period.wrap(placed)
 
 
 def spawn_points(region: Region, count: int, allowed: np.ndarray, nav: NavigationField, others_m: np.ndarray,
@@ -153,7 +188,7 @@ def spawn_points(region: Region, count: int, allowed: np.ndarray, nav: Navigatio
     """
     lo, hi = region.polygon_m.min(axis=0), region.polygon_m.max(axis=0)
     candidates = lo + rng.random((count * CANDIDATES_PER_SPAWN, 2)) * (hi - lo)
-    candidates = candidates[region.contains(candidates) & nav.free_at(candidates)]
+    candidates = candidates[region.contains(candidates) & nav.startable_at(candidates)]
     exit_idx, reachable = choose_exits(nav, candidates, allowed, rng)
     candidates, exit_idx = candidates[reachable], exit_idx[reachable]
     reach = lane_m + clearance_m  # only bodies this close to the region can object
