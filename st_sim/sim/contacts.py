@@ -90,7 +90,7 @@ def keep_apart(velocity_mps: np.ndarray, radius_m: np.ndarray, movable: np.ndarr
     bodies = np.stack([i, j], axis=1).ravel()
     for _ in range(SWEEPS):
         load = np.maximum(np.bincount(bodies, np.repeat(excess > 0, 2), minlength=n + 1), 1.0)
-        v += np.bincount(slots, (push * excess[:, None]).ravel(), minlength=size) / np.tile(load, 2)
+        v += np.bincount(slots, (push * excess[:, None]).ravel(), minlength=size) / np.concatenate([load, load])
         excess = np.maximum((v[slots].reshape(-1, 4) * coef).sum(axis=1) - allowed, 0.0)
         if not excess.any():
             break
@@ -98,6 +98,7 @@ def keep_apart(velocity_mps: np.ndarray, radius_m: np.ndarray, movable: np.ndarr
     # gives up its own motion toward the other body (it slides past instead), then whoever still closes a gap
     # stands still, which can only relieve its neighbours' constraints, except those of followers; repeat
     no_closer = np.maximum(allowed, 0.0) + FREEZE_TOLERANCE_MPS
+    is_body = np.r_[np.ones(n), 0.0, np.ones(n), 0.0]  # the wall rows never move
     for round_ in range(FREEZE_PASSES):
         stuck = (v[slots].reshape(-1, 4) * coef).sum(axis=1) > no_closer
         if not stuck.any():
@@ -106,10 +107,10 @@ def keep_apart(velocity_mps: np.ndarray, radius_m: np.ndarray, movable: np.ndarr
             own = v[slots[stuck.repeat(4)]].reshape(-1, 4) * coef[stuck]  # (S, 4): i's and j's closing parts
             toward = np.maximum(np.stack([own[:, :2].sum(axis=1), own[:, 2:].sum(axis=1)], axis=1), 0.0)
             give_up = np.repeat(toward, 2, axis=1) * coef[stuck]  # each body's approach along the normal
-            v -= np.bincount(slots[stuck.repeat(4)], give_up.ravel(), minlength=size) * np.tile(np.r_[np.ones(n), 0], 2)
+            v -= np.bincount(slots[stuck.repeat(4)], give_up.ravel(), minlength=size) * is_body
             continue
         frozen = np.zeros(n + 1, bool)
         frozen[bodies.reshape(-1, 2)[stuck].ravel()] = True
         frozen[n] = False
-        v[np.tile(frozen, 2)] = 0.0
+        v[np.concatenate([frozen, frozen])] = 0.0
     return np.stack([v[:n], v[n + 1: 2 * n + 1]], axis=-1)

@@ -248,7 +248,8 @@ class CrowdSim:
             roster.moved_mps[:] = safe_v
         self.step_count += 1
         xy_m, _ = self._read()  # rows follow the roster: nothing was added or removed during the step
-        start_standing(roster, self.step_count, self._in_gate(xy_m), self.cfg.population, self.rng)
+        if (roster.stop_step >= 0).any():
+            start_standing(roster, self.step_count, self._in_gate(xy_m), self.cfg.population, self.rng)
         if period is None:
             self._reroute_stuck(xy_m)
             stay = self._remove_arrived(xy_m)

@@ -83,7 +83,8 @@ class NavigationField:
     def cells(self, xy_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(N, 2) metres -> row and column indices (N,), clipped to the grid."""
         ij = np.rint((xy_m - self.origin_m) / self.cell_m).astype(np.intp)
-        return (np.clip(ij[:, 1], 0, self.free.shape[0] - 1), np.clip(ij[:, 0], 0, self.free.shape[1] - 1))
+        return (np.minimum(np.maximum(ij[:, 1], 0), self.free.shape[0] - 1),
+                np.minimum(np.maximum(ij[:, 0], 0), self.free.shape[1] - 1))
 
     def direction_at(self, exit_idx: np.ndarray, xy_m: np.ndarray) -> np.ndarray:
         """Unit direction (N, 2) toward exit exit_idx[i] (N,) at xy_m (N, 2) [m]."""

@@ -89,7 +89,8 @@ class Directed:
     def of(cls, nb: Neighbours) -> Directed:
         """Rows i -> j, then j -> i."""
         return cls(np.concatenate([nb.i, nb.j]), np.concatenate([nb.j, nb.i]),
-                   np.concatenate([nb.offset_m, -nb.offset_m]), np.tile(nb.dist_m, 2), np.tile(nb.contact_m, 2))
+                   np.concatenate([nb.offset_m, -nb.offset_m]), np.concatenate([nb.dist_m, nb.dist_m]),
+                   np.concatenate([nb.contact_m, nb.contact_m]))
 
     def ahead_across(self, heading: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(2P,) distance of other along me's unit heading (N, 2) [m] (< 0: behind), and (2P,) signed distance
@@ -186,7 +187,8 @@ def closest_approach(nb: Neighbours, velocity_mps: np.ndarray, horizon_s: float)
     Pairs moving apart keep their current offset.
     """
     closing = velocity_mps[nb.j] - velocity_mps[nb.i]
-    t_near = np.clip(-dot(nb.offset_m, closing) / np.maximum(dot(closing, closing), 1e-9), 0.0, horizon_s)
+    t_near = np.minimum(np.maximum(-dot(nb.offset_m, closing) / np.maximum(dot(closing, closing), 1e-9), 0.0),
+                        horizon_s)
     return nb.offset_m + t_near[:, None] * closing
 
 

@@ -40,11 +40,13 @@ def neighbour_push(nb: Neighbours, ahead_m: np.ndarray, velocity_mps: np.ndarray
         ahead_m: (2P,) ``Directed.of(nb)``'s distances of the other agent along me's desired direction [m].
     """
     closing = velocity_mps[nb.j] - velocity_mps[nb.i]
-    t_near = np.clip(-dot(nb.offset_m, closing) / np.maximum(dot(closing, closing), 1e-9), 0.0, cfg.look_ahead_s)
+    t_near = np.minimum(np.maximum(-dot(nb.offset_m, closing) / np.maximum(dot(closing, closing), 1e-9), 0.0),
+                        cfg.look_ahead_s)
     apart = nb.offset_m + t_near[:, None] * closing
     dist = np.sqrt(dot(apart, apart))
     weight = cfg.agent_strength * np.exp((nb.contact_m - dist) / cfg.agent_range_m) / np.maximum(dist, 1e-6)
-    view = 0.5 * (1.0 + ahead_m / np.tile(np.maximum(nb.dist_m, 1e-6), 2))
+    dist_now = np.maximum(nb.dist_m, 1e-6)
+    view = 0.5 * (1.0 + ahead_m / np.concatenate([dist_now, dist_now]))
     p = len(nb.i)
     return pair_sum(nb, weight * view[:p], weight * view[p:], apart, len(velocity_mps))
 
@@ -70,7 +72,7 @@ def sidestep_urge(pairs: Directed, ahead_m: np.ndarray, across_m: np.ndarray, di
     oncoming = dot(direction[me], direction[other]) < 0
     side = np.where(oncoming | (across_m[near][blocking] > 0), 1.0, -1.0)
     urge = np.bincount(me, side * np.exp(-gap / closing / horizon_s), minlength=len(direction))
-    return np.clip(urge, -1.0, 1.0)
+    return np.minimum(np.maximum(urge, -1.0), 1.0)
 
 
 def wall_push(walls: NearbyWalls, radius_m: np.ndarray, cfg: SpeedModelConfig) -> np.ndarray:
@@ -86,27 +88,33 @@ def best_heading(pairs: Directed, walls: NearbyWalls, heading: np.ndarray, direc
                  preferred_speed_mps: np.ndarray, radius_m: np.ndarray, time_gap_s: float) -> np.ndarray:
     """Of the headings TURNS_RAD off each unit heading (N, 2), the one (N, 2) with the best progress along the
     desired direction (N, 2): speed x cos(angle), speed = min(v0, free walk / time gap); zero (stand still)
-    where no heading makes progress.
+    where no heading makes progress. All turns are evaluated at once, (K, ...) arrays for K turns.
 
     Only neighbours closer than contact + v0 x time gap can hold an agent below v0, so only they are looked at.
     """
-    n = len(heading)
-    near = pairs.take(pairs.dist_m < pairs.contact_m + preferred_speed_mps[pairs.me] * time_gap_s)
+    n, k = len(heading), len(TURNS_RAD)
+    near = speed_limiting(pairs, preferred_speed_mps, time_gap_s)
     ahead0, across0 = near.ahead_across(heading)
     normal = np.stack([-heading[:, 1], heading[:, 0]], axis=-1)  # heading turned 90 degrees to the left
-    clearance = radius_m + WALL_RADIUS_M
-    to_goal0, to_goal_left0 = dot(heading, direction), dot(normal, direction)
-    best, best_score = np.zeros_like(heading), np.full(n, MIN_PROGRESS_MPS)
-    for turn in TURNS_RAD:
-        c, s = np.cos(turn), np.sin(turn)
-        turned = c * heading + s * normal
-        free = np.minimum(free_walk_m(near.me, c * ahead0 + s * across0, c * across0 - s * ahead0, near.contact_m, n),
-                          walls.free_walk_m(turned, clearance))
-        score = np.clip(free / time_gap_s, 0.0, preferred_speed_mps) * (c * to_goal0 + s * to_goal_left0)
-        better = score > best_score + 1e-9
-        best_score = np.where(better, score, best_score)
-        best = np.where(better[:, None], turned, best)
-    return best
+    c, s = np.cos(TURNS_RAD)[:, None], np.sin(TURNS_RAD)[:, None]
+    row = (np.arange(k)[:, None] * n + near.me[None, :]).ravel()
+    people = free_walk_m(row, (c * ahead0 + s * across0).ravel(), (c * across0 - s * ahead0).ravel(),
+                         np.tile(near.contact_m, k), k * n).reshape(k, n)
+    toward = (c[:, :, None] * np.einsum("nwx,nx->nw", walls.to_wall, heading)[None]
+              + s[:, :, None] * np.einsum("nwx,nx->nw", walls.to_wall, normal)[None])  # (K, N, W)
+    free = np.minimum(people, walls.free_walk_m(toward, radius_m + WALL_RADIUS_M))
+    speed = np.minimum(np.maximum(free / time_gap_s, 0.0), preferred_speed_mps)
+    score = speed * (c * dot(heading, direction) + s * dot(normal, direction))
+    best = np.argmax(score, axis=0)
+    picked = score[best, np.arange(n)] > MIN_PROGRESS_MPS
+    turned = c[best] * heading + s[best] * normal
+    return np.where(picked[:, None], turned, 0.0)
+
+
+def speed_limiting(pairs: Directed, preferred_speed_mps: np.ndarray, time_gap_s: float) -> Directed:
+    """The directed pairs whose other agent is close enough to hold me below my preferred speed (closer than
+    contact + v0 x time gap)."""
+    return pairs.take(pairs.dist_m < pairs.contact_m + preferred_speed_mps[pairs.me] * time_gap_s)
 
 
 def plan(velocity_mps: np.ndarray, direction: np.ndarray, preferred_speed_mps: np.ndarray, radius_m: np.ndarray,
@@ -132,11 +140,11 @@ def walk(heading: np.ndarray, velocity_mps: np.ndarray, preferred_speed_mps: np.
          nb: Neighbours, walls: NearbyWalls, cfg: SpeedModelConfig, dt_s: float) -> np.ndarray:
     """New velocities (N, 2) [m/s] after one substep of dt_s along the planned unit headings (N, 2) (uncapped):
     toward min(v0, free walk / time gap) x heading within the relaxation time."""
-    pairs = Directed.of(nb)
-    near = pairs.take(pairs.dist_m < pairs.contact_m + preferred_speed_mps[pairs.me] * cfg.time_gap_s)
+    near = speed_limiting(Directed.of(nb), preferred_speed_mps, cfg.time_gap_s)
     ahead, across = near.ahead_across(heading)
+    toward = np.einsum("nwx,nx->nw", walls.to_wall, heading)
     free = np.minimum(free_walk_m(near.me, ahead, across, near.contact_m, len(heading)),
-                      walls.free_walk_m(heading, radius_m + WALL_RADIUS_M))
-    speed = np.clip(free / cfg.time_gap_s, 0.0, preferred_speed_mps)
+                      walls.free_walk_m(toward, radius_m + WALL_RADIUS_M))
+    speed = np.minimum(np.maximum(free / cfg.time_gap_s, 0.0), preferred_speed_mps)
     follow = 1.0 if cfg.relaxation_time_s <= dt_s else dt_s / cfg.relaxation_time_s
     return velocity_mps + follow * (speed[:, None] * heading - velocity_mps)

@@ -44,13 +44,16 @@ class NearbyWalls:
         earlier = np.tril(np.ones(gap.shape[1:], bool), k=-1)
         return finite & ~((gap < DISTINCT_M) & earlier).any(axis=2)
 
-    def free_walk_m(self, heading: np.ndarray, clearance_m: np.ndarray) -> np.ndarray:
-        """(N,) how far each point can move along its unit heading (N, 2) before coming within clearance_m (N,)
-        [m] of a listed wall, each wall taken as the line through its nearest point [m]; inf if none is ahead."""
-        toward = np.einsum("nkx,nx->nk", self.to_wall, heading)
+    def free_walk_m(self, toward: np.ndarray, clearance_m: np.ndarray) -> np.ndarray:
+        """(..., N) how far each point can move along a heading before coming within clearance_m (N,) [m] of a
+        listed wall, each wall taken as the line through its nearest point [m]; inf if none is ahead.
+
+        Args:
+            toward: (..., N, K) cosine between the heading and the direction to each listed wall.
+        """
         ahead = np.isfinite(self.dist_m) & (toward > 1e-6)
         room = np.where(ahead, self.dist_m - clearance_m[:, None], np.inf) / np.where(ahead, toward, 1.0)
-        return np.maximum(room.min(axis=1, initial=np.inf), 0.0)
+        return np.maximum(room.min(axis=-1, initial=np.inf), 0.0)
 
     @property
     def nearest(self) -> tuple[np.ndarray, np.ndarray]:
@@ -96,8 +99,8 @@ class WallGrid:
     def near(self, xy_m: np.ndarray) -> NearbyWalls:
         """Walls near the points xy_m (N, 2) [m] (points off the grid see the walls of the nearest cell)."""
         ij = np.floor((xy_m - self.origin_m) / self.cell_m).astype(np.intp)
-        iy = np.clip(ij[:, 1], 0, self.cell_walls.shape[0] - 1)
-        ix = np.clip(ij[:, 0], 0, self.cell_walls.shape[1] - 1)
+        iy = np.minimum(np.maximum(ij[:, 1], 0), self.cell_walls.shape[0] - 1)
+        ix = np.minimum(np.maximum(ij[:, 0], 0), self.cell_walls.shape[1] - 1)
         walls = self.cell_walls[iy, ix]  # (N, K)
         seg = self.walls_m[np.maximum(walls, 0)]  # (N, K, 2, 2)
         offset = point_segment(xy_m[:, None, :], seg[..., 0, :], seg[..., 1, :]) - xy_m[:, None, :]
