@@ -103,7 +103,7 @@ def test_keep_apart_stops_a_head_on_pair_at_contact() -> None:
     radius = np.full(2, RADIUS)
     walls = WallGrid(np.array([[[-5.0, 0.0], [5.0, 0.0]]]), (-5.0, -1.0, 5.0, 9.0), 0.2, 1.0)
     dt = 0.1
-    safe = keep_apart(v, radius, np.ones(2, bool), Neighbours.within(xy, radius, 1.5), walls.near(xy), dt)
+    safe = keep_apart(v, radius, np.ones(2), Neighbours.within(xy, radius, 1.5), walls.near(xy), dt)
     after = xy + dt * safe
     assert np.linalg.norm(after[1] - after[0]) >= 2 * RADIUS - 1e-6
     assert safe[0, 0] > 0 and safe[1, 0] < 0, "they may still close the gap"
@@ -113,7 +113,7 @@ def test_keep_apart_stops_a_walker_at_the_wall_and_leaves_sideways_motion() -> N
     xy = np.array([[0.0, 0.4]])
     radius = np.full(1, RADIUS)
     walls = WallGrid(np.array([[[-5.0, 0.0], [5.0, 0.0]]]), (-5.0, -1.0, 5.0, 9.0), 0.2, 1.0)
-    safe = keep_apart(np.array([[1.0, -2.0]]), radius, np.ones(1, bool), Neighbours.within(xy, radius, 1.5),
+    safe = keep_apart(np.array([[1.0, -2.0]]), radius, np.ones(1), Neighbours.within(xy, radius, 1.5),
                       walls.near(xy), 0.1)
     gap = 0.4 - RADIUS - WALL_RADIUS_M
     assert safe[0] == pytest.approx([1.0, -gap / 0.1])

@@ -45,32 +45,34 @@ def allowed_closing_mps(gap_m: np.ndarray, dt_s: float) -> np.ndarray:
     return np.where(gap_m > 0, gap_m, OVERLAP_OPENING * gap_m) / dt_s
 
 
-def keep_apart(velocity_mps: np.ndarray, radius_m: np.ndarray, movable: np.ndarray, nb: Neighbours,
+def keep_apart(velocity_mps: np.ndarray, radius_m: np.ndarray, yielding: np.ndarray, nb: Neighbours,
                walls: NearbyWalls, dt_s: float, give_m: float = 0.0) -> np.ndarray:
     """Velocities (N, 2) [m/s] trimmed so that no pair and no body-wall gap closes beyond contact within dt_s.
 
-    A body whose velocity is imposed (the ego, movable False) is stopped by walls like everybody else but
-    takes no part between bodies: it neither yields nor makes pedestrians yield, so it really bumps into
-    them and pymunk reports the contact.
+    Two bodies share a correction in proportion to how readily each yields: a walker (1) and a standing
+    pedestrian (a small weight) share it mostly to the walker's cost; a body whose velocity is imposed (the
+    ego, 0) makes the others yield wholly and is itself stopped only by walls. Leave a pair out of nb and the
+    two bodies ignore each other (pymunk still resolves their contact: an invisible ego is bumped into).
 
     Args:
         velocity_mps: (N, 2) proposed velocities [m/s].  radius_m: (N,) body radii [m].
-        movable: (N,) bool; False for bodies whose velocity is imposed (the ego).
+        yielding: (N,) weights >= 0, how readily each body gives way (0: never, the ego).
         nb: pairs, any superset of those that can touch within dt_s.  walls: the walls near every body.
         give_m: two bodies may overlap this much before they stop closing (soft bodies) [m]; walls stay hard.
     """
     n = len(velocity_mps)
     speed = np.sqrt(dot(velocity_mps, velocity_mps))
+    yielding = np.asarray(yielding, dtype=np.float64)
     # agent-agent constraints: i and j, unit normal from i toward j, closing speed allowed
-    near = ((nb.dist_m < nb.contact_m + SKIN_M + REACH_FACTOR * dt_s * (speed[nb.i] + speed[nb.j]))
-            & movable[nb.i] & movable[nb.j])
+    weight = yielding[nb.i] + yielding[nb.j]
+    near = (nb.dist_m < nb.contact_m + SKIN_M + REACH_FACTOR * dt_s * (speed[nb.i] + speed[nb.j])) & (weight > 0)
     i, j, unit = nb.i[near], nb.j[near], nb.unit[near]
     gap = nb.dist_m[near] - nb.contact_m[near] + give_m
     # agent-wall constraints: the wall is body n, a row that never moves
     wall_gap = walls.dist_m - radius_m[:, None] - WALL_RADIUS_M
     body, slot = np.nonzero(wall_gap < SKIN_M + REACH_FACTOR * dt_s * speed[:, None])
-    share_i = np.concatenate([np.full(len(i), 0.5), np.ones(len(body))])
-    share_j = np.concatenate([np.full(len(i), 0.5), np.zeros(len(body))])
+    share_i = np.concatenate([yielding[i] / weight[near], np.ones(len(body))])
+    share_j = np.concatenate([yielding[j] / weight[near], np.zeros(len(body))])
     i = np.concatenate([i, body])
     j = np.concatenate([j, np.full(len(body), n)])
     unit = np.concatenate([unit, walls.to_wall[body, slot]])
@@ -98,7 +100,9 @@ def keep_apart(velocity_mps: np.ndarray, radius_m: np.ndarray, movable: np.ndarr
     # gives up its own motion toward the other body (it slides past instead), then whoever still closes a gap
     # stands still, which can only relieve its neighbours' constraints, except those of followers; repeat
     no_closer = np.maximum(allowed, 0.0) + FREEZE_TOLERANCE_MPS
-    is_body = np.r_[np.ones(n), 0.0, np.ones(n), 0.0]  # the wall rows never move
+    gives = np.r_[yielding > 0, False]  # bodies that may be slowed: not the walls' row, not the ego ...
+    gives_at = np.concatenate([gives[i] | (j == n), gives[j]])  # ... except by the walls
+    slot_gives = np.stack([gives_at[: len(i)]] * 2 + [gives_at[len(i):]] * 2, axis=1)  # (C, 4)
     for round_ in range(FREEZE_PASSES):
         stuck = (v[slots].reshape(-1, 4) * coef).sum(axis=1) > no_closer
         if not stuck.any():
@@ -106,11 +110,10 @@ def keep_apart(velocity_mps: np.ndarray, radius_m: np.ndarray, movable: np.ndarr
         if round_ < SLIDE_PASSES:
             own = v[slots[stuck.repeat(4)]].reshape(-1, 4) * coef[stuck]  # (S, 4): i's and j's closing parts
             toward = np.maximum(np.stack([own[:, :2].sum(axis=1), own[:, 2:].sum(axis=1)], axis=1), 0.0)
-            give_up = np.repeat(toward, 2, axis=1) * coef[stuck]  # each body's approach along the normal
-            v -= np.bincount(slots[stuck.repeat(4)], give_up.ravel(), minlength=size) * is_body
+            give_up = np.repeat(toward, 2, axis=1) * coef[stuck] * slot_gives[stuck]  # approach along the normal
+            v -= np.bincount(slots[stuck.repeat(4)], give_up.ravel(), minlength=size)
             continue
         frozen = np.zeros(n + 1, bool)
-        frozen[bodies.reshape(-1, 2)[stuck].ravel()] = True
-        frozen[n] = False
+        frozen[bodies.reshape(-1, 2)[stuck].ravel()[slot_gives[stuck][:, 1::2].ravel()]] = True
         v[np.concatenate([frozen, frozen])] = 0.0
     return np.stack([v[:n], v[n + 1: 2 * n + 1]], axis=-1)

@@ -44,6 +44,7 @@ from st_sim.sim.walls import WallGrid
 CONTACT_TOLERANCE_M = 0.01  # the ego counts as touching a wall this close [m]
 NAV_SLACK_M = 0.05  # routes keep this much more than body + wall radius off the walls: no gaps under ~0.6 m [m]
 BODY_GIVE_M = 0.03  # two pedestrians may press this far into each other (soft bodies; pymunk's discs are smaller) [m]
+STANDING_YIELD = 0.1  # a standing pedestrian takes this share of a contact correction relative to a walker [-]
 STEERING = {SpeedModelConfig: speed_model, SocialForceConfig: social_force}  # modules with plan() and walk()
 
 
@@ -222,7 +223,9 @@ class CrowdSim:
         roster, period = self._roster, self.layout.period
         movable = roster.ped_id >= 0
         mass_kg = np.where(movable, PED_MASS_KG, EGO_MASS_KG)[:, None]
-        walk_mps = np.where(roster.standing(self.step_count), 0.0, roster.speed_mps)
+        standing = roster.standing(self.step_count)
+        walk_mps = np.where(standing, 0.0, roster.speed_mps)
+        yielding = np.where(movable, np.where(standing, STANDING_YIELD, 1.0), 0.0)
         for substep in range(self.cfg.n_substeps):
             xy_m, v_mps = self._read()
             fastest_mps = float(np.sqrt(np.max(v_mps[:, 0] ** 2 + v_mps[:, 1] ** 2, initial=0.0)))
@@ -241,7 +244,7 @@ class CrowdSim:
                 self._ego_command_mps = self._ego_command_mps + cap_speed(
                     (target - self._ego_command_mps)[None], np.array([self.ego_cfg.max_accel_mps2 * self._dt_s]))[0]
                 wanted_v[self._ego_slot] = v_mps[self._ego_slot] = self._ego_command_mps
-            safe_v = keep_apart(v_mps, roster.radius_m, movable, nb, walls, self._dt_s, BODY_GIVE_M)
+            safe_v = keep_apart(v_mps, roster.radius_m, yielding, seen, walls, self._dt_s, BODY_GIVE_M)
             self._batch.write(safe_v, mass_kg * (wanted_v - safe_v) / self._dt_s)
             self.space.step(self._dt_s)
             self._ego_collided |= self._ego_touches_wall()
