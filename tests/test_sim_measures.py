@@ -61,8 +61,10 @@ def test_standing_spells_need_three_slow_steps_in_a_row() -> None:
 def test_walking_groups_finds_a_pair_but_not_strangers_passing() -> None:
     t = np.arange(10)[:, None]
     along = np.c_[0.5 * t, np.zeros_like(t, dtype=float)]
-    tracks = {0: along, 1: along + [0.0, 0.7], 2: along[::-1] + [0.0, 1.0]}  # a pair, and one walking the other way
-    share, triples = walking_groups(*(lambda s: (s, standing_steps(s)[0]))(Steps.of(_recording(tracks))))
+    beside, back = np.array([0.0, 0.7]), np.array([0.0, 1.0])
+    tracks = {0: along, 1: along + beside, 2: along[::-1] + back}  # a pair, and one walking the other way
+    steps = Steps.of(_recording(tracks))
+    share, triples = walking_groups(steps, standing_steps(steps)[0])
     assert share == pytest.approx(2 / 3) and triples == 0.0
 
 
