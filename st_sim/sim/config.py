@@ -44,7 +44,7 @@ class SpeedModelConfig:
     """weight of the sidestep to the right of oncoming pedestrians in one's path (lane formation) [-]"""
     wall_strength: float = bounded(_SPEED_MODEL["wall_strength"], 0.0, 50.0)
     """weight of a wall's push on the walking direction at contact [-]"""
-    wall_range_m: float = bounded(_SPEED_MODEL["wall_range_m"], 0.01, 2.0, "m")
+    wall_range_m: float = bounded(0.1, 0.01, 2.0, "m")
     """decay length of a wall's push [m]"""
     relaxation_time_s: float = bounded(_SPEED_MODEL["relaxation_time_s"], 0.0, 5.0, "s")
     """the velocity follows the chosen one within this time (0: at once) [s]"""
