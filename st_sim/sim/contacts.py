@@ -19,7 +19,7 @@ from st_sim.sim.config import WALL_RADIUS_M
 from st_sim.sim.pairs import Neighbours, dot
 from st_sim.sim.walls import NearbyWalls
 
-SWEEPS = 8  # most Jacobi sweeps over all constraints per substep
+SWEEPS = 4  # most Jacobi sweeps over all constraints per substep
 OMEGA = 1.5  # over-relaxation of the averaged Jacobi corrections between bodies [-]
 FREEZE_PASSES = 50  # most rounds of stopping the bodies left closing a gap (one round per follower in a queue)
 SLIDE_PASSES = 3  # the first rounds only take away the closing bodies' approach (they slide), later ones stop them
@@ -58,7 +58,8 @@ def keep_apart(velocity_mps: np.ndarray, radius_m: np.ndarray, yielding: np.ndar
         velocity_mps: (N, 2) proposed velocities [m/s].  radius_m: (N,) body radii [m].
         yielding: (N,) weights >= 0, how readily each body gives way (0: never, the ego).
         nb: pairs, any superset of those that can touch within dt_s.  walls: the walls near every body.
-        give_m: two bodies may overlap this much before they stop closing (soft bodies) [m]; walls stay hard.
+        give_m: two yielding bodies may overlap this much before they stop closing (soft bodies) [m]; walls and
+            the ego stay hard.
     """
     n = len(velocity_mps)
     speed = np.sqrt(dot(velocity_mps, velocity_mps))
@@ -67,7 +68,7 @@ def keep_apart(velocity_mps: np.ndarray, radius_m: np.ndarray, yielding: np.ndar
     weight = yielding[nb.i] + yielding[nb.j]
     near = (nb.dist_m < nb.contact_m + SKIN_M + REACH_FACTOR * dt_s * (speed[nb.i] + speed[nb.j])) & (weight > 0)
     i, j, unit = nb.i[near], nb.j[near], nb.unit[near]
-    gap = nb.dist_m[near] - nb.contact_m[near] + give_m
+    gap = nb.dist_m[near] - nb.contact_m[near] + np.where((yielding[i] > 0) & (yielding[j] > 0), give_m, 0.0)
     # agent-wall constraints: the wall is body n, a row that never moves
     wall_gap = walls.dist_m - radius_m[:, None] - WALL_RADIUS_M
     body, slot = np.nonzero(wall_gap < SKIN_M + REACH_FACTOR * dt_s * speed[:, None])

@@ -94,9 +94,21 @@ class Region:
         """Start and end points (1, P, 2) of the polygon's edges."""
         return self.polygon_m[None], np.roll(self.polygon_m, -1, axis=0)[None]
 
+    @cached_property
+    def _box(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """(lo, hi) corners if the polygon is an axis-aligned rectangle, else None."""
+        a, b = self._edges
+        axis_aligned = np.all((a[0, :, 0] == b[0, :, 0]) | (a[0, :, 1] == b[0, :, 1]))
+        if len(self.polygon_m) != 4 or not axis_aligned:
+            return None
+        return self.polygon_m.min(axis=0), self.polygon_m.max(axis=0)
+
     def contains(self, xy_m: np.ndarray) -> np.ndarray:
-        """(M, 2) metres -> (M,) bool, True inside the polygon (even-odd rule)."""
+        """(M, 2) metres -> (M,) bool, True inside the polygon (even-odd rule; a bounds test for rectangles)."""
         xy_m = np.asarray(xy_m, dtype=np.float64).reshape(-1, 2)
+        if self._box is not None:
+            lo, hi = self._box
+            return (xy_m[:, 0] > lo[0]) & (xy_m[:, 0] < hi[0]) & (xy_m[:, 1] > lo[1]) & (xy_m[:, 1] < hi[1])
         a, b = self._edges
         x, y = xy_m[:, 0:1], xy_m[:, 1:2]
         straddles = (a[..., 1] > y) != (b[..., 1] > y)

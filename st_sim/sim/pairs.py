@@ -6,7 +6,7 @@ images, so the steering and the contacts never see the seam.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -67,7 +67,8 @@ class Neighbours:
 
     def take(self, keep: np.ndarray) -> Neighbours:
         """The pairs selected by keep, a (P,) bool mask or index array."""
-        return Neighbours(*(getattr(self, f.name)[keep] for f in fields(self)))
+        return Neighbours(self.i[keep], self.j[keep], self.offset_m[keep], self.dist_m[keep], self.unit[keep],
+                          self.contact_m[keep])
 
 
 @dataclass(frozen=True)
@@ -100,7 +101,7 @@ class Directed:
 
     def take(self, keep: np.ndarray) -> Directed:
         """The rows selected by keep, a (2P,) bool mask or index array."""
-        return Directed(*(getattr(self, f.name)[keep] for f in fields(self)))
+        return Directed(self.me[keep], self.other[keep], self.offset_m[keep], self.dist_m[keep], self.contact_m[keep])
 
 
 def free_walk_m(me: np.ndarray, ahead_m: np.ndarray, across_m: np.ndarray, contact_m: np.ndarray,

@@ -77,11 +77,11 @@ class Roster:
 
     def take(self, index: np.ndarray) -> Roster:
         """Rows selected by an index or bool array."""
-        return Roster(*(getattr(self, f.name)[index] for f in fields(self)))
+        return Roster(*(getattr(self, name)[index] for name in ROSTER_FIELDS))
 
     def extend(self, other: Roster) -> Roster:
         """Rows of self followed by rows of other."""
-        return Roster(*(np.concatenate([getattr(self, f.name), getattr(other, f.name)]) for f in fields(self)))
+        return Roster(*(np.concatenate([getattr(self, name), getattr(other, name)]) for name in ROSTER_FIELDS))
 
     def reorder(self, body_ids: np.ndarray) -> Roster:
         """Rows rearranged to follow body_ids (K,), pymunk's current order."""
@@ -89,6 +89,9 @@ class Roster:
         rows = by_id[np.minimum(np.searchsorted(self.body_id, body_ids, sorter=by_id), len(by_id) - 1)]
         assert np.array_equal(self.body_id[rows], body_ids), "roster and pymunk hold different bodies"
         return self.take(rows)
+
+
+ROSTER_FIELDS: tuple[str, ...] = tuple(f.name for f in fields(Roster))
 
 
 def preferred_speeds(pop: PopulationConfig, n: int, rng: np.random.Generator) -> np.ndarray:
@@ -102,13 +105,13 @@ def choose_exits(nav: NavigationField, xy_m: np.ndarray, allowed: np.ndarray,
     """Pick, for each point, an allowed exit reachable from it and not right there, uniformly at random.
 
     Args:
-        xy_m: (M, 2) start points [m].  allowed: (E,) bool mask of permitted exits.
+        xy_m: (M, 2) start points [m].  allowed: (E,) bool mask of permitted exits, or (E, M) one per point.
 
     Returns:
         exit_idx: (M,) int64 chosen exits.  ok: (M,) bool, False where no exit qualifies.
     """
     dist = nav.distance_at(xy_m)  # (E, M)
-    valid = np.isfinite(dist) & (dist > MIN_ROUTE_M) & allowed[:, None]
+    valid = np.isfinite(dist) & (dist > MIN_ROUTE_M) & (allowed[:, None] if allowed.ndim == 1 else allowed)
     keys = np.where(valid, rng.random(dist.shape), -1.0)
     return np.argmax(keys, axis=0).astype(np.int64), valid.any(axis=0)
 
@@ -168,31 +171,41 @@ def lattice_positions(nav: NavigationField, n: int, diameter_m: float, max_gap_m
     return placed if period is None else period.wrap(placed)
 
 
-def spawn_points(region: Region, count: int, allowed: np.ndarray, nav: NavigationField, others_m: np.ndarray,
-                 others_heading: np.ndarray, clearance_m: float, lane_m: float,
-                 rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-    """Up to count random free points of region, with exits, for new pedestrians where there is room.
+def spawn_points(regions: list[Region], counts: np.ndarray, allowed: np.ndarray, nav: NavigationField,
+                 others_m: np.ndarray, others_heading: np.ndarray, clearance_m: float, lane_m: float,
+                 rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Up to counts[r] random free points of each region r, with exits, for new pedestrians where there is room.
 
     A point qualifies if it is at least clearance_m from every body present (and from the other new points)
     and no oncoming body (heading more than 90 degrees off) stands in the new pedestrian's path closer than
-    lane_m: people do not step out right in front of others.
+    lane_m: people do not step out right in front of others. All regions are handled at once.
 
     Args:
-        count: pedestrians wanted; CANDIDATES_PER_SPAWN random points are tried for each.
-        allowed: (E,) bool mask of the exits this entry leads to.
+        regions: (R) entry regions.  counts: (R,) pedestrians wanted at each; CANDIDATES_PER_SPAWN random points
+            are tried for each.
+        allowed: (R, E) bool, the exits each region leads to.
         others_m: (K, 2) positions of the bodies present [m].  others_heading: (K, 2) their desired directions.
         clearance_m: required centre distance to every body [m].  lane_m: free path length required [m].
 
     Returns:
-        xy_m: (M, 2) positions [m], M <= count.  exit_idx: (M,) int64 exits.
+        xy_m: (M, 2) positions [m].  exit_idx: (M,) int64 exits.  region: (M,) int64 region of each, ascending.
     """
-    lo, hi = region.polygon_m.min(axis=0), region.polygon_m.max(axis=0)
-    candidates = lo + rng.random((count * CANDIDATES_PER_SPAWN, 2)) * (hi - lo)
-    candidates = candidates[region.contains(candidates) & nav.startable_at(candidates)]
-    exit_idx, reachable = choose_exits(nav, candidates, allowed, rng)
-    candidates, exit_idx = candidates[reachable], exit_idx[reachable]
-    reach = lane_m + clearance_m  # only bodies this close to the region can object
-    near = np.all((others_m > lo - reach) & (others_m < hi + reach), axis=1)
+    box = np.array([[r.polygon_m.min(axis=0), r.polygon_m.max(axis=0)] for r in regions])  # (R, 2, 2)
+    origin = np.repeat(np.arange(len(regions)), counts * CANDIDATES_PER_SPAWN)
+    lo, hi = box[origin, 0], box[origin, 1]
+    candidates = lo + rng.random((len(origin), 2)) * (hi - lo)
+    inside = np.zeros(len(origin), bool)
+    for r in np.flatnonzero(counts).tolist():
+        mine = origin == r
+        inside[mine] = regions[r].contains(candidates[mine])
+    keep = inside & nav.startable_at(candidates)
+    candidates, origin = candidates[keep], origin[keep]
+    exit_idx, reachable = choose_exits(nav, candidates, allowed[origin].T, rng)
+    candidates, exit_idx, origin = candidates[reachable], exit_idx[reachable], origin[reachable]
+    reach = lane_m + clearance_m  # only bodies this close to a busy region can object
+    active = box[np.flatnonzero(counts)]
+    near = np.all((others_m > active[:, 0].min(axis=0) - reach) & (others_m < active[:, 1].max(axis=0) + reach),
+                  axis=1)
     others_m, others_heading = others_m[near], others_heading[near]
     heading = nav.direction_at(exit_idx, candidates)  # (C, 2)
     offset = others_m[None, :, :] - candidates[:, None, :]  # (C, K, 2)
@@ -200,11 +213,14 @@ def spawn_points(region: Region, count: int, allowed: np.ndarray, nav: Navigatio
     across = np.abs(offset[..., 0] * heading[:, None, 1] - offset[..., 1] * heading[:, None, 0])
     in_path = (heading @ others_heading.T < 0) & (ahead > 0) & (ahead < lane_m) & (across < clearance_m)
     roomy = (np.hypot(offset[..., 0], offset[..., 1]) >= clearance_m).all(axis=1) & ~in_path.any(axis=1)
-    candidates, exit_idx = candidates[roomy], exit_idx[roomy]
+    candidates, exit_idx, origin = candidates[roomy], exit_idx[roomy], origin[roomy]
     apart = np.linalg.norm(candidates[:, None] - candidates[None], axis=-1) >= clearance_m
     chosen, open_ = [], np.ones(len(candidates), bool)
-    while open_.any() and len(chosen) < count:  # first come, first served among the new ones
-        first = int(np.argmax(open_))
-        chosen.append(first)
-        open_ &= apart[first]
-    return candidates[chosen].reshape(-1, 2), exit_idx[chosen]
+    for r in np.flatnonzero(counts).tolist():  # first come, first served among the new ones
+        mine, taken = origin == r, 0
+        while taken < counts[r] and (open_ & mine).any():
+            first = int(np.argmax(open_ & mine))
+            chosen.append(first)
+            open_ &= apart[first]
+            taken += 1
+    return candidates[chosen].reshape(-1, 2), exit_idx[chosen], origin[chosen]

@@ -93,13 +93,22 @@ def _clear(xy_m: np.ndarray, others_m: np.ndarray, clearance_m: float) -> bool:
     return bool(others_m.size == 0 or np.min(np.linalg.norm(others_m - xy_m, axis=1)) >= clearance_m)
 
 
+def route_mask(layout: Layout) -> np.ndarray:
+    """(entries, exits) bool: the exits each entry's pedestrians may head to (``Layout.routes``)."""
+    allowed = np.zeros((len(layout.entries), len(layout.exits)), bool)
+    for entry, exits in enumerate(layout.routes):
+        allowed[entry, list(exits)] = True
+    return allowed
+
+
 def place_arrivals(nav: NavigationField, layout: Layout, cfg: CrowdConfig, counts: np.ndarray, room: int,
                    xy_m: np.ndarray, roster: Roster, step: int, first_group: int,
                    rng: np.random.Generator) -> Arrivals:
     """Arrivals at the entries: counts (E_in,) units per entry, at most room pedestrians in all.
 
-    A unit's first member appears at a free point of the entry (``population.spawn_points``); its companions
-    (``groups.unit_sizes``) appear abreast of it where there is room, else the group is smaller.
+    A unit's first member appears at a free point of its entry (``population.spawn_points``, all entries at
+    once); its companions (``groups.unit_sizes``) appear abreast of it where there is room, else the group is
+    smaller.
 
     Args:
         xy_m: (K, 2) positions of the roster's bodies [m].  roster: the bodies present (for headings and stops).
@@ -108,39 +117,28 @@ def place_arrivals(nav: NavigationField, layout: Layout, cfg: CrowdConfig, count
     pop: PopulationConfig = cfg.population
     heading = nav.direction_at(roster.exit_idx, xy_m) * (roster.ped_id >= 0)[:, None]
     clearance_m = cfg.radius_m + roster.radius_m.max(initial=cfg.radius_m) + cfg.spawn_gap_m
-    member_xy, member_unit, unit_exit = [np.zeros((0, 2))], [np.zeros(0, np.int64)], [np.zeros(0, np.int64)]
-    n_units = 0
-    for entry, count in enumerate(counts.tolist()):
-        if min(count, room) <= 0:
-            continue
-        allowed = np.zeros(len(layout.exits), bool)
-        allowed[list(layout.routes[entry])] = True
-        leads, exits = spawn_points(layout.entries[entry], min(count, room), allowed, nav, xy_m, heading, clearance_m,
-                                    cfg.spawn_lane_m, rng)
-        lead_heading = nav.direction_at(exits, leads)
-        placed, unit, placed_heading = [leads], [n_units + np.arange(len(leads))], [lead_heading]
-        taken = np.concatenate([xy_m, leads])
-        room -= len(leads)
-        sizes = unit_sizes(pop, len(leads), rng)
-        for k in np.flatnonzero(sizes > 1).tolist():  # companions, abreast of the lead
-            for spot in leads[k] + companion_offsets(lead_heading[k], int(sizes[k])):
-                if room > 0 and nav.startable_at(spot[None])[0] and _clear(spot, taken, clearance_m):
-                    placed.append(spot[None])
-                    unit.append(np.array([n_units + k]))
-                    placed_heading.append(lead_heading[k][None])
-                    taken = np.concatenate([taken, spot[None]])
-                    room -= 1
-        member_xy += placed
-        member_unit += unit
-        unit_exit.append(exits)
-        n_units += len(leads)
-        xy_m = taken
-        heading = np.concatenate([heading, *placed_heading])
+    counts = np.minimum(counts, room)
+    leads, exits, _ = spawn_points(layout.entries, counts, layout.derived(("routes",), lambda: route_mask(layout)),
+                                   nav, xy_m, heading, clearance_m, cfg.spawn_lane_m, rng)
+    leads, exits = leads[:room], exits[:room]
+    lead_heading = nav.direction_at(exits, leads)
+    member_xy, member_unit = [leads], [np.arange(len(leads))]
+    taken = np.concatenate([xy_m, leads])
+    room -= len(leads)
+    sizes = unit_sizes(pop, len(leads), rng)
+    for k in np.flatnonzero(sizes > 1).tolist():  # companions, abreast of the lead
+        for spot in leads[k] + companion_offsets(lead_heading[k], int(sizes[k])):
+            if room > 0 and nav.startable_at(spot[None])[0] and _clear(spot, taken, clearance_m):
+                member_xy.append(spot[None])
+                member_unit.append(np.array([k]))
+                taken = np.concatenate([taken, spot[None]])
+                room -= 1
+    n_units = len(leads)
     xy = np.concatenate(member_xy)
     unit = np.concatenate(member_unit)
     sizes = np.bincount(unit, minlength=n_units)
     group_of_unit = np.where(sizes > 1, first_group + np.cumsum(sizes > 1) - 1, -1)
     speed = preferred_speeds(pop, n_units, rng)
     stop = plan_stops(pop, sizes, roster, step, rng)
-    return Arrivals(xy_m=xy, exit_idx=np.concatenate(unit_exit)[unit], speed_mps=speed[unit],
+    return Arrivals(xy_m=xy, exit_idx=exits[unit], speed_mps=speed[unit],
                     group=group_of_unit[unit], stop_step=stop[unit], go_step=np.zeros(len(xy), np.int64))
