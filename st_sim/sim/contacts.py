@@ -50,9 +50,10 @@ def keep_apart(velocity_mps: np.ndarray, radius_m: np.ndarray, yielding: np.ndar
     """Velocities (N, 2) [m/s] trimmed so that no pair and no body-wall gap closes beyond contact within dt_s.
 
     Two bodies share a correction in proportion to how readily each yields: a walker (1) and a standing
-    pedestrian (a small weight) share it mostly to the walker's cost; a body whose velocity is imposed (the
-    ego, 0) makes the others yield wholly and is itself stopped only by walls. Leave a pair out of nb and the
-    two bodies ignore each other (pymunk still resolves their contact: an invisible ego is bumped into).
+    pedestrian (a small weight) share it mostly to the walker's cost. A body whose velocity is imposed (the ego,
+    0) is an obstacle to the others, like a wall: they do not walk into it, but it is not held back by them
+    (driving into somebody is a contact) and only walls stop it. Leave a pair out of nb and the two bodies
+    ignore each other (pymunk still resolves their contact: an invisible ego is bumped into).
 
     Args:
         velocity_mps: (N, 2) proposed velocities [m/s].  radius_m: (N,) body radii [m].
@@ -64,16 +65,23 @@ def keep_apart(velocity_mps: np.ndarray, radius_m: np.ndarray, yielding: np.ndar
     n = len(velocity_mps)
     speed = np.sqrt(dot(velocity_mps, velocity_mps))
     yielding = np.asarray(yielding, dtype=np.float64)
-    # agent-agent constraints: i and j, unit normal from i toward j, closing speed allowed
+    # agent-agent constraints: i and j, unit normal from i toward j, closing speed allowed; a body that never
+    # yields (the ego) stands in its pairs as the static row n, like a wall: the other body keeps clear of it,
+    # but the ego's own motion is not trimmed, so an ego that drives into somebody really touches them
     weight = yielding[nb.i] + yielding[nb.j]
     near = (nb.dist_m < nb.contact_m + SKIN_M + REACH_FACTOR * dt_s * (speed[nb.i] + speed[nb.j])) & (weight > 0)
-    i, j, unit = nb.i[near], nb.j[near], nb.unit[near]
-    gap = nb.dist_m[near] - nb.contact_m[near] + np.where((yielding[i] > 0) & (yielding[j] > 0), give_m, 0.0)
+    flip = near & (yielding[nb.i] == 0)
+    i, j = np.where(flip, nb.j, nb.i)[near], np.where(flip, nb.i, nb.j)[near]
+    unit = np.where(flip[:, None], -nb.unit, nb.unit)[near]
+    both = yielding[j] > 0
+    gap = nb.dist_m[near] - nb.contact_m[near] + np.where(both, give_m, 0.0)
+    share_pairs = np.where(both, yielding[i] / weight[near], 1.0)
+    j = np.where(both, j, n)
     # agent-wall constraints: the wall is body n, a row that never moves
     wall_gap = walls.dist_m - radius_m[:, None] - WALL_RADIUS_M
     body, slot = np.nonzero(wall_gap < SKIN_M + REACH_FACTOR * dt_s * speed[:, None])
-    share_i = np.concatenate([yielding[i] / weight[near], np.ones(len(body))])
-    share_j = np.concatenate([yielding[j] / weight[near], np.zeros(len(body))])
+    share_i = np.concatenate([share_pairs, np.ones(len(body))])
+    share_j = np.concatenate([1.0 - share_pairs, np.zeros(len(body))])
     i = np.concatenate([i, body])
     j = np.concatenate([j, np.full(len(body), n)])
     unit = np.concatenate([unit, walls.to_wall[body, slot]])
