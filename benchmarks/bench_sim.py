@@ -11,6 +11,11 @@ present and their mean speed.
 
     OMP_NUM_THREADS=1 python benchmarks/bench_sim.py                       # 50, 200, 500 pedestrians, 2 repeats
     OMP_NUM_THREADS=1 python benchmarks/bench_sim.py --sizes 200 --steps 300 --no-psf
+    OMP_NUM_THREADS=1 python benchmarks/bench_sim.py --periodic            # STCrowd without spawning and exits
+
+With --periodic, STCrowd runs the same corridor with its ends joined (a two-way periodic corridor, the same
+head count for ever: steering and contacts only, no spawning or leaving); PySocialForce, which has no periodic
+boundary, still runs the gated corridor.
 
 PySocialForce is a benchmark-only extra (``pip install -e ".[bench]"``); without it the script says so and runs
 STCrowd alone. Its defaults are kept except: 0.4 s steps, no groups, walls sampled every 0.1 m.
@@ -30,6 +35,7 @@ import numpy as np
 
 from st_sim.sim import CrowdConfig, CrowdSim, Layout, PopulationError, make_layout
 from st_sim.sim.diagnostics import escaped, max_overlap_m, wall_penetration_m
+from st_sim.sim.layouts import periodic_corridor
 
 SPAWN_RATE_HZ = 10.0  # per gate: refills the corridor as fast as there is room, to hold the population
 PSF_CONFIG = """
@@ -93,9 +99,10 @@ class Meter:
                        self.overlap_m, self.intrusion_m, len(self.escaped), float(np.mean(self.speeds)))
 
 
-def bench_stcrowd(n: int, steps: int, warmup: int, seed: int) -> Figures:
-    """Run CrowdSim with n pedestrians (kept near n by brisk spawning) and time ``step``."""
-    layout = make_layout("corridor")
+def bench_stcrowd(n: int, steps: int, warmup: int, seed: int, periodic: bool) -> Figures:
+    """Run CrowdSim with n pedestrians (kept near n by brisk spawning, or in a periodic corridor) and time
+    ``step``."""
+    layout = periodic_corridor(20.0, 8.0, two_way=True) if periodic else make_layout("corridor")
     cfg = CrowdConfig(max_pedestrians=n, spawn_rate_hz=SPAWN_RATE_HZ)
     sim = CrowdSim(layout, cfg, np.random.default_rng(seed), n_initial=n)
     for _ in range(warmup):
@@ -104,17 +111,17 @@ def bench_stcrowd(n: int, steps: int, warmup: int, seed: int) -> Figures:
     for _ in range(steps):
         meter.timed(sim.step)
         meter.check(sim.ids, sim.positions_m, sim.velocities_mps)
-    return meter.figures("stcrowd", n)
+    return meter.figures("stcrowd periodic" if periodic else "stcrowd", n)
 
 
 def bench_pysocialforce(n: int, steps: int, seed: int) -> Figures | None:
     """Run PySocialForce from the same initial crowd as CrowdSim; None if it is not installed."""
-    logging.getLogger("numba").setLevel(logging.WARNING)  # PySocialForce turns on DEBUG logging for everything
     try:
         import pysocialforce
     except ImportError as err:
         print(f"PySocialForce unavailable ({err}); `pip install -e \".[bench]\"` to compare")
         return None
+    logging.getLogger().setLevel(logging.WARNING)  # PySocialForce turns on DEBUG logging for everything
     layout = make_layout("corridor")
     cfg = CrowdConfig(max_pedestrians=n)
     sim = CrowdSim(layout, cfg, np.random.default_rng(seed), n_initial=n)
@@ -142,6 +149,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--psf-steps", type=int, default=30, help="timed steps of PySocialForce (default: 30)")
     parser.add_argument("--repeats", type=int, default=2, help="alternating runs of both engines (default: 2)")
     parser.add_argument("--no-psf", action="store_true", help="skip PySocialForce")
+    parser.add_argument("--periodic", action="store_true",
+                        help="STCrowd in the corridor with its ends joined (no spawning or exits)")
     parser.add_argument("--seed", type=int, default=0, help="crowd seed (default: 0)")
     args = parser.parse_args(argv)
 
@@ -151,7 +160,7 @@ def main(argv: list[str] | None = None) -> int:
     for n in args.sizes:
         for _ in range(args.repeats):
             try:
-                ours = bench_stcrowd(n, args.steps, args.warmup, args.seed)
+                ours = bench_stcrowd(n, args.steps, args.warmup, args.seed, args.periodic)
             except PopulationError as err:
                 print(f"| stcrowd | {n} | refused: {err} |")
                 break
