@@ -116,12 +116,14 @@ def bench_stcrowd(n: int, steps: int, warmup: int, seed: int, periodic: bool) ->
 
 def bench_pysocialforce(n: int, steps: int, seed: int) -> Figures | None:
     """Run PySocialForce from the same initial crowd as CrowdSim; None if it is not installed."""
+    for noisy in ("numba", "matplotlib"):  # PySocialForce turns on DEBUG logging for everything it imports
+        logging.getLogger(noisy).setLevel(logging.WARNING)
     try:
         import pysocialforce
     except ImportError as err:
         print(f"PySocialForce unavailable ({err}); `pip install -e \".[bench]\"` to compare")
         return None
-    logging.getLogger().setLevel(logging.WARNING)  # PySocialForce turns on DEBUG logging for everything
+    logging.getLogger().setLevel(logging.WARNING)
     layout = make_layout("corridor")
     cfg = CrowdConfig(max_pedestrians=n)
     sim = CrowdSim(layout, cfg, np.random.default_rng(seed), n_initial=n)

@@ -151,7 +151,7 @@ def plot_fd(results: dict[str, list[dict]], orca: list[dict], path: Path) -> Non
     """Weidmann's curve with its +-20 % band and every model's points, as a PNG (OpenCV)."""
     import cv2
 
-    width, height, left, bottom, top, right = 900, 600, 90, 70, 30, 30
+    width, height, left, bottom, top, right = 900, 620, 90, 70, 50, 30
     x_max, y_max = 5.5, 1.6
 
     def px(rho: float, v: float) -> tuple[int, int]:
@@ -172,7 +172,7 @@ def plot_fd(results: dict[str, list[dict]], orca: list[dict], path: Path) -> Non
     cv2.line(image, px(0, 0), px(x_max, 0), (0, 0, 0), 1)
     cv2.line(image, px(0, 0), px(0, y_max), (0, 0, 0), 1)
     cv2.putText(image, "density [1/m^2]", (width // 2 - 60, height - 20), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (0, 0, 0), 1)
-    cv2.putText(image, "speed [m/s]", (10, top + 10), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (0, 0, 0), 1)
+    cv2.putText(image, "speed [m/s]", (10, top - 25), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (0, 0, 0), 1)
     colours = {"speed_model": (200, 80, 0), "social_force": (0, 0, 200), "orca (pyrvo)": (0, 150, 0)}
     series = {**results, **({"orca (pyrvo)": orca} if orca else {})}
     legend = [("Weidmann (+-20 % shaded)", (0, 0, 0))]

@@ -174,8 +174,9 @@ class CrowdConfig:
     """pymunk contact solver iterations per substep [-]"""
     collision_slop_m: float = bounded(0.005, 0.0, 0.1, "m")
     """overlap pymunk allows without correcting it [m]"""
-    collision_bias: float = bounded(0.0018, 0.0, 1.0, open_low=True)
-    """share of an overlap pymunk leaves uncorrected after one second (pymunk's default is 0.0018) [-]"""
+    collision_bias: float = bounded(0.1, 0.0, 1.0, open_low=True)
+    """share of an overlap pymunk leaves uncorrected after one second (pymunk's default, 0.0018, pushes so hard
+    that it drives pressed bodies into their other neighbours) [-]"""
 
     def __post_init__(self) -> None:
         check_fields(self)
