@@ -1,4 +1,4 @@
-"""Physical sanity of a simulated crowd: body overlaps, wall intrusions and escapes, neighbour distances, speeds."""
+"""Physical sanity of a simulated crowd: body overlaps, wall intrusions and escapes, neighbour distances."""
 
 from __future__ import annotations
 
@@ -43,16 +43,3 @@ def nearest_neighbour_m(xy_m: np.ndarray) -> np.ndarray:
         return np.zeros(0)
     dist, _ = cKDTree(xy_m).query(xy_m, k=2)
     return dist[:, 1]
-
-
-def step_speeds_mps(frame: np.ndarray, agent: np.ndarray, xy_m: np.ndarray, frame_stride: int,
-                    step_s: float) -> np.ndarray:
-    """Speeds [m/s] between consecutive annotated frames (frame ids frame_stride apart) of the same agent.
-
-    Args:
-        frame, agent: (R,) int ids.  xy_m: (R, 2) positions [m].
-    """
-    order = np.lexsort((frame, agent))
-    f, a, p = frame[order], agent[order], xy_m[order]
-    consecutive = (a[1:] == a[:-1]) & (f[1:] - f[:-1] == frame_stride)
-    return np.linalg.norm(p[1:] - p[:-1], axis=1)[consecutive] / step_s

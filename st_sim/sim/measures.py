@@ -60,12 +60,6 @@ def lane_index(xy_m: np.ndarray, sign: np.ndarray, band_m: float, window_m: floa
     return float(score.mean()) if len(score) else 0.0
 
 
-def crossing_times_s(x_before_m: np.ndarray, x_after_m: np.ndarray, line_x_m: float, step: int) -> np.ndarray:
-    """Times [s] (step x 0.4 s) of the agents that crossed x = line_x_m eastward during this step."""
-    crossed = (x_before_m < line_x_m) & (x_after_m >= line_x_m)
-    return np.full(int(crossed.sum()), step * STEP_S)
-
-
 def steady_flow_per_s(times_s: np.ndarray, skip: int) -> float:
     """Flow [1/s] between the skip-th first and the skip-th last passage of sorted passage times (N,)."""
     times_s = np.sort(times_s)
