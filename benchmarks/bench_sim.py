@@ -1,16 +1,24 @@
 """Speed and physical soundness of the pymunk crowd simulator, side by side with PySocialForce.
 
-Both engines run the bidirectional corridor (20 m x 8 m, closed walls, gates at both ends) with the same
-initial crowd (positions, goals, preferred speeds from ``CrowdSim``), 0.4 s steps. Only ``step`` is
-timed, by the wall clock and by the process's CPU time (the machine may be shared); after every step the
-script measures the deepest overlap of two 0.25 m discs, the deepest intrusion into a wall, the
-pedestrians whose centre left the walkable map ("escapes"), the number present and their mean speed.
+Both engines run the bidirectional corridor (20 m x 8 m, closed walls, gates at both ends) from the same initial
+crowd (positions, goals, preferred speeds from ``CrowdSim``), 0.4 s steps; CrowdSim keeps its head count by brisk
+spawning. Only ``step`` is timed, by the process's CPU time (the machine is shared; wall-clock figures beside
+it), in alternating repeats of both engines, and the speed lead is the ratio of the two engines' CPU steps per
+second in the same run. A jammed crowd is cheap, so each row also gives the mean walking speed: the comparison
+is between flowing crowds. After every step the script measures the deepest overlap of two pedestrian discs,
+the deepest intrusion into a wall, the pedestrians whose centre left the walkable map ("escapes"), the number
+present and their mean speed.
 
-    OMP_NUM_THREADS=1 python benchmarks/bench_sim.py            # 50, 200, 500 pedestrians
+    OMP_NUM_THREADS=1 python benchmarks/bench_sim.py                       # 50, 200, 500 pedestrians, 2 repeats
     OMP_NUM_THREADS=1 python benchmarks/bench_sim.py --sizes 200 --steps 300 --no-psf
+    OMP_NUM_THREADS=1 python benchmarks/bench_sim.py --periodic            # STCrowd without spawning and exits
 
-PySocialForce is a benchmark-only extra (``pip install pysocialforce``); without it the script says so and
-runs STCrowd alone. Its defaults are kept except: 0.4 s steps, no groups, walls sampled every 0.1 m.
+With --periodic, STCrowd runs the same corridor with its ends joined (a two-way periodic corridor, the same
+head count for ever: steering and contacts only, no spawning or leaving); PySocialForce, which has no periodic
+boundary, still runs the gated corridor.
+
+PySocialForce is a benchmark-only extra (``pip install -e ".[bench]"``); without it the script says so and runs
+STCrowd alone. Its defaults are kept except: 0.4 s steps, no groups, walls sampled every 0.1 m.
 """
 
 from __future__ import annotations
@@ -25,10 +33,10 @@ from pathlib import Path
 
 import numpy as np
 
-from st_sim.sim import CrowdConfig, CrowdSim, Layout, make_layout
+from st_sim.sim import CrowdConfig, CrowdSim, Layout, PopulationError, make_layout
 from st_sim.sim.diagnostics import escaped, max_overlap_m, wall_penetration_m
+from st_sim.sim.layouts import periodic_corridor
 
-RADIUS_M = 0.25  # disc radius of every overlap figure [m]
 SPAWN_RATE_HZ = 10.0  # per gate: refills the corridor as fast as there is room, to hold the population
 PSF_CONFIG = """
 [scene]
@@ -52,21 +60,21 @@ class Figures:
     escapes: int
     mean_speed_mps: float
 
-    def row(self) -> str:
-        return (f"{self.engine:<14}{self.n_pedestrians:>6}{self.mean_present:>9.0f}{self.steps:>7}"
-                f"{self.steps_per_s:>10.1f}{self.cpu_steps_per_s:>10.1f}{100 * self.max_overlap_m:>13.2f}"
-                f"{100 * self.max_wall_intrusion_m:>14.2f}{self.escapes:>9}{self.mean_speed_mps:>11.2f}")
+    def row(self, lead: float | None = None) -> str:
+        return (f"| {self.engine} | {self.n_pedestrians} | {self.mean_present:.0f} | {self.mean_speed_mps:.2f} "
+                f"| {self.cpu_steps_per_s:.1f} | {self.steps_per_s:.1f} | {'' if lead is None else f'{lead:.1f}x'} "
+                f"| {100 * self.max_overlap_m:.2f} | {100 * self.max_wall_intrusion_m:.2f} | {self.escapes} |")
 
 
-HEADER = (f"{'engine':<14}{'peds':>6}{'present':>9}{'steps':>7}{'steps/s':>10}{'cpu st/s':>10}{'overlap cm':>13}"
-          f"{'wall int. cm':>14}{'escapes':>9}{'speed m/s':>11}")
+HEADER = ("| engine | pedestrians | present | speed m/s | CPU steps/s | wall steps/s | lead (CPU) | overlap cm "
+          "| wall intrusion cm | escapes |\n|---|---|---|---|---|---|---|---|---|---|")
 
 
 class Meter:
-    """Times the steps (wall clock and process CPU) and checks the crowd after each one."""
+    """Times the steps (process CPU and wall clock) and checks the crowd after each one."""
 
-    def __init__(self, layout: Layout):
-        self.layout = layout
+    def __init__(self, layout: Layout, radius_m: float):
+        self.layout, self.radius_m = layout, radius_m
         self.wall_s = self.cpu_s = self.overlap_m = self.intrusion_m = 0.0
         self.present: list[int] = []
         self.speeds: list[float] = []
@@ -79,8 +87,8 @@ class Meter:
         self.cpu_s += time.process_time() - cpu
 
     def check(self, ids: np.ndarray, xy_m: np.ndarray, v_mps: np.ndarray) -> None:
-        self.overlap_m = max(self.overlap_m, max_overlap_m(xy_m, RADIUS_M))
-        self.intrusion_m = max(self.intrusion_m, wall_penetration_m(self.layout, xy_m, RADIUS_M))
+        self.overlap_m = max(self.overlap_m, max_overlap_m(xy_m, self.radius_m))
+        self.intrusion_m = max(self.intrusion_m, wall_penetration_m(self.layout, xy_m, self.radius_m))
         self.escaped |= set(ids[escaped(self.layout, xy_m)].tolist())
         self.present.append(len(ids))
         self.speeds.append(float(np.linalg.norm(v_mps, axis=1).mean()) if len(ids) else 0.0)
@@ -91,30 +99,34 @@ class Meter:
                        self.overlap_m, self.intrusion_m, len(self.escaped), float(np.mean(self.speeds)))
 
 
-def bench_stcrowd(n: int, steps: int, warmup: int, seed: int) -> Figures:
-    """Run CrowdSim with n pedestrians (kept near n by brisk spawning) and time ``step``."""
-    layout = make_layout("corridor")
-    sim = CrowdSim(layout, CrowdConfig(max_pedestrians=n, spawn_rate_hz=SPAWN_RATE_HZ), np.random.default_rng(seed),
-                   n_initial=n)
+def bench_stcrowd(n: int, steps: int, warmup: int, seed: int, periodic: bool) -> Figures:
+    """Run CrowdSim with n pedestrians (kept near n by brisk spawning, or in a periodic corridor) and time
+    ``step``."""
+    layout = periodic_corridor(20.0, 8.0, two_way=True) if periodic else make_layout("corridor")
+    cfg = CrowdConfig(max_pedestrians=n, spawn_rate_hz=SPAWN_RATE_HZ)
+    sim = CrowdSim(layout, cfg, np.random.default_rng(seed), n_initial=n)
     for _ in range(warmup):
         sim.step()
-    meter = Meter(layout)
+    meter = Meter(layout, cfg.radius_m)
     for _ in range(steps):
         meter.timed(sim.step)
         meter.check(sim.ids, sim.positions_m, sim.velocities_mps)
-    return meter.figures("stcrowd", n)
+    return meter.figures("stcrowd periodic" if periodic else "stcrowd", n)
 
 
 def bench_pysocialforce(n: int, steps: int, seed: int) -> Figures | None:
     """Run PySocialForce from the same initial crowd as CrowdSim; None if it is not installed."""
-    logging.getLogger("numba").setLevel(logging.WARNING)  # PySocialForce turns on DEBUG logging for everything
+    for noisy in ("numba", "matplotlib"):  # PySocialForce turns on DEBUG logging for everything it imports
+        logging.getLogger(noisy).setLevel(logging.WARNING)
     try:
         import pysocialforce
     except ImportError as err:
-        print(f"PySocialForce unavailable ({err}); `pip install pysocialforce` to compare")
+        print(f"PySocialForce unavailable ({err}); `pip install -e \".[bench]\"` to compare")
         return None
+    logging.getLogger().setLevel(logging.WARNING)
     layout = make_layout("corridor")
-    sim = CrowdSim(layout, CrowdConfig(max_pedestrians=n), np.random.default_rng(seed), n_initial=n)
+    cfg = CrowdConfig(max_pedestrians=n)
+    sim = CrowdSim(layout, cfg, np.random.default_rng(seed), n_initial=n)
     state = np.concatenate([sim.positions_m, sim.velocities_mps, sim.goals_m], axis=1)
     walls = [(a[0], b[0], a[1], b[1]) for a, b in layout.walls_m]
     with tempfile.TemporaryDirectory() as tmp:
@@ -122,7 +134,7 @@ def bench_pysocialforce(n: int, steps: int, seed: int) -> Figures | None:
         config.write_text(PSF_CONFIG)
         psf = pysocialforce.Simulator(state, groups=None, obstacles=walls, config_file=str(config))
     psf.step(2)  # numba compiles on the first calls
-    meter = Meter(layout)
+    meter = Meter(layout, cfg.radius_m)
     ids = np.arange(n)
     for _ in range(steps):
         meter.timed(lambda: psf.step(1))
@@ -135,18 +147,27 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--sizes", type=int, nargs="+", default=[50, 200, 500],
                         help="pedestrian counts (default: 50 200 500)")
     parser.add_argument("--steps", type=int, default=200, help="timed 0.4 s steps of STCrowd (default: 200)")
-    parser.add_argument("--warmup", type=int, default=10, help="untimed steps before timing (default: 10)")
+    parser.add_argument("--warmup", type=int, default=20, help="untimed steps before timing (default: 20)")
     parser.add_argument("--psf-steps", type=int, default=30, help="timed steps of PySocialForce (default: 30)")
+    parser.add_argument("--repeats", type=int, default=2, help="alternating runs of both engines (default: 2)")
     parser.add_argument("--no-psf", action="store_true", help="skip PySocialForce")
+    parser.add_argument("--periodic", action="store_true",
+                        help="STCrowd in the corridor with its ends joined (no spawning or exits)")
     parser.add_argument("--seed", type=int, default=0, help="crowd seed (default: 0)")
     args = parser.parse_args(argv)
 
-    print("corridor 20 m x 8 m, bidirectional; 0.4 s steps; overlap/intrusion of 0.25 m discs")
+    print("corridor 20 m x 8 m, bidirectional; 0.4 s steps; CPU = process time; lead = STCrowd's CPU steps/s over "
+          "PySocialForce's in the same repeat")
     print(HEADER)
     for n in args.sizes:
-        print(bench_stcrowd(n, args.steps, args.warmup, args.seed).row(), flush=True)
-        if not args.no_psf:
-            psf = bench_pysocialforce(n, args.psf_steps, args.seed)
+        for _ in range(args.repeats):
+            try:
+                ours = bench_stcrowd(n, args.steps, args.warmup, args.seed, args.periodic)
+            except PopulationError as err:
+                print(f"| stcrowd | {n} | refused: {err} |")
+                break
+            psf = None if args.no_psf else bench_pysocialforce(n, args.psf_steps, args.seed)
+            print(ours.row(None if psf is None else ours.cpu_steps_per_s / psf.cpu_steps_per_s), flush=True)
             if psf is not None:
                 print(psf.row(), flush=True)
     return 0

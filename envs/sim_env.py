@@ -14,7 +14,16 @@ from envs.common.predictors import shipped_checkpoint
 from envs.common.tracks import Frame
 from replays.data_root import data_root
 from replays.scenes import SCENES, load_scene
-from st_sim.sim import CrowdConfig, CrowdSim, EgoConfig, Layout, layout_from_scene, make_layout
+from st_sim.sim import (
+    CrowdConfig,
+    CrowdSim,
+    EgoConfig,
+    Layout,
+    PopulationConfig,
+    layout_from_scene,
+    make_layout,
+)
+from st_sim.sim import population_cap as sim_population_cap
 
 SYNTHETIC_LAYOUTS: tuple[str, ...] = ("crossing", "corridor", "bottleneck")
 
@@ -36,20 +45,26 @@ def build_layout(name: str, root: str | os.PathLike | None = None) -> Layout:
 
 def population_cap(crowd: CrowdConfig, layout: Layout) -> int:
     """Most pedestrians the simulator admits at once (its ``max_pedestrians``), known before it is built."""
-    if crowd.density_per_m2 is None:
-        return int(crowd.max_pedestrians)
-    return round(crowd.density_per_m2 * layout.walkable_area_m2())
+    return sim_population_cap(crowd, layout)
+
+
+def default_crowd(layout: str) -> CrowdConfig:
+    """The crowd of a layout: calibrated steering; in a real scene's geometry, that scene's fitted population."""
+    return CrowdConfig(population=PopulationConfig.fitted(layout)) if layout in SCENES else CrowdConfig()
 
 
 class SimCrowdEnv(CrowdEnv):
     """A pymunk crowd walking between entries and exits of a layout; the ego robot crosses it.
 
     ## Description
-    Pedestrians (discs of 0.25 m, social-force steering, pymunk contacts; ``st_sim.sim.CrowdSim``) enter
-    at the layout's entries and leave at its exits; one step is 0.4 s. The ego is a heavy disc of radius
-    0.3 m whose velocity follows the action within an acceleration limit; pedestrians react to it as to
-    any body. Every pedestrian present is in the observation; one with T_obs consecutive steps of
-    presence also gets S predicted futures (one batched predictor call per step, one group).
+    Pedestrians (discs of 0.2 m, steered by the calibrated collision-free speed model, pymunk contacts;
+    ``st_sim.sim.CrowdSim``) enter at the layout's entries and leave at its exits; one step is 0.4 s. In a
+    real scene's geometry the population (walking speeds, people standing, groups) is the one fitted to
+    that scene's recording. The ego is a heavy disc of radius 0.3 m whose velocity follows the action within
+    an acceleration limit. With ``pedestrians_see_ego=True`` (default) pedestrians steer around it as around
+    another pedestrian; with False it is an invisible robot that they meet only by contact (the setting
+    CrowdNav-style benchmarks also report). Every pedestrian present is in the observation; one with T_obs
+    consecutive steps of presence also gets S predicted futures (one batched predictor call per step).
 
     ## Action Space
     Box(-1.5, 1.5, (2,), float32): commanded ego velocity (vx, vy) [m/s], world frame; scaled down to
@@ -72,31 +87,37 @@ class SimCrowdEnv(CrowdEnv):
     (200 steps); the crowd itself never ends.
 
     ## Info
-    As ``ReplayCrowdEnv``; ``frame`` is the simulator's step count.
+    As ``ReplayCrowdEnv``; ``frame`` is the simulator's step count; ``pedestrians_see_ego`` (bool) says
+    whether pedestrians steer around the ego.
 
     ## Arguments
     layout (crossing, corridor, bottleneck, or eth, hotel, univ, zara1, zara2 for a real scene's walls and
     openings, which needs the data root), predictor ("auto" (default): the universal SingularTrajectory
     checkpoint, trained on all five scenes, for 8 or 2 observed frames; or as ``ReplayCrowdEnv``), task, ego,
     render_mode, config (``EnvConfig``; its ego radius and speed limit go to the simulator), crowd
-    (``st_sim.sim.CrowdConfig``), root (data root), rerun (a .rrd path or "spawn": log every step to Rerun).
+    (``st_sim.sim.CrowdConfig``; default: calibrated steering and, in a real scene, its fitted population),
+    root (data root), rerun (a .rrd path or "spawn": log every step to Rerun), pedestrians_see_ego (True:
+    pedestrians steer around the ego; False: invisible robot).
 
     ## Version History
-    - v0: initial version.
+    - v0: initial version; since 2026-11-23 calibrated speed-model steering, 0.2 m pedestrians, fitted
+      populations in real scenes and ``pedestrians_see_ego`` (default True).
     """
 
     def __init__(self, layout: str = "crossing", predictor: Any = "auto", task: str = "stochastic",
                  ego: bool = True, render_mode: str | None = None, config: EnvConfig | None = None,
                  crowd: CrowdConfig | None = None, root: str | os.PathLike | None = None,
-                 rerun: str | None = None):
+                 rerun: str | None = None, pedestrians_see_ego: bool = True):
         self.layout = build_layout(layout, root)
-        self.crowd_cfg = crowd or CrowdConfig()
+        self.crowd_cfg = crowd or default_crowd(layout)
+        self.pedestrians_see_ego = bool(pedestrians_see_ego)
         super().__init__(self.layout.scene, population_cap(self.crowd_cfg, self.layout), f"sim layout {layout}",
                          predictor, task, ego, render_mode, config, shipped_checkpoint(task, None), rerun=rerun)
         self.sim: CrowdSim | None = None
 
     def _reset_world(self, options: dict) -> list[Frame]:
-        ego_cfg = EgoConfig(radius_m=self.cfg.ego_radius_m, max_speed_mps=self.cfg.max_speed_mps) if self.ego else None
+        ego_cfg = EgoConfig(radius_m=self.cfg.ego_radius_m, max_speed_mps=self.cfg.max_speed_mps,
+                            pedestrians_see_ego=self.pedestrians_see_ego) if self.ego else None
         self.sim = CrowdSim(self.layout, self.crowd_cfg, self.np_random, ego=ego_cfg)
         frames = [self._sim_frame()]
         for _ in range(self.t_obs - 1):  # warm-up: the ego stands still while the crowd gets going
@@ -111,6 +132,9 @@ class SimCrowdEnv(CrowdEnv):
 
     def _ego_collided(self, frame: Frame) -> bool:
         return bool(self.sim.ego_collided)
+
+    def _info(self, reward_parts: dict[str, float]) -> dict[str, Any]:
+        return {**super()._info(reward_parts), "pedestrians_see_ego": self.pedestrians_see_ego}
 
     def _sim_frame(self) -> Frame:
         """The simulator's pedestrians now; also refreshes the ego state."""

@@ -71,7 +71,7 @@ AVOIDERS = [("orca", "none"), ("mpc", "cvm"), ("mpc", "singular"),
                          ids=["orca-none", "mpc-cvm", "mpc-singular", "ppo-singular", "ppo-none"])
 def test_planner_avoids_the_crosser_and_moves_on(open_world: NavWorld, planner: str, predictor: str) -> None:
     if planner == "orca":
-        pytest.importorskip("pyrvo", reason='ORCA needs the optional extra: pip install -e ".[nav]"')
+        pytest.importorskip("pyrvo", reason='ORCA needs the optional extra: pip install -e ".[orca]"')
     closest, to_goal = closest_approach(planner, open_world, predictor)
     assert closest >= open_world.contact_m, f"{planner}/{predictor} touched the crosser ({closest:.2f} m)"
     assert to_goal < 12.0 - 3.0, f"{planner}/{predictor} made no headway ({to_goal:.2f} m left)"

@@ -7,6 +7,8 @@ import pytest
 
 from replays import load_scene
 from st_sim.sim import CrowdConfig, CrowdSim, Layout, Region, layout_from_scene, make_layout
+from st_sim.sim.layouts import periodic_corridor
+from st_sim.sim.pairs import Neighbours
 from st_sim.sim.walls import WallGrid, point_segment
 
 SYNTHETIC = ["corridor", "crossing", "bottleneck"]
@@ -98,3 +100,23 @@ def test_wall_grid_distance_matches_brute_force(zara1: Layout) -> None:
     near = brute < 1.0
     np.testing.assert_allclose(grid.distance_m(points)[near], brute[near], atol=1e-9)
     assert (grid.distance_m(points)[~near] >= 1.0 - 1e-9).all()
+
+
+@pytest.mark.parametrize("bad", [{"gate_depth_m": 0.0}, {"max_gate_m": float("nan")}, {"simplify_m": -1.0}],
+                         ids=["gate_depth", "max_gate", "simplify"])
+def test_layout_from_scene_rejects_bad_parameters(toy_scene, bad: dict) -> None:
+    with pytest.raises(ValueError, match=rf"layout_from_scene\.{next(iter(bad))} = "):
+        layout_from_scene(toy_scene, **bad)
+
+
+def test_periodic_corridor_wraps_bodies_and_finds_neighbours_across_the_seam() -> None:
+    layout = periodic_corridor(10.0, 4.0)
+    assert layout.period is not None and not layout.entries
+    sim = CrowdSim(layout, CrowdConfig(max_pedestrians=30), np.random.default_rng(0))
+    for t in range(60):
+        sim.step()
+        x = sim.positions_m[:, 0]
+        assert ((x >= 0.0) & (x < 10.0)).all(), f"[step {t}] a pedestrian left the period"
+    assert len(sim.ids) == 30, "nobody leaves a periodic corridor"
+    nb = Neighbours.within(np.array([[0.1, 2.0], [9.9, 2.0]]), np.full(2, 0.2), 0.5, layout.period)
+    assert len(nb.i) == 1 and nb.offset_m[0] == pytest.approx([-0.2, 0.0])

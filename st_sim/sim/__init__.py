@@ -1,4 +1,5 @@
-"""pymunk crowd simulator: layouts (synthetic or from real scene maps) and the social-force CrowdSim.
+"""pymunk crowd simulator: layouts (synthetic or from real scene maps) and CrowdSim, steered by a calibrated
+collision-free speed model (or social forces), with populations fitted to ETH/UCY.
 
 Quick start::
 
@@ -11,10 +12,14 @@ Quick start::
     sim.save_recording("corridor.txt")  # replays.read_recording reads it back
 """
 
-from st_sim.sim.config import CrowdConfig, EgoConfig
-from st_sim.sim.crowd import CrowdSim
-from st_sim.sim.layout import Layout, Region
+from st_sim.sim.checks import LayoutTooLargeError
+from st_sim.sim.config import CrowdConfig, EgoConfig, PopulationConfig, SocialForceConfig, SpeedModelConfig
+from st_sim.sim.crowd import CrowdSim, population_cap
+from st_sim.sim.layout import Layout, Period, Region
 from st_sim.sim.layouts import make_layout
 from st_sim.sim.map_walls import layout_from_scene
+from st_sim.sim.population import PopulationError
 
-__all__ = ["CrowdConfig", "CrowdSim", "EgoConfig", "Layout", "Region", "layout_from_scene", "make_layout"]
+__all__ = ["CrowdConfig", "CrowdSim", "EgoConfig", "Layout", "LayoutTooLargeError", "Period", "PopulationConfig",
+           "PopulationError", "Region", "SocialForceConfig", "SpeedModelConfig", "layout_from_scene", "make_layout",
+           "population_cap"]

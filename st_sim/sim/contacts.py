@@ -5,8 +5,10 @@ some 35 cm into each other during one 0.13 s substep before pymunk pushed back. 
 ahead instead: for every pair (and every body and each wall near it) it removes the part of the closing speed
 that would overrun the gap. Overlapping pairs may not close further and open at half their overlap per
 substep. The correction is split equally between two pedestrians, or taken wholly by a pedestrian at a
-wall; a few over-relaxed Jacobi sweeps settle bodies with several neighbours, and bodies that still close
-a gap after them stand still for the substep. pymunk resolves the rest.
+wall; a few over-relaxed Jacobi sweeps settle bodies with several neighbours. Where they do not settle
+(a dense jam), the bodies still closing a gap first give up their own approach along the contact normal
+(they slide past each other), and those still closing after that stand still for the substep. pymunk
+resolves the rest.
 """
 
 from __future__ import annotations
@@ -14,12 +16,13 @@ from __future__ import annotations
 import numpy as np
 
 from st_sim.sim.config import WALL_RADIUS_M
-from st_sim.sim.steering import Neighbours, dot
+from st_sim.sim.pairs import Neighbours, dot
 from st_sim.sim.walls import NearbyWalls
 
-SWEEPS = 8  # most Jacobi sweeps over all constraints per substep
+SWEEPS = 4  # most Jacobi sweeps over all constraints per substep
 OMEGA = 1.5  # over-relaxation of the averaged Jacobi corrections between bodies [-]
 FREEZE_PASSES = 50  # most rounds of stopping the bodies left closing a gap (one round per follower in a queue)
+SLIDE_PASSES = 3  # the first rounds only take away the closing bodies' approach (they slide), later ones stop them
 FREEZE_TOLERANCE_MPS = 0.01  # closing speed beyond the allowed one that counts as closing [m/s]
 REACH_FACTOR = 2.0  # constraints cover gaps up to this multiple of the distance the bodies could close [-]
 SKIN_M = 0.1  # ... plus this much, for bodies at rest that a correction may set moving [m]
@@ -31,36 +34,54 @@ def contact_reach_m(radius_m: float, speed_mps: float, dt_s: float) -> float:
     return radius_m + WALL_RADIUS_M + SKIN_M + REACH_FACTOR * dt_s * speed_mps
 
 
+def pair_reach_m(contact_m: float, speed_mps: float, dt_s: float) -> float:
+    """Farthest centre distance [m] at which two bodies touching at contact_m, each at speed_mps, may need a
+    constraint."""
+    return contact_m + SKIN_M + REACH_FACTOR * dt_s * 2 * speed_mps
+
+
 def allowed_closing_mps(gap_m: np.ndarray, dt_s: float) -> np.ndarray:
     """Closing speed [m/s] that just closes gap_m within dt_s; for overlaps (gap < 0) a share opens."""
     return np.where(gap_m > 0, gap_m, OVERLAP_OPENING * gap_m) / dt_s
 
 
-def keep_apart(velocity_mps: np.ndarray, radius_m: np.ndarray, movable: np.ndarray, nb: Neighbours,
-               walls: NearbyWalls, dt_s: float) -> np.ndarray:
+def keep_apart(velocity_mps: np.ndarray, radius_m: np.ndarray, yielding: np.ndarray, nb: Neighbours,
+               walls: NearbyWalls, dt_s: float, give_m: float = 0.0) -> np.ndarray:
     """Velocities (N, 2) [m/s] trimmed so that no pair and no body-wall gap closes beyond contact within dt_s.
 
-    A body whose velocity is imposed (the ego, movable False) is stopped by walls like everybody else but
-    takes no part between bodies: it neither yields nor makes pedestrians yield, so it really bumps into
-    them and pymunk reports the contact.
+    Two bodies share a correction in proportion to how readily each yields: a walker (1) and a standing
+    pedestrian (a small weight) share it mostly to the walker's cost. A body whose velocity is imposed (the ego,
+    0) is an obstacle to the others, like a wall: they do not walk into it, but it is not held back by them
+    (driving into somebody is a contact) and only walls stop it. Leave a pair out of nb and the two bodies
+    ignore each other (pymunk still resolves their contact: an invisible ego is bumped into).
 
     Args:
         velocity_mps: (N, 2) proposed velocities [m/s].  radius_m: (N,) body radii [m].
-        movable: (N,) bool; False for bodies whose velocity is imposed (the ego).
+        yielding: (N,) weights >= 0, how readily each body gives way (0: never, the ego).
         nb: pairs, any superset of those that can touch within dt_s.  walls: the walls near every body.
+        give_m: two yielding bodies may overlap this much before they stop closing (soft bodies) [m]; walls and
+            the ego stay hard.
     """
     n = len(velocity_mps)
     speed = np.sqrt(dot(velocity_mps, velocity_mps))
-    # agent-agent constraints: i and j, unit normal from i toward j, closing speed allowed
-    near = ((nb.dist_m < nb.contact_m + SKIN_M + REACH_FACTOR * dt_s * (speed[nb.i] + speed[nb.j]))
-            & movable[nb.i] & movable[nb.j])
-    i, j, unit = nb.i[near], nb.j[near], nb.unit[near]
-    gap = nb.dist_m[near] - nb.contact_m[near]
+    yielding = np.asarray(yielding, dtype=np.float64)
+    # agent-agent constraints: i and j, unit normal from i toward j, closing speed allowed; a body that never
+    # yields (the ego) stands in its pairs as the static row n, like a wall: the other body keeps clear of it,
+    # but the ego's own motion is not trimmed, so an ego that drives into somebody really touches them
+    weight = yielding[nb.i] + yielding[nb.j]
+    near = (nb.dist_m < nb.contact_m + SKIN_M + REACH_FACTOR * dt_s * (speed[nb.i] + speed[nb.j])) & (weight > 0)
+    flip = near & (yielding[nb.i] == 0)
+    i, j = np.where(flip, nb.j, nb.i)[near], np.where(flip, nb.i, nb.j)[near]
+    unit = np.where(flip[:, None], -nb.unit, nb.unit)[near]
+    both = yielding[j] > 0
+    gap = nb.dist_m[near] - nb.contact_m[near] + np.where(both, give_m, 0.0)
+    share_pairs = np.where(both, yielding[i] / weight[near], 1.0)
+    j = np.where(both, j, n)
     # agent-wall constraints: the wall is body n, a row that never moves
     wall_gap = walls.dist_m - radius_m[:, None] - WALL_RADIUS_M
     body, slot = np.nonzero(wall_gap < SKIN_M + REACH_FACTOR * dt_s * speed[:, None])
-    share_i = np.concatenate([np.full(len(i), 0.5), np.ones(len(body))])
-    share_j = np.concatenate([np.full(len(i), 0.5), np.zeros(len(body))])
+    share_i = np.concatenate([share_pairs, np.ones(len(body))])
+    share_j = np.concatenate([1.0 - share_pairs, np.zeros(len(body))])
     i = np.concatenate([i, body])
     j = np.concatenate([j, np.full(len(body), n)])
     unit = np.concatenate([unit, walls.to_wall[body, slot]])
@@ -80,19 +101,28 @@ def keep_apart(velocity_mps: np.ndarray, radius_m: np.ndarray, movable: np.ndarr
     bodies = np.stack([i, j], axis=1).ravel()
     for _ in range(SWEEPS):
         load = np.maximum(np.bincount(bodies, np.repeat(excess > 0, 2), minlength=n + 1), 1.0)
-        v += np.bincount(slots, (push * excess[:, None]).ravel(), minlength=size) / np.tile(load, 2)
+        v += np.bincount(slots, (push * excess[:, None]).ravel(), minlength=size) / np.concatenate([load, load])
         excess = np.maximum((v[slots].reshape(-1, 4) * coef).sum(axis=1) - allowed, 0.0)
         if not excess.any():
             break
-    # safety net where the sweeps did not settle (dense jams): whoever would still close a gap stands still,
-    # which can only relieve its neighbours' constraints, except those of followers; repeat for them
+    # safety net where the sweeps did not settle (dense jams): first every body of a constraint still closing
+    # gives up its own motion toward the other body (it slides past instead), then whoever still closes a gap
+    # stands still, which can only relieve its neighbours' constraints, except those of followers; repeat
     no_closer = np.maximum(allowed, 0.0) + FREEZE_TOLERANCE_MPS
-    for _ in range(FREEZE_PASSES):
+    gives = np.r_[yielding > 0, False]  # bodies that may be slowed: not the walls' row, not the ego ...
+    gives_at = np.concatenate([gives[i] | (j == n), gives[j]])  # ... except by the walls
+    slot_gives = np.stack([gives_at[: len(i)]] * 2 + [gives_at[len(i):]] * 2, axis=1)  # (C, 4)
+    for round_ in range(FREEZE_PASSES):
         stuck = (v[slots].reshape(-1, 4) * coef).sum(axis=1) > no_closer
         if not stuck.any():
             break
+        if round_ < SLIDE_PASSES:
+            own = v[slots[stuck.repeat(4)]].reshape(-1, 4) * coef[stuck]  # (S, 4): i's and j's closing parts
+            toward = np.maximum(np.stack([own[:, :2].sum(axis=1), own[:, 2:].sum(axis=1)], axis=1), 0.0)
+            give_up = np.repeat(toward, 2, axis=1) * coef[stuck] * slot_gives[stuck]  # approach along the normal
+            v -= np.bincount(slots[stuck.repeat(4)], give_up.ravel(), minlength=size)
+            continue
         frozen = np.zeros(n + 1, bool)
-        frozen[bodies.reshape(-1, 2)[stuck].ravel()] = True
-        frozen[n] = False
-        v[np.tile(frozen, 2)] = 0.0
+        frozen[bodies.reshape(-1, 2)[stuck].ravel()[slot_gives[stuck][:, 1::2].ravel()]] = True
+        v[np.concatenate([frozen, frozen])] = 0.0
     return np.stack([v[:n], v[n + 1: 2 * n + 1]], axis=-1)

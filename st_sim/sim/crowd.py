@@ -1,11 +1,13 @@
-"""CrowdSim: pedestrians steered by social forces through a layout, pymunk resolving their contacts.
+"""CrowdSim: pedestrians steered through a layout (speed model or social force), pymunk resolving their contacts.
 
 One ``step`` advances 0.4 s (one ETH/UCY frame) as an explicit loop of pymunk substeps. Per substep:
-read every body's state in one batched call; compute the social-force velocities of all pedestrians with
-NumPy (``steering``) and the ego's velocity (its command within the acceleration limit); trim what would
-overrun a gap (``contacts``); write velocities and forces back in one call; let pymunk move the bodies
-and resolve the contacts. Between steps, pedestrians that reached their exit leave, those stuck for
-``patience_s`` pick another exit, and new ones arrive at the entries (Poisson).
+read every body's state in one batched call (wrapping bodies round a periodic layout); find the pairs of
+bodies within reach; bend group members' desired velocities toward their group; compute every pedestrian's
+new velocity with the steering model (``speed_model`` or ``social_force``) and the ego's (its command within
+the acceleration limit); trim what would overrun a gap (``contacts``); write velocities and forces back in
+one call; let pymunk move the bodies and resolve the contacts. Between steps planned stops begin,
+pedestrians that reached their exit leave, those stuck for ``patience_s`` pick another exit, and new ones
+(alone or in groups) arrive at the entries (Poisson).
 """
 
 from __future__ import annotations
@@ -18,24 +20,47 @@ import pymunk
 
 from replays.constants import FRAME_STRIDE, STEP_S
 from replays.recording import Recording, write_recording
-from st_sim.sim import physics
-from st_sim.sim.config import EGO_MASS_KG, PED_MASS_KG, WALL_RADIUS_M, CrowdConfig, EgoConfig
-from st_sim.sim.contacts import contact_reach_m, keep_apart
-from st_sim.sim.layout import Layout
-from st_sim.sim.navigation import NavigationField
-from st_sim.sim.population import (
-    PROGRESS_M,
-    Roster,
-    choose_exits,
-    lattice_positions,
-    preferred_speeds,
-    spawn_points,
+from st_sim.sim import physics, social_force, speed_model
+from st_sim.sim.config import (
+    EGO_MASS_KG,
+    MAX_POPULATION,
+    PED_MASS_KG,
+    WALL_RADIUS_M,
+    CrowdConfig,
+    EgoConfig,
+    SocialForceConfig,
+    SpeedModelConfig,
 )
-from st_sim.sim.steering import Neighbours, cap_speed, steer
+from st_sim.sim.contacts import contact_reach_m, keep_apart, pair_reach_m
+from st_sim.sim.groups import PACE_RANGE, cohesion
+from st_sim.sim.layout import Layout, Region
+from st_sim.sim.navigation import NavigationField
+from st_sim.sim.pairs import Neighbours, cap_speed
+from st_sim.sim.population import PROGRESS_M, PopulationError, Roster, choose_exits
+from st_sim.sim.spawning import Arrivals, initial_crowd, place_arrivals
+from st_sim.sim.stops import start_standing
 from st_sim.sim.walls import WallGrid
 
 CONTACT_TOLERANCE_M = 0.01  # the ego counts as touching a wall this close [m]
-NAV_SLACK_M = 0.15  # routes keep this much more than body + wall radius off the walls: no gaps under ~0.9 m [m]
+NAV_SLACK_M = 0.05  # routes keep this much more than body + wall radius off the walls: no gaps under ~0.6 m [m]
+BODY_GIVE_M = 0.03  # two pedestrians may press this far into each other (soft bodies; pymunk's discs are smaller) [m]
+STANDING_YIELD = 0.1  # a standing pedestrian takes this share of a contact correction relative to a walker [-]
+STEERING = {SpeedModelConfig: speed_model, SocialForceConfig: social_force}  # modules with plan() and walk()
+
+
+def population_cap(cfg: CrowdConfig, layout: Layout) -> int:
+    """Most pedestrians present at once: cfg.max_pedestrians, or density x the layout's walkable area.
+
+    Raises:
+        PopulationError: the density asks for more than MAX_POPULATION pedestrians.
+    """
+    if cfg.density_per_m2 is None:
+        return int(cfg.max_pedestrians)
+    cap = round(cfg.density_per_m2 * layout.walkable_area_m2())
+    if cap > MAX_POPULATION:
+        raise PopulationError(f"CrowdConfig.density_per_m2 = {cfg.density_per_m2} asks for {cap} pedestrians in "
+                              f"layout {layout.name}; the simulator holds at most {MAX_POPULATION}")
+    return cap
 
 
 class CrowdSim:
@@ -43,37 +68,49 @@ class CrowdSim:
 
     Args:
         layout: walls, entries, exits and map (``make_layout`` or ``layout_from_scene``).
-        cfg: crowd tunables.
-        rng: the only source of randomness (speeds, placement, spawning, exits).
-        ego: ego robot settings; None = no ego.
-        n_initial: pedestrians placed at the start, at most the population cap; None = the cap (fewer if they
-            do not fit).
+        cfg: crowd tunables (population, steering model, contacts).
+        rng: the only source of randomness (speeds, placement, groups, stops, spawning, exits).
+        ego: ego robot settings (``pedestrians_see_ego`` among them); None = no ego.
+        n_initial: pedestrians placed at the start, at most the population cap; None = the cap.
+        start_region: where the initial crowd is placed; None = anywhere with a route to an exit.
+
+    Raises:
+        PopulationError: n_initial is above the cap, or the pedestrians asked for do not fit in the layout
+            (the message says how many do).
+        ValueError: the layout offers no room for a pedestrian, or an entry reaches none of its exits
+            (a passage narrower than a pedestrian needs, a closed door).
 
     Attributes:
         step_count: steps taken since construction.
-        max_pedestrians: population cap (cfg.max_pedestrians, or density x walkable area).
+        max_pedestrians: population cap (``population_cap``).
     """
 
     def __init__(self, layout: Layout, cfg: CrowdConfig, rng: np.random.Generator, ego: EgoConfig | None = None,
-                 n_initial: int | None = None):
+                 n_initial: int | None = None, start_region: Region | None = None):
         self.layout, self.cfg, self.rng, self.ego_cfg = layout, cfg, rng, ego
         self.step_count = 0
-        self.max_pedestrians = (cfg.max_pedestrians if cfg.density_per_m2 is None
-                                else round(cfg.density_per_m2 * layout.walkable_area_m2()))
+        self.max_pedestrians = population_cap(cfg, layout)
+        n_initial = self.max_pedestrians if n_initial is None else int(n_initial)
+        if not 0 <= n_initial <= self.max_pedestrians:
+            raise PopulationError(f"CrowdSim: n_initial = {n_initial} must be between 0 and the population cap "
+                                  f"{self.max_pedestrians}")
         self._dt_s = STEP_S / cfg.n_substeps
-        wall_reach_m = max(cfg.wall_cutoff_m, contact_reach_m(max(cfg.radius_m, ego.radius_m if ego else 0.0),
-                                                              self._top_speed_mps(), self._dt_s))
+        self._model = STEERING[type(cfg.steering)]
+        self._widest_m = widest_m = max(cfg.radius_m, ego.radius_m if ego else 0.0)
+        wall_reach_m = max(cfg.steering.wall_cutoff_m, contact_reach_m(widest_m, self._top_speed_mps(), self._dt_s))
         self._walls = layout.derived(("walls", cfg.nav_cell_m, wall_reach_m), lambda: WallGrid(
             layout.walls_m, layout.bounds_m, cfg.nav_cell_m, wall_reach_m))
-        clearance_m = cfg.radius_m + WALL_RADIUS_M + NAV_SLACK_M
+        clearance_m = cfg.radius_m + WALL_RADIUS_M + (NAV_SLACK_M if layout.period is None else 0.0)
         self.nav = layout.derived(("navigation", clearance_m, cfg.nav_cell_m), lambda: NavigationField(
             layout, self._walls, clearance_m, cfg.nav_cell_m))
+        self._check_routes(clearance_m)
         self.space = physics.make_space(cfg)
         physics.add_walls(self.space, layout.walls_m)
         self._batch = physics.BodyBatch(self.space)
         self._bodies: dict[int, pymunk.Body] = {}
         self._roster = Roster.empty()
         self._next_ped_id = 0
+        self._next_group = 0
         self._ego_body: pymunk.Body | None = None
         self._ego_command_mps = np.zeros(2)
         self._ego_collided = False
@@ -85,15 +122,34 @@ class CrowdSim:
                         [self._ego_body])
             self.space.on_collision(physics.EGO_TYPE, None, pre_solve=self._on_ego_contact)
             keep_clear_m = start[None]
-        self._place_initial(self.max_pedestrians if n_initial is None else min(n_initial, self.max_pedestrians),
-                            keep_clear_m)
+        self.add(initial_crowd(self.nav, layout, cfg, n_initial, keep_clear_m,
+                                self._roster.radius_m.max(initial=0.0), self._next_group, rng, start_region))
         self._settle_order()
         self._history: list[tuple[np.ndarray, np.ndarray]] = [(self.ids, self.positions_m)]
 
     def _top_speed_mps(self) -> float:
-        """Fastest any body may move [m/s]: a pedestrian at its cap, or the ego."""
-        pedestrian = self.cfg.max_speed_factor * self.cfg.preferred_speed_range_mps[1]
-        return max(pedestrian, self.ego_cfg.max_speed_mps if self.ego_cfg else 0.0)
+        """Fastest any body may move [m/s]: a pedestrian at its cap (and a group's pace), or the ego."""
+        return max(self.cfg.top_speed_mps * PACE_RANGE[1], self.ego_cfg.max_speed_mps if self.ego_cfg else 0.0)
+
+    def _check_routes(self, clearance_m: float) -> None:
+        """Refuse layouts where no pedestrian fits, or no entry reaches any of its exits (a closed door); an
+        entry that leads nowhere (a real scene's isolated border opening) only stays unused."""
+        narrow = f"passages narrower than about {2 * clearance_m:.2f} m let no pedestrian through"
+        if not self.nav.startable.any():
+            raise ValueError(f"layout {self.layout.name}: no room for a pedestrian with a route to an exit ({narrow})")
+        if self.layout.entries and not any(self._entry_reaches_exit(entry, exits) for entry, exits
+                                           in zip(self.layout.entries, self.layout.routes, strict=True)):
+            raise ValueError(f"layout {self.layout.name}: no entry reaches any of its exits; {narrow}")
+
+    def _entry_reaches_exit(self, entry: Region, exits: tuple[int, ...]) -> bool:
+        """True if some free point of entry has one of exits within reach (and farther than MIN_ROUTE_M)."""
+        lo, hi = entry.polygon_m.min(axis=0), entry.polygon_m.max(axis=0)
+        xy = np.stack(np.meshgrid(np.arange(lo[0], hi[0], self.cfg.nav_cell_m / 2),
+                                  np.arange(lo[1], hi[1], self.cfg.nav_cell_m / 2)), -1).reshape(-1, 2)
+        xy = xy[entry.contains(xy) & self.nav.free_at(xy)]
+        allowed = np.zeros(len(self.layout.exits), bool)
+        allowed[list(exits)] = True
+        return bool(choose_exits(self.nav, xy, allowed, self.rng)[1].any())
 
     def __repr__(self) -> str:
         ego = "" if self._ego_body is None else " + ego"
@@ -120,6 +176,21 @@ class CrowdSim:
         """(N, 2) float64 centre of the exit each pedestrian heads to [m], rows aligned with ``ids``."""
         centres = np.array([region.centre_m for region in self.layout.exits])
         return centres[self._roster.exit_idx[self._order]]
+
+    @property
+    def preferred_speeds_mps(self) -> np.ndarray:
+        """(N,) float64 preferred walking speeds [m/s] (while walking), rows aligned with ``ids``."""
+        return self._roster.speed_mps[self._order]
+
+    @property
+    def groups(self) -> np.ndarray:
+        """(N,) int64 group of each pedestrian (-1: alone), rows aligned with ``ids``."""
+        return self._roster.group[self._order]
+
+    @property
+    def standing(self) -> np.ndarray:
+        """(N,) bool, True for pedestrians standing still on purpose (a planned stop), aligned with ``ids``."""
+        return self._roster.standing(self.step_count)[self._order]
 
     @property
     def ego_position_m(self) -> np.ndarray | None:
@@ -149,31 +220,67 @@ class CrowdSim:
             target = cap_speed(np.asarray(ego_velocity_mps, dtype=np.float64).reshape(1, 2),
                                np.array([self.ego_cfg.max_speed_mps]))[0]
         self._ego_collided = False
-        roster = self._roster
+        roster, period = self._roster, self.layout.period
         movable = roster.ped_id >= 0
         mass_kg = np.where(movable, PED_MASS_KG, EGO_MASS_KG)[:, None]
-        for _ in range(self.cfg.n_substeps):
-            xy_m, v_mps = self._batch.read()
-            nb = Neighbours.within(xy_m, roster.radius_m, self.cfg.agent_cutoff_m)
+        standing = roster.standing(self.step_count)
+        walk_mps = np.where(standing, 0.0, roster.speed_mps)
+        yielding = np.where(movable, np.where(standing, STANDING_YIELD, 1.0), 0.0)
+        for substep in range(self.cfg.n_substeps):
+            xy_m, v_mps = self._read()
+            fastest_mps = float(np.sqrt(np.max(v_mps[:, 0] ** 2 + v_mps[:, 1] ** 2, initial=0.0)))
+            cutoff_m = max(self.cfg.steering.agent_cutoff_m, pair_reach_m(2 * self._widest_m, fastest_mps, self._dt_s))
+            nb = Neighbours.within(xy_m, roster.radius_m, cutoff_m, period)
             walls = self._walls.near(xy_m)
-            direction = self.nav.direction_at(roster.exit_idx, xy_m)
-            wanted_v = steer(v_mps, direction, roster.speed_mps, roster.radius_m, nb, walls, self.cfg, self._dt_s)
+            seen = nb if self._ego_seen else nb.take(movable[nb.i] & movable[nb.j])
+            if substep == 0:  # decide once per step; walk every substep
+                direction, speed_mps = cohesion(xy_m, self.nav.direction_at(roster.exit_idx, xy_m), walk_mps,
+                                                roster.group, period)
+                heading = self._model.plan(v_mps, direction, speed_mps, roster.radius_m, seen, walls,
+                                           self.cfg.steering)
+            wanted_v = cap_speed(self._model.walk(heading, v_mps, speed_mps, roster.radius_m, seen, walls,
+                                                  self.cfg.steering, self._dt_s), self.cfg.max_speed_factor * speed_mps)
             if self._ego_slot is not None:
                 self._ego_command_mps = self._ego_command_mps + cap_speed(
                     (target - self._ego_command_mps)[None], np.array([self.ego_cfg.max_accel_mps2 * self._dt_s]))[0]
                 wanted_v[self._ego_slot] = v_mps[self._ego_slot] = self._ego_command_mps
-            safe_v = keep_apart(v_mps, roster.radius_m, movable, nb, walls, self._dt_s)
+            safe_v = keep_apart(v_mps, roster.radius_m, yielding, seen, walls, self._dt_s, BODY_GIVE_M)
             self._batch.write(safe_v, mass_kg * (wanted_v - safe_v) / self._dt_s)
             self.space.step(self._dt_s)
             self._ego_collided |= self._ego_touches_wall()
             roster.moved_mps[:] = safe_v
         self.step_count += 1
-        xy_m, _ = self._batch.read()  # rows follow the roster: nothing was added or removed during the step
-        self._reroute_stuck(xy_m)
-        stay = self._remove_arrived(xy_m)
-        self._spawn(xy_m[stay])
+        xy_m, _ = self._read()  # rows follow the roster: nothing was added or removed during the step
+        if (roster.stop_step >= 0).any():
+            start_standing(roster, self.step_count, self._in_gate(xy_m), self.cfg.population, self.rng)
+        if period is None:
+            self._reroute_stuck(xy_m)
+            stay = self._remove_arrived(xy_m)
+            self._spawn(xy_m[stay])
         self._settle_order()
         self._history.append((self.ids, self.positions_m))
+
+    @property
+    def _ego_seen(self) -> bool:
+        return self.ego_cfg is not None and self.ego_cfg.pedestrians_see_ego
+
+    def _read(self) -> tuple[np.ndarray, np.ndarray]:
+        """Positions (K, 2) [m] and velocities (K, 2) [m/s] of the bodies in roster order; in a periodic layout,
+        bodies that crossed the seam are moved to their image inside the period first."""
+        xy_m, v_mps = self._batch.read()
+        if self.layout.period is not None:
+            wrapped = self.layout.period.wrap(xy_m)
+            for row in np.flatnonzero(wrapped[:, 0] != xy_m[:, 0]).tolist():
+                self._bodies[int(self._roster.body_id[row])].position = tuple(wrapped[row])
+            xy_m = wrapped
+        return xy_m, v_mps
+
+    def _in_gate(self, xy_m: np.ndarray) -> np.ndarray:
+        """(K,) bool, True for bodies inside any entry or exit strip."""
+        inside = np.zeros(len(xy_m), bool)
+        for region in {id(r): r for r in [*self.layout.entries, *self.layout.exits]}.values():
+            inside |= region.contains(xy_m)
+        return inside
 
     def _on_ego_contact(self, arbiter: pymunk.Arbiter, space: pymunk.Space, data: object) -> None:
         self._ego_collided = True
@@ -191,27 +298,23 @@ class CrowdSim:
         self._roster = self._roster.extend(rows)
         self._bodies.update({body.id: body for body in bodies})
 
-    def _add_pedestrians(self, xy_m: np.ndarray, exit_idx: np.ndarray) -> None:
-        """Add pedestrians at xy_m (M, 2) [m] heading to exit_idx (M,), walking at their preferred speed."""
-        speed = preferred_speeds(self.cfg, len(xy_m), self.rng)
-        velocity = speed[:, None] * self.nav.direction_at(exit_idx, xy_m)
-        bodies = [physics.add_pedestrian(self.space, p, v, self.cfg.radius_m) for p, v in zip(xy_m, velocity,
-                                                                                               strict=True)]
-        ped_id = self._next_ped_id + np.arange(len(xy_m), dtype=np.int64)
-        self._next_ped_id += len(xy_m)
-        self._admit(Roster.of([b.id for b in bodies], ped_id, exit_idx, speed, np.full(len(xy_m), self.cfg.radius_m),
-                              velocity, self.step_count), bodies)
-
-    def _place_initial(self, n: int, keep_clear_m: np.ndarray) -> None:
-        """Place up to n pedestrians on free lattice sites, away from the points keep_clear_m (B, 2) [m]."""
-        gap = self.cfg.spawn_gap_m
-        clear_gap = np.full(len(keep_clear_m), self.cfg.radius_m + self._roster.radius_m.max(initial=0.0) + gap)
-        xy_m = lattice_positions(self.nav, n, 2 * self.cfg.radius_m, gap, keep_clear_m, clear_gap, self.rng)
-        exit_idx, ok = choose_exits(self.nav, xy_m, np.ones(len(self.layout.exits), bool), self.rng)
-        self._add_pedestrians(xy_m[ok], exit_idx[ok])
+    def add(self, new: Arrivals) -> None:
+        """Add the pedestrians of new (positions, exits, speeds, groups, stop plans) now, walking at their preferred
+        speed or standing; the caller makes sure that they do not overlap anybody. Their ids are fresh."""
+        n = len(new.xy_m)
+        walking = (new.go_step <= self.step_count)[:, None]
+        velocity = new.speed_mps[:, None] * self.nav.direction_at(new.exit_idx, new.xy_m) * walking
+        bodies = [physics.add_pedestrian(self.space, p, v, self.cfg.radius_m - BODY_GIVE_M / 2)
+                  for p, v in zip(new.xy_m, velocity, strict=True)]
+        ped_id = self._next_ped_id + np.arange(n, dtype=np.int64)
+        self._next_ped_id += n
+        self._next_group = max(self._next_group, int(new.group.max(initial=-1)) + 1)
+        self._admit(Roster.of([b.id for b in bodies], ped_id, new.exit_idx, new.speed_mps,
+                              np.full(n, self.cfg.radius_m), velocity, self.step_count, new.group, new.stop_step,
+                              new.go_step), bodies)
 
     def _reroute_stuck(self, xy_m: np.ndarray) -> None:
-        """Pedestrians that came no closer to their exit for cfg.patience_s head for another exit.
+        """Walking pedestrians that came no closer to their exit for cfg.patience_s head for another exit.
 
         Args:
             xy_m: (K, 2) positions of the roster's bodies [m].
@@ -219,7 +322,7 @@ class CrowdSim:
         rows = self._roster
         iy, ix = self.nav.cells(xy_m)
         to_exit = self.nav.distance_m[rows.exit_idx, iy, ix]
-        better = to_exit < rows.best_to_exit_m - PROGRESS_M
+        better = (to_exit < rows.best_to_exit_m - PROGRESS_M) | rows.standing(self.step_count)
         rows.best_to_exit_m[better] = to_exit[better]
         rows.progress_step[better] = self.step_count
         stuck = np.flatnonzero((rows.ped_id >= 0)
@@ -252,36 +355,24 @@ class CrowdSim:
         return ~gone
 
     def _spawn(self, xy_m: np.ndarray) -> None:
-        """Poisson arrivals at every entry, while below the cap and where there is room.
+        """Poisson arrivals (pedestrians alone or in groups) at every entry, while below the cap and where there
+        is room.
 
         Args:
             xy_m: (K, 2) positions of the roster's bodies [m].
         """
         counts = self.rng.poisson(self.cfg.spawn_rate_hz * STEP_S, len(self.layout.entries))
-        rows = self._roster
-        room = self.max_pedestrians - int(np.count_nonzero(rows.ped_id >= 0))
+        room = self.max_pedestrians - int(np.count_nonzero(self._roster.ped_id >= 0))
         if room <= 0 or not counts.any():
             return
-        heading = self.nav.direction_at(rows.exit_idx, xy_m) * (rows.ped_id >= 0)[:, None]
-        clearance = self.cfg.radius_m + rows.radius_m.max(initial=self.cfg.radius_m) + self.cfg.spawn_gap_m
-        for entry, count in enumerate(counts.tolist()):
-            count = min(count, room)
-            if count <= 0:
-                continue
-            allowed = np.zeros(len(self.layout.exits), bool)
-            allowed[list(self.layout.routes[entry])] = True
-            new_xy, new_exit = spawn_points(self.layout.entries[entry], count, allowed, self.nav, xy_m, heading,
-                                            clearance, self.cfg.spawn_lane_m, self.rng)
-            if len(new_xy):
-                self._add_pedestrians(new_xy, new_exit)
-                room -= len(new_xy)
-                xy_m = np.concatenate([xy_m, new_xy])
-                heading = np.concatenate([heading, self.nav.direction_at(new_exit, new_xy)])
+        arrivals = place_arrivals(self.nav, self.layout, self.cfg, counts, room, xy_m, self._roster, self.step_count,
+                                  self._next_group, self.rng)
+        self.add(arrivals)
 
     def _settle_order(self) -> None:
         """Align the roster with pymunk's body order and cache positions, velocities and the id order."""
         self._roster = self._roster.reorder(self._batch.body_ids())
-        self._xy_m, _ = self._batch.read()
+        self._xy_m, _ = self._read()
         is_ped = self._roster.ped_id >= 0
         peds = np.flatnonzero(is_ped)
         self._order = peds[np.argsort(self._roster.ped_id[peds], kind="stable")]

@@ -1,4 +1,4 @@
-"""Physical sanity of a simulated crowd: body overlaps, wall intrusions and escapes, neighbour distances, speeds."""
+"""Physical sanity of a simulated crowd: body overlaps, wall intrusions and escapes, neighbour distances."""
 
 from __future__ import annotations
 
@@ -6,16 +6,18 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from st_sim.sim.config import WALL_RADIUS_M
-from st_sim.sim.layout import Layout
+from st_sim.sim.layout import Layout, Period
+from st_sim.sim.pairs import Neighbours
 from st_sim.sim.walls import point_segment
 
 
-def max_overlap_m(xy_m: np.ndarray, radius_m: float) -> float:
-    """Deepest interpenetration of equal discs at xy_m (N, 2) [m]: max(2 r - centre distance, 0) [m]."""
+def max_overlap_m(xy_m: np.ndarray, radius_m: float, period: Period | None = None) -> float:
+    """Deepest interpenetration of equal discs at xy_m (N, 2) [m]: max(2 r - centre distance, 0) [m]
+    (across the seam of a periodic layout too)."""
     if len(xy_m) < 2:
         return 0.0
-    dist, _ = cKDTree(xy_m).query(xy_m, k=2)
-    return float(max(0.0, 2 * radius_m - dist[:, 1].min()))
+    nb = Neighbours.within(xy_m, np.full(len(xy_m), radius_m), 2 * radius_m, period)
+    return float(max(0.0, 2 * radius_m - nb.dist_m.min(initial=np.inf)))
 
 
 def escaped(layout: Layout, xy_m: np.ndarray) -> np.ndarray:
@@ -41,16 +43,3 @@ def nearest_neighbour_m(xy_m: np.ndarray) -> np.ndarray:
         return np.zeros(0)
     dist, _ = cKDTree(xy_m).query(xy_m, k=2)
     return dist[:, 1]
-
-
-def step_speeds_mps(frame: np.ndarray, agent: np.ndarray, xy_m: np.ndarray, frame_stride: int,
-                    step_s: float) -> np.ndarray:
-    """Speeds [m/s] between consecutive annotated frames (frame ids frame_stride apart) of the same agent.
-
-    Args:
-        frame, agent: (R,) int ids.  xy_m: (R, 2) positions [m].
-    """
-    order = np.lexsort((frame, agent))
-    f, a, p = frame[order], agent[order], xy_m[order]
-    consecutive = (a[1:] == a[:-1]) & (f[1:] - f[:-1] == frame_stride)
-    return np.linalg.norm(p[1:] - p[:-1], axis=1)[consecutive] / step_s

@@ -1,18 +1,33 @@
-"""Synthetic layouts that need no data: a four-way crossing, a bidirectional corridor and a bottleneck."""
+"""Synthetic layouts that need no data: a four-way crossing, a bidirectional corridor, a bottleneck, a corner
+and a periodic (wrap-around) corridor for the fundamental diagram.
+
+Every size is checked (finite, inside the stated range; ValueError naming the parameter otherwise), and the
+raster refuses layouts beyond the memory budget (``checks.MEMORY_BUDGET_BYTES``). A layout whose gaps are too
+narrow for a pedestrian is refused when a ``CrowdSim`` is built on it (no route from an entry to an exit).
+"""
 
 from __future__ import annotations
 
 import numpy as np
 
-from st_sim.sim.layout import Layout, Region, rasterise
+from st_sim.sim.checks import Bounds, check_value
+from st_sim.sim.layout import Layout, Period, Region, rasterise
 
 GATE_DEPTH_M = 1.5  # depth of the entry/exit strips at the open ends of a layout [m]
 MARGIN_M = 0.5  # raster margin around the walls [m]
+PERIODIC_PAD_M = 2.0  # a periodic corridor's walls reach this far beyond both ends of the period [m]
+LENGTH = Bounds(3.0, 100_000.0, "m")  # lengths of corridors, arms and rooms (the memory budget bounds them first)
+WIDTH = Bounds(0.5, 1_000.0, "m")  # widths of corridors and arms
 
 
 def _box(xmin: float, ymin: float, xmax: float, ymax: float) -> np.ndarray:
     """(4, 2) counter-clockwise rectangle [m]."""
     return np.array([[xmin, ymin], [xmax, ymin], [xmax, ymax], [xmin, ymax]], dtype=np.float64)
+
+
+def _check(layout: str, **sizes: tuple[float, Bounds]) -> None:
+    for name, (value, bounds) in sizes.items():
+        check_value(layout, name, value, bounds)
 
 
 def _build(name: str, free_polygon_m: np.ndarray, entries: list[Region], exits: list[Region],
@@ -25,7 +40,12 @@ def _build(name: str, free_polygon_m: np.ndarray, entries: list[Region], exits: 
 
 
 def corridor(length_m: float = 20.0, width_m: float = 8.0) -> Layout:
-    """Closed corridor with a gate strip at each end; pedestrians walk to the opposite end (two flows)."""
+    """Closed corridor with a gate strip at each end; pedestrians walk to the opposite end (two flows).
+
+    Args:
+        length_m: 3 to 100 000 m (within the memory budget).  width_m: 0.5 to 1000 m.
+    """
+    _check("corridor", length_m=(length_m, LENGTH), width_m=(width_m, WIDTH))
     gates = [Region("west", _box(0.0, 0.0, GATE_DEPTH_M, width_m)),
              Region("east", _box(length_m - GATE_DEPTH_M, 0.0, length_m, width_m))]
     return _build("corridor", _box(0.0, 0.0, length_m, width_m), gates, gates,
@@ -33,7 +53,13 @@ def corridor(length_m: float = 20.0, width_m: float = 8.0) -> Layout:
 
 
 def crossing(size_m: float = 20.0, arm_width_m: float = 6.0) -> Layout:
-    """Two corridors crossing at right angles (a plus sign); pedestrians go from any arm to any other."""
+    """Two corridors crossing at right angles (a plus sign); pedestrians go from any arm to any other.
+
+    Args:
+        size_m: 3 to 100 000 m, end to end.  arm_width_m: from 0.5 m to less than size_m.
+    """
+    _check("crossing", size_m=(size_m, LENGTH), arm_width_m=(arm_width_m, Bounds(WIDTH.low, size_m, "m",
+                                                                                  open_high=True)))
     a, b, s = (size_m - arm_width_m) / 2, (size_m + arm_width_m) / 2, size_m
     plus = np.array([[a, 0], [b, 0], [b, a], [s, a], [s, b], [b, b], [b, s], [a, s], [a, b], [0, b], [0, a], [a, a]],
                     dtype=np.float64)
@@ -44,7 +70,14 @@ def crossing(size_m: float = 20.0, arm_width_m: float = 6.0) -> Layout:
 
 
 def bottleneck(room_m: float = 8.5, wall_m: float = 1.0, height_m: float = 8.0, door_m: float = 1.2) -> Layout:
-    """Two rooms joined by a door in a thick wall; everybody walks from the west room to the east room."""
+    """Two rooms joined by a door in a thick wall; everybody walks from the west room to the east room.
+
+    Args:
+        room_m: depth of each room, 3 to 100 000 m.  wall_m: thickness of the wall, 0.05 to 100 m.
+        height_m: 0.5 to 1000 m.  door_m: door width, more than 0 and less than height_m [m].
+    """
+    _check("bottleneck", room_m=(room_m, LENGTH), wall_m=(wall_m, Bounds(0.05, 100.0, "m")),
+           height_m=(height_m, WIDTH), door_m=(door_m, Bounds(0.0, height_m, "m", open_low=True, open_high=True)))
     x1, x2, x3 = room_m, room_m + wall_m, 2 * room_m + wall_m
     y1, y2 = (height_m - door_m) / 2, (height_m + door_m) / 2
     free = np.array([[0, 0], [x1, 0], [x1, y1], [x2, y1], [x2, 0], [x3, 0], [x3, height_m], [x2, height_m],
@@ -55,11 +88,49 @@ def bottleneck(room_m: float = 8.5, wall_m: float = 1.0, height_m: float = 8.0, 
                   (x3 - GATE_DEPTH_M - 1.0, height_m / 2))
 
 
-SYNTHETIC = {"corridor": corridor, "crossing": crossing, "bottleneck": bottleneck}
+def corner(arm_m: float = 12.0, width_m: float = 2.0) -> Layout:
+    """A corridor that turns left by 90 degrees (RiMEA test 6): walk in from the west end, out at the north end.
+
+    Args:
+        arm_m: length of each arm, outer side, 3 to 100 000 m.  width_m: 0.5 m to arm_m - GATE_DEPTH_M.
+    """
+    _check("corner", arm_m=(arm_m, LENGTH), width_m=(width_m, Bounds(WIDTH.low, arm_m - GATE_DEPTH_M, "m")))
+    a, w = arm_m, width_m
+    free = np.array([[0, 0], [a, 0], [a, a], [a - w, a], [a - w, w], [0, w]], dtype=np.float64)
+    west = Region("west", _box(0.0, 0.0, GATE_DEPTH_M, w))
+    north = Region("north", _box(a - w, a - GATE_DEPTH_M, a, a))
+    return _build("corner", free, [west], [north], (GATE_DEPTH_M + 0.5, w / 2), (a - w / 2, a - GATE_DEPTH_M - 0.5))
+
+
+def periodic_corridor(length_m: float = 20.0, width_m: float = 4.0, two_way: bool = False) -> Layout:
+    """A straight corridor whose ends are joined (wrap-around along x): the fundamental-diagram set-up.
+
+    Pedestrians walk east for ever (two_way: each one east or west at random); nobody enters or leaves.
+    The walls (the bottom and top edges only) run along y = 0 and y = width_m, PERIODIC_PAD_M beyond both ends
+    of the period [0, length_m).
+
+    Args:
+        length_m: period, 3 to 100 000 m.  width_m: 0.5 to 1000 m.
+    """
+    _check("periodic_corridor", length_m=(length_m, LENGTH), width_m=(width_m, WIDTH))
+    pad, name = PERIODIC_PAD_M, "periodic_corridor"
+    bounds_m = (-pad - MARGIN_M, -MARGIN_M, length_m + pad + MARGIN_M, width_m + MARGIN_M)
+    scene, walls_m = rasterise(name, _box(-pad, 0.0, length_m + pad, width_m), bounds_m)
+    exits = [Region("east", _box(length_m - GATE_DEPTH_M, 0.0, length_m, width_m))]
+    if two_way:
+        exits.append(Region("west", _box(0.0, 0.0, GATE_DEPTH_M, width_m)))
+    return Layout(name=name, walls_m=walls_m[[0, 2]], entries=[], exits=exits, bounds_m=bounds_m, scene=scene,
+                  ego_start_m=np.array([1.0, width_m / 2]), ego_goal_m=np.array([length_m - 1.0, width_m / 2]),
+                  period=Period(0.0, float(length_m)))
+
+
+SYNTHETIC = {"corridor": corridor, "crossing": crossing, "bottleneck": bottleneck, "corner": corner,
+             "periodic_corridor": periodic_corridor}
 
 
 def make_layout(name: str) -> Layout:
-    """A layout by name: "corridor", "crossing", "bottleneck", or an ETH/UCY scene ("zara1", ...).
+    """A layout by name: "corridor", "crossing", "bottleneck", "corner", "periodic_corridor", or an ETH/UCY scene
+    ("zara1", ...).
 
     Real scenes read their map from the data root (``replays.load_scene``).
     """

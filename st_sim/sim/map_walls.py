@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from replays.scenes import Scene
+from st_sim.sim.checks import Bounds, check_value
 from st_sim.sim.layout import Layout, Region, polygon_edges
 
 MIN_HOLE_M2 = 0.25  # contours enclosing less area than this are map noise [m^2]
@@ -134,8 +135,13 @@ def layout_from_scene(scene: Scene, gate_depth_m: float = 1.5, max_gate_m: float
         to any gate farther than MIN_ROUTE_M from where they entered.
 
     Raises:
-        ValueError: the map has no walkable region or no opening on the image border.
+        ValueError: a parameter outside its range (gate_depth_m in (0, 50], max_gate_m in [0.5, 1000],
+            simplify_m in (0, 5] metres), or the map has no walkable region or no opening on the image border.
     """
+    for name, value, bounds in (("gate_depth_m", gate_depth_m, Bounds(0.0, 50.0, "m", open_low=True)),
+                                ("max_gate_m", max_gate_m, Bounds(0.5, 1000.0, "m")),
+                                ("simplify_m", simplify_m, Bounds(0.0, 5.0, "m", open_low=True))):
+        check_value("layout_from_scene", name, value, bounds)
     polygons = map_polygons(scene, simplify_m)
     gates = border_gates(scene, gate_depth_m, max_gate_m)
     if not polygons or len(gates) < 2:

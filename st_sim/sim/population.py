@@ -1,4 +1,5 @@
-"""Who is in the crowd: per-body arrays in pymunk's body order, and where new pedestrians may appear."""
+"""Who is in the crowd: per-body arrays in pymunk's body order, preferred speeds, exits, and where pedestrians
+may be placed or appear."""
 
 from __future__ import annotations
 
@@ -6,14 +7,18 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-from st_sim.sim.config import CrowdConfig
-from st_sim.sim.layout import MIN_ROUTE_M, Region
+from st_sim.sim.config import PopulationConfig
+from st_sim.sim.layout import MIN_ROUTE_M, Period, Region
 from st_sim.sim.navigation import NavigationField
 
 CANDIDATES_PER_SPAWN = 8  # random points tried per new pedestrian before giving up for this step
 MIN_LATTICE_GAP_M = 0.01  # closest initial packing: gap between neighbouring bodies [m]
 LATTICE_TRIES = 8  # lattice spacings tried when placing the initial crowd
 PROGRESS_M = 0.5  # coming this much closer to one's exit counts as progress [m]
+
+
+class PopulationError(ValueError):
+    """A requested population does not fit: more than the layout holds, or more than the cap."""
 
 
 @dataclass
@@ -29,6 +34,9 @@ class Roster:
         best_to_exit_m: (K,) shortest walking distance to the exit reached so far [m].
         progress_step: (K,) int64 step at which best_to_exit_m last dropped by PROGRESS_M.
         moved_mps: (K, 2) velocity each body last moved with [m/s] (pymunk's body velocity is the one asked for).
+        group: (K,) int64 group id shared by pedestrians who walk together; -1 for those alone.
+        stop_step: (K,) int64 step at which the pedestrian will stop and stand; -1: no stop planned.
+        go_step: (K,) int64 step until which the pedestrian stands (it stands while step < go_step).
     """
 
     body_id: np.ndarray
@@ -39,30 +47,41 @@ class Roster:
     best_to_exit_m: np.ndarray
     progress_step: np.ndarray
     moved_mps: np.ndarray
+    group: np.ndarray
+    stop_step: np.ndarray
+    go_step: np.ndarray
 
     @classmethod
     def of(cls, body_id: np.ndarray, ped_id: np.ndarray, exit_idx: np.ndarray, speed_mps: np.ndarray,
-           radius_m: np.ndarray, moved_mps: np.ndarray, step: int) -> Roster:
-        """New rows (M,) that have made no progress yet, as of step."""
+           radius_m: np.ndarray, moved_mps: np.ndarray, step: int, group: np.ndarray | None = None,
+           stop_step: np.ndarray | None = None, go_step: np.ndarray | None = None) -> Roster:
+        """New rows (M,) that have made no progress yet, as of step (alone, no stop planned, walking by default)."""
+        m = len(body_id)
         return cls(np.asarray(body_id, np.int64), np.asarray(ped_id, np.int64), np.asarray(exit_idx, np.int64),
                    np.asarray(speed_mps, np.float64), np.asarray(radius_m, np.float64),
-                   np.full(len(body_id), np.inf), np.full(len(body_id), step, np.int64),
-                   np.asarray(moved_mps, np.float64).reshape(-1, 2))
+                   np.full(m, np.inf), np.full(m, step, np.int64), np.asarray(moved_mps, np.float64).reshape(-1, 2),
+                   np.full(m, -1, np.int64) if group is None else np.asarray(group, np.int64),
+                   np.full(m, -1, np.int64) if stop_step is None else np.asarray(stop_step, np.int64),
+                   np.zeros(m, np.int64) if go_step is None else np.asarray(go_step, np.int64))
 
     @classmethod
     def empty(cls) -> Roster:
         return cls.of(np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0), np.zeros((0, 2)), 0)
+
+    def standing(self, step: int) -> np.ndarray:
+        """(K,) bool, True for pedestrians standing at step."""
+        return self.go_step > step
 
     def __len__(self) -> int:
         return len(self.body_id)
 
     def take(self, index: np.ndarray) -> Roster:
         """Rows selected by an index or bool array."""
-        return Roster(*(getattr(self, f.name)[index] for f in fields(self)))
+        return Roster(*(getattr(self, name)[index] for name in ROSTER_FIELDS))
 
     def extend(self, other: Roster) -> Roster:
         """Rows of self followed by rows of other."""
-        return Roster(*(np.concatenate([getattr(self, f.name), getattr(other, f.name)]) for f in fields(self)))
+        return Roster(*(np.concatenate([getattr(self, name), getattr(other, name)]) for name in ROSTER_FIELDS))
 
     def reorder(self, body_ids: np.ndarray) -> Roster:
         """Rows rearranged to follow body_ids (K,), pymunk's current order."""
@@ -72,10 +91,13 @@ class Roster:
         return self.take(rows)
 
 
-def preferred_speeds(cfg: CrowdConfig, n: int, rng: np.random.Generator) -> np.ndarray:
-    """(n,) preferred speeds ~ N(mean, std) clipped to cfg.preferred_speed_range_mps [m/s]."""
-    low, high = cfg.preferred_speed_range_mps
-    return np.clip(rng.normal(cfg.preferred_speed_mean_mps, cfg.preferred_speed_std_mps, n), low, high)
+ROSTER_FIELDS: tuple[str, ...] = tuple(f.name for f in fields(Roster))
+
+
+def preferred_speeds(pop: PopulationConfig, n: int, rng: np.random.Generator) -> np.ndarray:
+    """(n,) preferred walking speeds ~ N(mean, std) clipped to pop.speed_range_mps [m/s]."""
+    low, high = pop.speed_range_mps
+    return np.clip(rng.normal(pop.speed_mean_mps, pop.speed_std_mps, n), low, high)
 
 
 def choose_exits(nav: NavigationField, xy_m: np.ndarray, allowed: np.ndarray,
@@ -83,34 +105,47 @@ def choose_exits(nav: NavigationField, xy_m: np.ndarray, allowed: np.ndarray,
     """Pick, for each point, an allowed exit reachable from it and not right there, uniformly at random.
 
     Args:
-        xy_m: (M, 2) start points [m].  allowed: (E,) bool mask of permitted exits.
+        xy_m: (M, 2) start points [m].  allowed: (E,) bool mask of permitted exits, or (E, M) one per point.
 
     Returns:
         exit_idx: (M,) int64 chosen exits.  ok: (M,) bool, False where no exit qualifies.
     """
     dist = nav.distance_at(xy_m)  # (E, M)
-    valid = np.isfinite(dist) & (dist > MIN_ROUTE_M) & allowed[:, None]
+    valid = np.isfinite(dist) & (dist > MIN_ROUTE_M) & (allowed[:, None] if allowed.ndim == 1 else allowed)
     keys = np.where(valid, rng.random(dist.shape), -1.0)
     return np.argmax(keys, axis=0).astype(np.int64), valid.any(axis=0)
 
 
 def _lattice_sites(nav: NavigationField, spacing_m: float, blocked_m: np.ndarray,
-                   blocked_gap_m: np.ndarray) -> np.ndarray:
-    """(M, 2) sites of a hexagonal lattice with spacing_m on free cells, away from blocked_m (B, 2) [m]."""
+                   blocked_gap_m: np.ndarray, period: Period | None, region: Region | None) -> np.ndarray:
+    """(M, 2) sites of a hexagonal lattice with spacing_m on startable cells (inside region, if given), away
+    from blocked_m (B, 2) [m].
+
+    In a periodic layout the sites lie in [x0, x0 + length - spacing_m], so that they keep the spacing across
+    the seam too.
+    """
     (xmin, ymin), (xmax, ymax) = nav.origin_m, nav.origin_m + nav.cell_m * np.array(nav.free.shape[::-1])
+    if region is not None:
+        (xmin, ymin), (xmax, ymax) = region.polygon_m.min(axis=0), region.polygon_m.max(axis=0)
+    if period is not None:
+        xmin, xmax = period.x0_m, period.x0_m + period.length_m - spacing_m + 1e-9
     rows, cols = np.meshgrid(np.arange(ymin, ymax, spacing_m * np.sqrt(3) / 2), np.arange(xmin, xmax, spacing_m),
                              indexing="ij")
     cols = cols + (np.arange(rows.shape[0]) % 2)[:, None] * spacing_m / 2
     sites = np.stack([cols.ravel(), rows.ravel()], axis=-1)
-    ok = nav.free_at(sites)
+    ok = nav.startable_at(sites)
+    ok &= sites[:, 0] <= xmax
+    if region is not None:
+        ok &= region.contains(sites)
     for point, gap in zip(blocked_m, blocked_gap_m, strict=True):
         ok &= np.linalg.norm(sites - point, axis=1) >= gap
     return sites[ok]
 
 
 def lattice_positions(nav: NavigationField, n: int, diameter_m: float, max_gap_m: float, blocked_m: np.ndarray,
-                      blocked_gap_m: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    """Up to n non-overlapping positions: random sites of a hexagonal lattice on free cells, jittered.
+                      blocked_gap_m: np.ndarray, rng: np.random.Generator, period: Period | None = None,
+                      region: Region | None = None) -> np.ndarray:
+    """Up to n non-overlapping positions: random sites of a hexagonal lattice on startable cells, jittered.
 
     The lattice gap (spacing minus diameter) is the largest of LATTICE_TRIES values from max_gap_m down to
     MIN_LATTICE_GAP_M that offers n sites; each site then moves by up to half the gap.
@@ -118,46 +153,59 @@ def lattice_positions(nav: NavigationField, n: int, diameter_m: float, max_gap_m
     Args:
         diameter_m: body diameter [m].  max_gap_m: widest gap between neighbouring bodies [m].
         blocked_m: (B, 2) points to keep away from (e.g. the ego) [m]; blocked_gap_m: (B,) distances [m].
+        period: the layout's wrap-around, or None.  region: where to place them; None = anywhere startable.
 
     Returns:
         (min(n, available sites), 2) positions [m]; fewer than n when the layout is full.
     """
     for gap in np.linspace(max_gap_m, MIN_LATTICE_GAP_M, LATTICE_TRIES):
-        sites = _lattice_sites(nav, diameter_m + gap, blocked_m, blocked_gap_m)
+        sites = _lattice_sites(nav, diameter_m + gap, blocked_m, blocked_gap_m, period, region)
         if len(sites) >= n:
             break
     chosen = sites[rng.permutation(len(sites))[:n]]
     angle = rng.uniform(0.0, 2 * np.pi, len(chosen))
     reach = 0.5 * gap * np.sqrt(rng.random(len(chosen)))
     moved = chosen + reach[:, None] * np.stack([np.cos(angle), np.sin(angle)], axis=-1)
-    return np.where(nav.free_at(moved)[:, None], moved, chosen)
+    inside = nav.startable_at(moved) & (True if region is None else region.contains(moved))
+    placed = np.where(inside[:, None], moved, chosen)
+    return placed if period is None else period.wrap(placed)
 
 
-def spawn_points(region: Region, count: int, allowed: np.ndarray, nav: NavigationField, others_m: np.ndarray,
-                 others_heading: np.ndarray, clearance_m: float, lane_m: float,
-                 rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-    """Up to count random free points of region, with exits, for new pedestrians where there is room.
+def spawn_points(regions: list[Region], counts: np.ndarray, allowed: np.ndarray, nav: NavigationField,
+                 others_m: np.ndarray, others_heading: np.ndarray, clearance_m: float, lane_m: float,
+                 rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Up to counts[r] random free points of each region r, with exits, for new pedestrians where there is room.
 
     A point qualifies if it is at least clearance_m from every body present (and from the other new points)
     and no oncoming body (heading more than 90 degrees off) stands in the new pedestrian's path closer than
-    lane_m: people do not step out right in front of others.
+    lane_m: people do not step out right in front of others. All regions are handled at once.
 
     Args:
-        count: pedestrians wanted; CANDIDATES_PER_SPAWN random points are tried for each.
-        allowed: (E,) bool mask of the exits this entry leads to.
+        regions: (R) entry regions.  counts: (R,) pedestrians wanted at each; CANDIDATES_PER_SPAWN random points
+            are tried for each.
+        allowed: (R, E) bool, the exits each region leads to.
         others_m: (K, 2) positions of the bodies present [m].  others_heading: (K, 2) their desired directions.
         clearance_m: required centre distance to every body [m].  lane_m: free path length required [m].
 
     Returns:
-        xy_m: (M, 2) positions [m], M <= count.  exit_idx: (M,) int64 exits.
+        xy_m: (M, 2) positions [m].  exit_idx: (M,) int64 exits.  region: (M,) int64 region of each, ascending.
     """
-    lo, hi = region.polygon_m.min(axis=0), region.polygon_m.max(axis=0)
-    candidates = lo + rng.random((count * CANDIDATES_PER_SPAWN, 2)) * (hi - lo)
-    candidates = candidates[region.contains(candidates) & nav.free_at(candidates)]
-    exit_idx, reachable = choose_exits(nav, candidates, allowed, rng)
-    candidates, exit_idx = candidates[reachable], exit_idx[reachable]
-    reach = lane_m + clearance_m  # only bodies this close to the region can object
-    near = np.all((others_m > lo - reach) & (others_m < hi + reach), axis=1)
+    box = np.array([[r.polygon_m.min(axis=0), r.polygon_m.max(axis=0)] for r in regions])  # (R, 2, 2)
+    origin = np.repeat(np.arange(len(regions)), counts * CANDIDATES_PER_SPAWN)
+    lo, hi = box[origin, 0], box[origin, 1]
+    candidates = lo + rng.random((len(origin), 2)) * (hi - lo)
+    inside = np.zeros(len(origin), bool)
+    for r in np.flatnonzero(counts).tolist():
+        mine = origin == r
+        inside[mine] = regions[r].contains(candidates[mine])
+    keep = inside & nav.startable_at(candidates)
+    candidates, origin = candidates[keep], origin[keep]
+    exit_idx, reachable = choose_exits(nav, candidates, allowed[origin].T, rng)
+    candidates, exit_idx, origin = candidates[reachable], exit_idx[reachable], origin[reachable]
+    reach = lane_m + clearance_m  # only bodies this close to a busy region can object
+    active = box[np.flatnonzero(counts)]
+    near = np.all((others_m > active[:, 0].min(axis=0) - reach) & (others_m < active[:, 1].max(axis=0) + reach),
+                  axis=1)
     others_m, others_heading = others_m[near], others_heading[near]
     heading = nav.direction_at(exit_idx, candidates)  # (C, 2)
     offset = others_m[None, :, :] - candidates[:, None, :]  # (C, K, 2)
@@ -165,11 +213,14 @@ def spawn_points(region: Region, count: int, allowed: np.ndarray, nav: Navigatio
     across = np.abs(offset[..., 0] * heading[:, None, 1] - offset[..., 1] * heading[:, None, 0])
     in_path = (heading @ others_heading.T < 0) & (ahead > 0) & (ahead < lane_m) & (across < clearance_m)
     roomy = (np.hypot(offset[..., 0], offset[..., 1]) >= clearance_m).all(axis=1) & ~in_path.any(axis=1)
-    candidates, exit_idx = candidates[roomy], exit_idx[roomy]
+    candidates, exit_idx, origin = candidates[roomy], exit_idx[roomy], origin[roomy]
     apart = np.linalg.norm(candidates[:, None] - candidates[None], axis=-1) >= clearance_m
     chosen, open_ = [], np.ones(len(candidates), bool)
-    while open_.any() and len(chosen) < count:  # first come, first served among the new ones
-        first = int(np.argmax(open_))
-        chosen.append(first)
-        open_ &= apart[first]
-    return candidates[chosen].reshape(-1, 2), exit_idx[chosen]
+    for r in np.flatnonzero(counts).tolist():  # first come, first served among the new ones
+        mine, taken = origin == r, 0
+        while taken < counts[r] and (open_ & mine).any():
+            first = int(np.argmax(open_ & mine))
+            chosen.append(first)
+            open_ &= apart[first]
+            taken += 1
+    return candidates[chosen].reshape(-1, 2), exit_idx[chosen], origin[chosen]

@@ -3,7 +3,7 @@
 Each decision builds an ORCA simulator with the walls (the walkability map's outlines) and one agent per
 pedestrian that keeps its last observed velocity, asks ORCA for the ego's collision-free velocity nearest to
 its preferred one (full speed along the shortest walkable path to the goal), and returns it. No predictions.
-Needs the optional extra: ``pip install -e ".[nav]"``.
+Needs the optional extra: ``pip install -e ".[orca]"``.
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ def _pyrvo() -> ModuleType:
     try:
         import pyrvo
     except ImportError as err:
-        raise ImportError('planner "orca" needs pyrvo: pip install -e ".[nav]"') from err
+        raise ImportError('planner "orca" needs pyrvo: pip install -e ".[orca]"') from err
     return pyrvo
 
 

@@ -1,0 +1,54 @@
+"""The cheap cases of the simulator's validation (benchmarks/sim_validation.py runs them all, longer): RiMEA tests 1,
+6 and 7, the fundamental diagram against Weidmann's, counter-flow lanes and bottleneck flow, for the default
+(calibrated speed-model) crowd."""
+
+from __future__ import annotations
+
+import pytest
+
+from st_sim.sim import CrowdConfig
+from st_sim.sim import validation as scenarios
+from st_sim.sim.measures import weidmann_speed_mps
+
+CFG = CrowdConfig()
+
+
+def test_rimea_1_one_pedestrian_walks_40_m_in_26_to_34_s() -> None:
+    low, high = scenarios.FREE_WALK_RANGE_S
+    assert low <= scenarios.free_walk_time_s(CFG) <= high
+
+
+def test_rimea_6_twenty_pedestrians_round_a_corner_without_crossing_walls() -> None:
+    arrived, seconds, intrusion, escapes = scenarios.corner_walk(CFG)
+    assert arrived == 20 and escapes == 0, f"{arrived} arrived, {escapes} escaped"
+    assert intrusion < 0.02 and seconds < 60.0
+
+
+def test_rimea_7_walking_speeds_follow_the_configured_distribution() -> None:
+    ks, preferred, walked = scenarios.speed_distribution_ks(CFG)
+    assert ks < scenarios.KS_PASS, f"Kolmogorov-Smirnov distance {ks:.3f}"
+    assert len(walked) == len(preferred) == 50
+
+
+@pytest.mark.parametrize("density", [1.0, 3.0], ids=["1_per_m2", "3_per_m2"])
+def test_fundamental_diagram_is_within_20_percent_of_weidmann(density: float) -> None:
+    flow = scenarios.fundamental_diagram(CFG, density, warmup_steps=30, steps=30)
+    reference = float(weidmann_speed_mps(density))
+    assert abs(flow.mean_speed_mps / reference - 1.0) <= 0.2, f"{flow.mean_speed_mps:.2f} m/s vs {reference:.2f}"
+    assert flow.escapes == 0 and flow.max_overlap_m < 0.05
+
+
+def test_no_gridlock_just_below_jam_density() -> None:
+    assert scenarios.fundamental_diagram(CFG, 4.0, warmup_steps=30, steps=30).mean_speed_mps > 0.05
+
+
+def test_counterflow_forms_lanes_and_keeps_walking() -> None:
+    flow = scenarios.counterflow(CFG, warmup_steps=20, steps=40)
+    assert flow.mean_speed_mps >= 0.7 and flow.lane_index > 0.5, flow
+
+
+def test_bottleneck_flow_grows_with_the_door() -> None:
+    narrow, _ = scenarios.bottleneck_flow(CFG, 1.0, n=80)
+    wide, last_out_s = scenarios.bottleneck_flow(CFG, 2.0, n=80)
+    assert narrow > 0.5 and wide * 2.0 > narrow * 1.0 * 1.3, f"{narrow:.2f} vs {wide:.2f} /(m s)"
+    assert last_out_s < 120.0
