@@ -1,4 +1,4 @@
-"""Environment steps per second: replay (STCrowd-Zara1-v0) and simulated (STCrowd-SimCrossing-v0), with CVM and
+"""Environment steps per second: replay (STCrowd-Zara1-v0) and simulated (STCrowd-SimCrossing-v1), with CVM and
 with SingularTrajectory in the loop.
 
     OMP_NUM_THREADS=1 STCROWD_DATA=../shared/datasets/eth_ucy python benchmarks/bench_env.py
@@ -25,8 +25,8 @@ from predictor.baselines import ConstantVelocity
 CONFIGS = (  # (label, env id, extra kwargs, shipped checkpoint for SingularTrajectory)
     ("replay zara1, ego", "STCrowd-Zara1-v0", {}, "stochastic/zara1"),
     ("replay zara1, spectator", "STCrowd-Zara1-v0", {"ego": False}, "stochastic/zara1"),
-    ("sim crossing, ego", "STCrowd-SimCrossing-v0", {}, "universal"),
-    ("sim crossing, spectator", "STCrowd-SimCrossing-v0", {"ego": False}, "universal"),
+    ("sim crossing, ego", "STCrowd-SimCrossing-v1", {}, "universal"),
+    ("sim crossing, spectator", "STCrowd-SimCrossing-v1", {"ego": False}, "universal"),
 )
 
 

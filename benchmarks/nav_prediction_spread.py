@@ -48,7 +48,7 @@ def spread(env_id: str, predictor: str, steps: int) -> dict[str, float]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--envs", nargs="+", default=["STCrowd-SimCrossing-v0", "STCrowd-Zara1-v0"])
+    parser.add_argument("--envs", nargs="+", default=["STCrowd-SimCrossing-v1", "STCrowd-Zara1-v0"])
     parser.add_argument("--predictors", nargs="+", default=["cvm", "cvm-s", "singular"])
     parser.add_argument("--steps", type=int, default=150, help="spectator steps per env (default: 150)")
     args = parser.parse_args()

@@ -1,7 +1,7 @@
 """The navigation table: every planner x predictor on each env, seeded episodes, 95 % intervals, paired tests.
 
     OMP_NUM_THREADS=1 STCROWD_DATA=../shared/datasets/eth_ucy python benchmarks/nav_table.py \\
-        --envs STCrowd-SimCrossing-v0 STCrowd-Zara1-v0 STCrowd-Univ-v0 --episodes 500 --out runs/nav/table --jobs 2
+        --envs STCrowd-SimCrossing-v1 STCrowd-Zara1-v0 STCrowd-Univ-v0 --episodes 500 --out runs/nav/table --jobs 2
 
 Each cell (env, planner, predictor) is one ``run_navigation`` over episodes seed .. seed + N - 1 (the same
 episodes for every cell of an env) and is written to ``OUT/<env>__<planner>__<predictor>.json``; a cell whose
@@ -54,7 +54,7 @@ def run_cell(job: tuple[NavRun, str]) -> str:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--envs", nargs="+", default=["STCrowd-SimCrossing-v0", "STCrowd-Zara1-v0", "STCrowd-Univ-v0"],
+    parser.add_argument("--envs", nargs="+", default=["STCrowd-SimCrossing-v1", "STCrowd-Zara1-v0", "STCrowd-Univ-v0"],
                         help="env ids (default: SimCrossing, Zara1, Univ)")
     parser.add_argument("--planners", nargs="+", default=list(PLANNERS), help="planners (default: all)")
     parser.add_argument("--predictors", nargs="+", default=list(PREDICTORS), help="predictors (default: all)")

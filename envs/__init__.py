@@ -2,7 +2,7 @@
 
     import gymnasium as gym, envs
     env = gym.make("STCrowd-Zara1-v0")                      # ZARA1 replayed from the recording
-    env = gym.make("STCrowd-SimCrossing-v0")                # pymunk crowd, no data needed
+    env = gym.make("STCrowd-SimCrossing-v1")                # pymunk crowd, no data needed
     env = gym.make("STCrowd-Zara1-v0", ego=False, task="deterministic", predictor="cvm-s")
 
 Replay and real-scene simulated ids need the ETH/UCY data root ($STCROWD_DATA or the user cache).
@@ -15,6 +15,7 @@ from gymnasium.envs.registration import register
 REPLAY_SCENES: tuple[str, ...] = ("Eth", "Hotel", "Univ", "Zara1", "Zara2")
 SIM_LAYOUTS: tuple[str, ...] = ("Crossing", "Corridor", "Bottleneck")
 MAX_EPISODE_STEPS = 200  # 80 s of 0.4 s steps; a replay also ends with its recording
+SIM_VERSION = 1  # v1: calibrated speed-model crowds that see the ego (v0: social force, invisible ego)
 
 # Replays: pedestrians follow an ETH/UCY recording
 for _scene in REPLAY_SCENES:
@@ -28,7 +29,7 @@ for _scene in REPLAY_SCENES:
 # Simulated: pymunk crowds in synthetic layouts (no data needed) or in a real scene's geometry (data root)
 for _layout in SIM_LAYOUTS + REPLAY_SCENES:
     register(
-        id=f"STCrowd-Sim{_layout}-v0",
+        id=f"STCrowd-Sim{_layout}-v{SIM_VERSION}",
         entry_point="envs.sim_env:SimCrowdEnv",
         kwargs={"layout": _layout.lower()},
         max_episode_steps=MAX_EPISODE_STEPS,
@@ -36,6 +37,6 @@ for _layout in SIM_LAYOUTS + REPLAY_SCENES:
 
 STCROWD_IDS: tuple[str, ...] = (
     *(f"STCrowd-{s}-v0" for s in REPLAY_SCENES),
-    *(f"STCrowd-Sim{s}-v0" for s in SIM_LAYOUTS + REPLAY_SCENES),
+    *(f"STCrowd-Sim{s}-v{SIM_VERSION}" for s in SIM_LAYOUTS + REPLAY_SCENES),
 )
 """every registered id, replays first"""

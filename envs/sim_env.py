@@ -100,8 +100,9 @@ class SimCrowdEnv(CrowdEnv):
     pedestrians steer around the ego; False: invisible robot).
 
     ## Version History
-    - v0: initial version; since 2026-11-23 calibrated speed-model steering, 0.2 m pedestrians, fitted
-      populations in real scenes and ``pedestrians_see_ego`` (default True).
+    - v1 (2026-11-23): calibrated speed-model steering, 0.2 m pedestrians, fitted populations in real scenes,
+      ``pedestrians_see_ego`` (default True).
+    - v0: social-force steering; pedestrians reacted to the ego only by contact.
     """
 
     def __init__(self, layout: str = "crossing", predictor: Any = "auto", task: str = "stochastic",

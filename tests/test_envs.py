@@ -66,7 +66,7 @@ def test_env_observation_is_consistent_with_info(env_id: str) -> None:
             obs, info = env.reset()
 
 
-FUZZ_IDS = ("STCrowd-Zara1-v0", "STCrowd-SimCorridor-v0")
+FUZZ_IDS = ("STCrowd-Zara1-v0", "STCrowd-SimCorridor-v1")
 
 
 @pytest.fixture(scope="module")

@@ -16,7 +16,7 @@ VECTOR_STEPS = 15
 
 @pytest.mark.parametrize("mode", ["sync", "async"])
 def test_sim_env_runs_in_vector_envs(mode: str) -> None:
-    vec = gym.make_vec("STCrowd-SimCorridor-v0", num_envs=2, vectorization_mode=mode)
+    vec = gym.make_vec("STCrowd-SimCorridor-v1", num_envs=2, vectorization_mode=mode)
     obs, info = vec.reset(seed=0)
     vec.action_space.seed(0)
     for t in range(VECTOR_STEPS):
@@ -29,7 +29,7 @@ def test_sim_env_runs_in_vector_envs(mode: str) -> None:
 
 
 def test_sim_n_max_follows_the_crowd_config() -> None:
-    env = gym.make("STCrowd-SimBottleneck-v0", crowd=CrowdConfig(max_pedestrians=12))
+    env = gym.make("STCrowd-SimBottleneck-v1", crowd=CrowdConfig(max_pedestrians=12))
     obs, _ = env.reset(seed=0)
     assert obs["history"].shape[0] == 12
     for t in range(20):
@@ -45,7 +45,7 @@ def test_sim_population_cap_matches_the_simulator(crowd: CrowdConfig) -> None:
 
 
 def test_sim_histories_are_full_at_reset() -> None:
-    env = gym.make("STCrowd-SimCrossing-v0")
+    env = gym.make("STCrowd-SimCrossing-v1")
     obs, info = env.reset(seed=4)
     present = obs["history_mask"][:, -1]
     assert present.any() and obs["futures_mask"][present].all(), "the warm-up should fill every history"
@@ -53,7 +53,7 @@ def test_sim_histories_are_full_at_reset() -> None:
 
 
 def test_sim_ego_moves_with_the_action_toward_its_goal() -> None:
-    env = gym.make("STCrowd-SimCorridor-v0", crowd=CrowdConfig(max_pedestrians=1), config=EnvConfig())
+    env = gym.make("STCrowd-SimCorridor-v1", crowd=CrowdConfig(max_pedestrians=1), config=EnvConfig())
     obs, _ = env.reset(seed=0)
     layout = build_layout("corridor")
     assert np.allclose(obs["ego"][:2], layout.ego_start_m, atol=1e-3)
@@ -71,7 +71,7 @@ def test_sim_ego_moves_with_the_action_toward_its_goal() -> None:
 
 
 def test_sim_spectator_has_no_ego() -> None:
-    env = gym.make("STCrowd-SimCrossing-v0", ego=False)
+    env = gym.make("STCrowd-SimCrossing-v1", ego=False)
     obs, _ = env.reset(seed=0)
     obs, reward, terminated, _, info = env.step(np.array([np.nan, 0.0]))
     assert not obs["ego"].any() and reward == 0.0 and not terminated
@@ -80,12 +80,12 @@ def test_sim_spectator_has_no_ego() -> None:
 
 def test_sim_unknown_layout_is_rejected() -> None:
     with pytest.raises(ValueError, match="crossing"):
-        gym.make("STCrowd-SimCrossing-v0", layout="maze")
+        gym.make("STCrowd-SimCrossing-v1", layout="maze")
 
 
 @pytest.mark.parametrize("task, t_obs", [("stochastic", 8), ("momentary", 2)])
 def test_sim_default_predictor_is_the_universal_singular_model_for_its_history_length(task: str, t_obs: int) -> None:
-    env = gym.make("STCrowd-SimCrossing-v0", task=task)
+    env = gym.make("STCrowd-SimCrossing-v1", task=task)
     model = env.unwrapped.predictor
     assert type(model).__name__ == "SingularTrajectory" and model.cfg.obs_len == t_obs
     obs, _ = env.reset(seed=0)

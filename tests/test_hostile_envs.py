@@ -35,7 +35,7 @@ from replays import RecordingError, UnknownNameError, data_root
 from replays.constants import POSITION_LIMIT_M
 
 SETTINGS = settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
-ENV_IDS = ("STCrowd-Zara1-v0", "STCrowd-SimCorridor-v0")
+ENV_IDS = ("STCrowd-Zara1-v0", "STCrowd-SimCorridor-v1")
 
 ANYTHING = st.one_of(
     st.none(), st.booleans(), st.integers(-(2**70), 2**70), st.floats(), st.complex_numbers(), st.text(max_size=5),
@@ -316,7 +316,7 @@ def test_metrics_over_nothing_are_none_and_json_null(bare_envs) -> None:
 
 @pytest.mark.parametrize("mode", ["sync", "async"])
 def test_vector_env_reraises_the_envs_own_error(mode: str) -> None:
-    vec = gym.make_vec("STCrowd-SimCorridor-v0", num_envs=2, vectorization_mode=mode, predictor="cvm")
+    vec = gym.make_vec("STCrowd-SimCorridor-v1", num_envs=2, vectorization_mode=mode, predictor="cvm")
     try:
         vec.reset(seed=[0, 1])
         for _ in range(3):

@@ -17,7 +17,7 @@ from st_sim.apps.navigation.terrain import Terrain
 
 def test_navigate_prints_intervals_writes_json_and_recordings_and_repeats(tmp_path: Path,
                                                                       capsys: pytest.CaptureFixture) -> None:
-    args = ["navigate", "--env", "STCrowd-SimCorridor-v0", "--policy", "straight", "--predictor", "none",
+    args = ["navigate", "--env", "STCrowd-SimCorridor-v1", "--policy", "straight", "--predictor", "none",
             "--episodes", "2", "--seed", "5", "--quiet"]
     assert main([*args, "--json", str(tmp_path / "a.json")]) == 0
     out = capsys.readouterr().out

@@ -1,4 +1,4 @@
-"""Demo: the benchmark's best planner crosses a simulated crowd (STCrowd-SimCrossing-v0) with SingularTrajectory.
+"""Demo: the benchmark's best planner crosses a simulated crowd (STCrowd-SimCrossing-v1) with SingularTrajectory.
 
 The ego runs the prediction-aware sampling MPC (``st_sim.apps.navigation.mpc``): every 0.4 s it rolls out
 candidate velocity commands for 3.2 s and scores them against every sample the shipped universal
@@ -19,7 +19,7 @@ from st_sim.apps.navigation.planners import make_planner
 from st_sim.apps.navigation.world import world_of
 from st_sim.metrics import format_metric
 
-ENV_ID = "STCrowd-SimCrossing-v0"
+ENV_ID = "STCrowd-SimCrossing-v1"
 PLANNER, PREDICTOR = "mpc", "singular"  # the benchmark's best pair (RESULTS.md, "Navigation benchmark")
 OUTCOMES = ("goal", "pedestrian collision", "wall collision", "timeout")
 

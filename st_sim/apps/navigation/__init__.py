@@ -1,6 +1,6 @@
 """Crowd navigation on the STCrowd envs: planners that use the predicted futures, and a benchmark to score them.
 
-    python -m st_sim navigate --env STCrowd-SimCrossing-v0 --policy mpc --predictor singular --episodes 100
+    python -m st_sim navigate --env STCrowd-SimCrossing-v1 --policy mpc --predictor singular --episodes 100
 
 Modules, one concept each:
 - ``planners``: the registry (straight, orca, mpc, ppo) and the ``Planner`` interface (``reset``, ``act``);

@@ -1,6 +1,6 @@
 """``python -m st_sim navigate``: run a planner with a predictor through seeded episodes and print the metrics.
 
-    python -m st_sim navigate --env STCrowd-SimCrossing-v0 --policy mpc --predictor singular \\
+    python -m st_sim navigate --env STCrowd-SimCrossing-v1 --policy mpc --predictor singular \\
         --episodes 100 --seed 0 --json nav.json [--rerun DIR]
 """
 
@@ -21,7 +21,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
     """Register the ``navigate`` subcommand."""
     nav = subparsers.add_parser("navigate", help="navigation benchmark: a planner with a predictor, metrics with "
                                                  "95 %% confidence intervals")
-    nav.add_argument("--env", default="STCrowd-SimCrossing-v0", help="env id (default: STCrowd-SimCrossing-v0)")
+    nav.add_argument("--env", default="STCrowd-SimCrossing-v1", help="env id (default: STCrowd-SimCrossing-v1)")
     nav.add_argument("--policy", choices=list(PLANNERS), default="mpc", help="planner (default: mpc)")
     nav.add_argument("--predictor", choices=list(PREDICTORS), default="singular",
                      help="predictor in the observation; none = pedestrians assumed to stand still (default: singular)")

@@ -29,7 +29,7 @@ SEE_EGO_KWARG = "pedestrians_see_ego"  # env keyword of the simulated envs: pede
 class NavRun:
     """One cell of the benchmark: a planner with a predictor on an env, over seeded episodes."""
 
-    env_id: str = "STCrowd-SimCrossing-v0"
+    env_id: str = "STCrowd-SimCrossing-v1"
     """gym id of an STCrowd env with an ego"""
     policy: str = "mpc"
     """planner name (straight, orca, mpc, ppo)"""

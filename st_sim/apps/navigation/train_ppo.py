@@ -42,7 +42,7 @@ class TrainConfig:
 
     use_predictions: bool = True
     """features hold the predicted futures (the env runs SingularTrajectory); False: positions only"""
-    env_id: str = "STCrowd-SimCrossing-v0"
+    env_id: str = "STCrowd-SimCrossing-v1"
     """training env"""
     timesteps: int = 300_000
     """env steps over all envs (the training budget)"""
