@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from predictor.train import TRAIN_SUMMARY, TrainConfig
-from st_sim.apps.grid import GridError, Job, raise_on_failure, run_jobs
+from st_sim.apps.grid import MAX_ATTEMPTS, GridError, Job, raise_on_failure, run_jobs
 
 TINY = {"epochs": 1, "min_steps": 0, "dim": 32, "denoiser_dim": 32, "max_train_windows": 60, "batch_agents": 256,
         "progress": False}
@@ -90,6 +90,19 @@ def test_a_killed_worker_loses_only_its_job_which_is_retried(tmp_path):
     reports = run_jobs(jobs, workers=2, progress=False)
     assert all(r.status == "done" for r in reports), reports
     assert reports[0].attempts == 2 and (tmp_path / "dies.txt").read_text() == "survived"
+
+
+def test_a_job_that_always_kills_its_worker_fails_alone(tmp_path):
+    """Jobs queued behind it when the pool breaks are resubmitted without being charged an attempt."""
+    never = str(tmp_path / "never.txt")
+    jobs = [Job("dies", "grid_targets:die", {"output": never}, never)]
+    jobs += [Job(f"write{i}", "grid_targets:write", {"output": str(tmp_path / f"{i}.txt"), "text": "ok"},
+                 str(tmp_path / f"{i}.txt")) for i in range(3)]
+    reports = run_jobs(jobs, workers=1, progress=False)
+    assert (reports[0].status, reports[0].attempts) == ("failed", MAX_ATTEMPTS), reports[0]
+    assert "died 3 times" in reports[0].error
+    for r in reports[1:]:
+        assert (r.status, r.attempts) == ("done", 1), r
 
 
 def test_the_local_executor_never_imports_ray(tmp_path):
