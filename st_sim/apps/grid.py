@@ -60,7 +60,11 @@ class Job:
 
 @dataclass
 class JobReport:
-    """What became of one job: ``status`` is done, skipped (output already there) or failed."""
+    """What became of one job: ``status`` is done, skipped (output already there) or failed.
+
+    ``wall_s`` and ``cpu_s`` are the last attempt's wall and CPU time [s]; a wall time well above the CPU time
+    of a one-thread job means the machine was shared (waiting for a core).
+    """
 
     name: str
     status: str
@@ -68,6 +72,7 @@ class JobReport:
     where: str = ""
     attempts: int = 0
     error: str | None = None
+    cpu_s: float = 0.0
 
 
 def _one_thread() -> None:
@@ -82,8 +87,8 @@ def _one_thread() -> None:
 def execute(job: Job) -> JobReport:
     """Run ``job`` here, with one thread; its own exceptions become a failed report (not retried)."""
     _one_thread()
-    start = time.perf_counter()
-    where = f"{socket.gethostname()}:{os.getpid()}"
+    start, cpu_start = time.perf_counter(), time.process_time()
+    status, error = "done", None
     try:
         module, _, name = job.target.partition(":")
         function: Callable[..., Any] = getattr(importlib.import_module(module), name)
@@ -91,9 +96,9 @@ def execute(job: Job) -> JobReport:
         if job.output and not job.done():
             raise GridError(f"{job.name}: finished but wrote no {job.output}")
     except Exception as err:
-        detail = "".join(traceback.format_exception_only(type(err), err)).strip()
-        return JobReport(job.name, "failed", time.perf_counter() - start, where, 1, detail)
-    return JobReport(job.name, "done", time.perf_counter() - start, where, 1)
+        status, error = "failed", "".join(traceback.format_exception_only(type(err), err)).strip()
+    return JobReport(job.name, status, time.perf_counter() - start, f"{socket.gethostname()}:{os.getpid()}", 1,
+                     error, time.process_time() - cpu_start)
 
 
 def run_jobs(jobs: Sequence[Job], executor: str = "local", workers: int | None = None, address: str | None = None,
@@ -240,8 +245,8 @@ def _execute_on_ray(job: Job) -> JobReport:
 
 
 def summary_lines(reports: Sequence[JobReport]) -> list[str]:
-    """One line per job that ran (wall time, where, attempts), then a count line."""
-    lines = [f"{r.name}: {r.status} in {r.wall_s:.0f} s on {r.where}"
+    """One line per job that ran (wall and CPU time, where, attempts), then a count line."""
+    lines = [f"{r.name}: {r.status} in {r.wall_s:.0f} s ({r.cpu_s:.0f} s CPU) on {r.where}"
              + (f" ({r.attempts} attempts)" if r.attempts > 1 else "") + (f": {r.error}" if r.error else "")
              for r in reports if r.status != "skipped"]
     counts = {status: sum(r.status == status for r in reports) for status in ("done", "skipped", "failed")}
