@@ -164,13 +164,14 @@ def row(setting: str, reports: list[JobReport], wall_s: float, jobs: list[Job], 
     """A table row: setting, jobs done, retried, identical to the local results, wall time, jobs per node."""
     done = sum(r.status == "done" for r in reports)
     retried = sum(r.attempts > 1 for r in reports)
-    same = sum(scores(a.output) == scores(b.output) for a, b in zip(jobs, reference, strict=True))
+    same = ("reference" if jobs is reference else
+            f"{sum(scores(a.output) == scores(b.output) for a, b in zip(jobs, reference, strict=True))}/{len(jobs)}")
     times = defaultdict(list)
     for r in reports:
         times[names.get(r.where.removeprefix("ray node ")[:8], "local pool")].append((r.wall_s, r.cpu_s))
     nodes = ", ".join(f"{name} {len(t)} × {statistics.fmean(w for w, _ in t):.1f} s "
                       f"({statistics.fmean(c for _, c in t):.1f} s CPU)" for name, t in sorted(times.items()))
-    return f"| {setting} | {done} | {retried} | {same}/{len(jobs)} | {wall_s:.1f} | {nodes} |"
+    return f"| {setting} | {done} | {retried} | {same} | {wall_s:.1f} | {nodes} |"
 
 
 def main() -> None:
