@@ -79,7 +79,7 @@ def train_and_score(models: list[Model], runs: Path, grid: dict[str, Any],
         Per model: test ``ade``, ``fde`` [m], ``map`` and ``paths`` (map-violation shares of points and paths),
         ``wall`` (training wall time [s]) and ``val_fde`` (validation FDE of the selected epoch [m]).
     """
-    configs = [model.config(runs, grid["data_root"]) for model in models]
+    configs = [model.config(runs, data_root) for model in models]
     training = {cfg.out: Job(f"train/{Path(cfg.out).relative_to(runs)}", "predictor.train:train_job", asdict(cfg),
                              str(Path(cfg.out) / TRAIN_SUMMARY)) for cfg in configs}
     reports = run_jobs(list(training.values()), desc="train", **grid)
