@@ -72,13 +72,15 @@ def train_and_score(models: list[Model], runs: Path, grid: dict[str, Any],
     """Train the models that have not finished, then score each one; one row per model, in order.
 
     Args:
+        runs: the models' folder; made absolute, since a Ray cluster's workers run in their own folders.
         grid: ``run_jobs`` options: ``executor``, ``workers``, ``address``.
-        data_root: ETH/UCY folder as the workers see it (None: their $STCROWD_DATA or the cache).
+        data_root: ETH/UCY folder (made absolute; None: each worker's $STCROWD_DATA or the cache).
 
     Returns:
         Per model: test ``ade``, ``fde`` [m], ``map`` and ``paths`` (map-violation shares of points and paths),
         ``wall`` (training wall time [s]) and ``val_fde`` (validation FDE of the selected epoch [m]).
     """
+    runs, data_root = runs.resolve(), None if data_root is None else str(Path(data_root).resolve())
     configs = [model.config(runs, data_root) for model in models]
     training = {cfg.out: Job(f"train/{Path(cfg.out).relative_to(runs)}", "predictor.train:train_job", asdict(cfg),
                              str(Path(cfg.out) / TRAIN_SUMMARY)) for cfg in configs}
@@ -107,7 +109,8 @@ def add_arguments(parser: argparse.ArgumentParser, runs: str) -> None:
     """The flags both benchmark scripts take: the runs folder, the data root and the grid's executor."""
     parser.add_argument("--runs", default=runs, help=f"checkpoint folder (default: {runs})")
     parser.add_argument("--data-root", default=None,
-                        help="ETH/UCY folder as the workers see it (default: their $STCROWD_DATA or the cache)")
+                        help="ETH/UCY folder, the same path on every machine (default: each worker's $STCROWD_DATA "
+                             "or the cache)")
     add_grid_arguments(parser)
 
 
