@@ -97,8 +97,13 @@ class Plan:
     def trained(self) -> bool:
         return self.predictor == "singular"
 
+    def __post_init__(self) -> None:  # absolute paths: a cluster's workers do not run in this folder
+        for name in ("runs", "root", "rerun"):
+            if getattr(self, name) is not None:
+                object.__setattr__(self, name, str(Path(getattr(self, name)).expanduser().resolve()))
+
     def cells(self) -> list[tuple[str, str, int]]:
-        seeds = self.seeds if self.trained else (0,)
+        seeds = self.seeds if self.trained or Path(self.predictor).is_dir() else (0,)
         return [(task, scene, seed) for task in self.tasks for scene in self.scenes[task] for seed in seeds]
 
     def missing_models(self) -> list[tuple[str, str, int]]:
