@@ -89,5 +89,5 @@ def test_orca_without_pyrvo_names_the_extra(open_world: NavWorld, monkeypatch: p
     import sys
 
     monkeypatch.setitem(sys.modules, "pyrvo", None)  # import pyrvo now raises ImportError
-    with pytest.raises(ImportError, match=r'pip install -e "\.\[nav\]"'):
+    with pytest.raises(ImportError, match=r'pip install -e "\.\[orca\]"'):
         make_planner("orca", open_world, "none")
