@@ -73,12 +73,12 @@ class ReplayCrowdEnv(CrowdEnv):
     """Replay one ETH/UCY test recording; the ego robot walks among the recorded pedestrians.
 
     ## Description
-    One step is one listed frame of the recording (0.4 s; frame gaps are ignored, as the benchmark
-    windows ignore them). Every pedestrian of the current frame is in the observation; one with T_obs
-    consecutive listed frames up to now also gets S predicted futures (one batched predictor call per
-    step, all agents in one group). The ego is a point robot of radius 0.3 m that moves at the commanded
-    velocity and cannot leave the arena (recorded area + 1 m, within the scene's image: a move off the image
-    keeps only the axis that stays on it); pedestrians do not react to it.
+    One step is one listed frame of the recording (0.4 s; frame gaps are ignored, as the benchmark windows ignore
+    them). Every pedestrian of the current frame is in the observation; one with T_obs consecutive listed frames
+    up to now also gets S predicted futures (one batched predictor call per step, all agents in one group). The
+    ego is a point robot of radius 0.3 m that moves at the commanded velocity at once (``ego_max_accel_mps2`` is
+    inf) and cannot leave the arena (recorded area + 1 m, within the scene's image: a move off the image keeps
+    only the axis that stays on it); pedestrians do not react to it.
 
     ## Action Space
     Box(-1.5, 1.5, (2,), float32): ego velocity (vx, vy) [m/s], world frame; scaled down to
@@ -100,8 +100,9 @@ class ReplayCrowdEnv(CrowdEnv):
 
     ## Rewards
     Weighted sum of ``info["reward_parts"]`` (weights in ``config.reward``): progress to the goal [m] x 1,
-    goal reached x 10, collision x -10, off the walkable map x -1 per step, time x -0.1 per step.
-    All zero when ``ego=False``.
+    goal reached x 10, pedestrian_collision x -10 (``config.reward.collision``), off the walkable map x -1 per
+    step, time x -0.1 per step. ``wall_collision`` is always 0 here: the map's walls are not solid (an off-map
+    step costs ``off_map``) and the image border stops the ego without a collision. All zero when ``ego=False``.
 
     ## Starting State
     A listed frame drawn from ``np_random`` (at least T_obs - 1 frames in, 50 before the end) or
@@ -112,15 +113,17 @@ class ReplayCrowdEnv(CrowdEnv):
     ``EgoPlacementError``.
 
     ## Episode End
-    Terminated when the ego reaches its goal (0.5 m) or touches a pedestrian (centre distance < 0.55 m).
-    Truncated at the recording's last frame, or by the registered time limit (200 steps). ``step`` before
-    ``reset``, or after the env ended the episode, raises ``NeedsResetError`` (gymnasium's ResetNeeded).
+    Terminated when the ego reaches its goal (0.5 m) or touches a pedestrian (centre distance < 0.55 m);
+    ``info["termination"]`` names which ("goal" or "pedestrian_collision"; a collision outranks the goal).
+    Truncated at the recording's last frame, or by the registered time limit (200 steps: a timeout), with
+    ``termination`` None. ``step`` before ``reset``, or after the env ended the episode, raises
+    ``NeedsResetError`` (gymnasium's ResetNeeded).
 
     ## Info
-    frame (recording frame id), agent_ids and predicted_ids (N_max,) int64 (-1 where none),
-    reward_parts, metrics: a read-only mapping (``envs.common.running_metrics.Metrics``) of the running
-    ADE/FDE of matured predictions, map violation, ego collisions and least ego-pedestrian distance; a
-    value with nothing to measure yet is None ("n/a"), never 0.0.
+    frame (recording frame id), agent_ids and predicted_ids (N_max,) int64 (-1 where none), reward_parts,
+    termination (what ended the episode on this step, else None), metrics: a read-only mapping
+    (``envs.common.running_metrics.Metrics``) of the running ADE/FDE of matured predictions, map violation, ego
+    collisions and least ego-pedestrian distance; a value with nothing to measure yet is None ("n/a"), never 0.0.
 
     ## Errors and vector envs
     Every argument, option and action is checked before anything changes, and a bad one raises the env's
@@ -143,7 +146,9 @@ class ReplayCrowdEnv(CrowdEnv):
     overwritten: the new one is numbered, ``run-1.rrd``, and ``rerun_paths`` lists what was written).
 
     ## Version History
-    - v0: initial version.
+    - v0: initial version. 2026-11-23, same id (reward, observation and dynamics unchanged):
+      ``info["termination"]``, the ``collision`` reward part renamed ``pedestrian_collision`` (and a
+      ``wall_collision`` part, always 0), the ``ego_max_accel_mps2`` attribute.
     """
 
     RESET_OPTIONS: ClassVar[dict[str, str]] = {"start_index": "int, the listed frame to start at"}

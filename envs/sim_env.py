@@ -24,6 +24,7 @@ from st_sim.sim import (
     make_layout,
 )
 from st_sim.sim import population_cap as sim_population_cap
+from st_sim.sim.physics import EGO_TYPE, PED_TYPE
 
 SYNTHETIC_LAYOUTS: tuple[str, ...] = ("crossing", "corridor", "bottleneck")
 
@@ -58,13 +59,13 @@ class SimCrowdEnv(CrowdEnv):
 
     ## Description
     Pedestrians (discs of 0.2 m, steered by the calibrated collision-free speed model, pymunk contacts;
-    ``st_sim.sim.CrowdSim``) enter at the layout's entries and leave at its exits; one step is 0.4 s. In a
-    real scene's geometry the population (walking speeds, people standing, groups) is the one fitted to
-    that scene's recording. The ego is a heavy disc of radius 0.3 m whose velocity follows the action within
-    an acceleration limit. With ``pedestrians_see_ego=True`` (default) pedestrians steer around it as around
-    another pedestrian; with False it is an invisible robot that they meet only by contact (the setting
-    CrowdNav-style benchmarks also report). Every pedestrian present is in the observation; one with T_obs
-    consecutive steps of presence also gets S predicted futures (one batched predictor call per step).
+    ``st_sim.sim.CrowdSim``) enter at the layout's entries and leave at its exits; one step is 0.4 s. In a real
+    scene's geometry the population (walking speeds, people standing, groups) is the one fitted to that scene's
+    recording. The ego is a heavy disc of radius 0.3 m whose velocity follows the action within an acceleration
+    limit (``ego_max_accel_mps2``, 2 m/s^2). With ``pedestrians_see_ego=True`` (default) pedestrians steer around
+    it as around another pedestrian; with False it is an invisible robot that they meet only by contact (the
+    setting CrowdNav-style benchmarks also report). Every pedestrian present is in the observation; one with
+    T_obs consecutive steps of presence also gets S predicted futures (one batched predictor call per step).
 
     ## Action Space
     Box(-1.5, 1.5, (2,), float32): commanded ego velocity (vx, vy) [m/s], world frame; scaled down to
@@ -75,16 +76,20 @@ class SimCrowdEnv(CrowdEnv):
     N_max = the simulator's population cap (``crowd.max_pedestrians``, 40 by default).
 
     ## Rewards
-    As ``ReplayCrowdEnv``: progress to the goal [m] x 1, goal reached x 10, collision (the ego touched a
-    pedestrian or a wall) x -10, off the walkable map x -1 per step, time x -0.1 per step.
+    As ``ReplayCrowdEnv``: progress to the goal [m] x 1, goal reached x 10, ``pedestrian_collision`` (the ego
+    touched a pedestrian: a pymunk contact of the two bodies) and ``wall_collision`` (it came within 1 cm of a
+    wall and touched no pedestrian that step) x -10 each (``config.reward.collision``; the two exclude each
+    other, so a step pays the weight at most once), off the walkable map x -1 per step, time x -0.1 per step.
 
     ## Starting State
     A fresh crowd drawn from ``np_random`` that has walked T_obs - 1 steps (so histories are full at
     reset) with the ego standing at the layout's start; the goal is the layout's ego goal.
 
     ## Episode End
-    Terminated when the ego reaches its goal (0.5 m) or collides. Truncated by the registered time limit
-    (200 steps); the crowd itself never ends.
+    Terminated when the ego reaches its goal (0.5 m) or touches a pedestrian or a wall;
+    ``info["termination"]`` names which ("goal", "pedestrian_collision", "wall_collision"; a collision
+    outranks the goal). Truncated by the registered time limit (200 steps), with ``termination`` None: that is
+    a timeout; the crowd itself never ends.
 
     ## Info
     As ``ReplayCrowdEnv``; ``frame`` is the simulator's step count; ``pedestrians_see_ego`` (bool) says
@@ -101,7 +106,9 @@ class SimCrowdEnv(CrowdEnv):
 
     ## Version History
     - v1 (2026-11-23): calibrated speed-model steering, 0.2 m pedestrians, fitted populations in real scenes,
-      ``pedestrians_see_ego`` (default True).
+      ``pedestrians_see_ego`` (default True). Same day, same id (reward, observation and dynamics unchanged):
+      ``info["termination"]``, the ``collision`` reward part split into ``pedestrian_collision`` and
+      ``wall_collision``, and the ``ego_max_accel_mps2`` attribute.
     - v0: social-force steering; pedestrians reacted to the ego only by contact.
     """
 
@@ -114,12 +121,17 @@ class SimCrowdEnv(CrowdEnv):
         self.pedestrians_see_ego = bool(pedestrians_see_ego)
         super().__init__(self.layout.scene, population_cap(self.crowd_cfg, self.layout), f"sim layout {layout}",
                          predictor, task, ego, render_mode, config, shipped_checkpoint(task, None), rerun=rerun)
+        self.ego_max_accel_mps2 = EgoConfig().max_accel_mps2
         self.sim: CrowdSim | None = None
+        self._touched_pedestrian = False  # set by the pymunk contact callback during a step
 
     def _reset_world(self, options: dict) -> list[Frame]:
         ego_cfg = EgoConfig(radius_m=self.cfg.ego_radius_m, max_speed_mps=self.cfg.max_speed_mps,
+                            max_accel_mps2=self.ego_max_accel_mps2,
                             pedestrians_see_ego=self.pedestrians_see_ego) if self.ego else None
         self.sim = CrowdSim(self.layout, self.crowd_cfg, self.np_random, ego=ego_cfg)
+        if self.ego:  # the simulator reports any ego contact; this pair handler tells pedestrians from walls
+            self.sim.space.on_collision(EGO_TYPE, PED_TYPE, pre_solve=self._on_pedestrian_contact)
         frames = [self._sim_frame()]
         for _ in range(self.t_obs - 1):  # warm-up: the ego stands still while the crowd gets going
             self.sim.step(None)
@@ -128,14 +140,20 @@ class SimCrowdEnv(CrowdEnv):
         return frames
 
     def _step_world(self, ego_velocity_mps: np.ndarray | None) -> Frame:
+        self._touched_pedestrian = False
         self.sim.step(ego_velocity_mps)
         return self._sim_frame()
 
-    def _ego_collided(self, frame: Frame) -> bool:
-        return bool(self.sim.ego_collided)
+    def _ego_contacts(self, frame: Frame) -> tuple[bool, bool]:
+        """(touched a pedestrian, touched anything else: a wall) during the last step."""
+        return self._touched_pedestrian, bool(self.sim.ego_collided) and not self._touched_pedestrian
 
-    def _info(self, reward_parts: dict[str, float]) -> dict[str, Any]:
-        return {**super()._info(reward_parts), "pedestrians_see_ego": self.pedestrians_see_ego}
+    def _info(self, reward_parts: dict[str, float], termination: str | None) -> dict[str, Any]:
+        return {**super()._info(reward_parts, termination), "pedestrians_see_ego": self.pedestrians_see_ego}
+
+    def _on_pedestrian_contact(self, arbiter: Any, space: Any, data: Any) -> None:
+        """pymunk pre-solve callback of an (ego, pedestrian) contact; the simulator's own callback still runs."""
+        self._touched_pedestrian = True
 
     def _sim_frame(self) -> Frame:
         """The simulator's pedestrians now; also refreshes the ego state."""

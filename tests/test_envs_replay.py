@@ -121,7 +121,7 @@ def test_replay_collision_terminates_with_penalty() -> None:
     next_frame = unwrapped.replay.frame(101)
     unwrapped.ego_xy_m = next_frame.xy_m[0].copy()  # stand where a pedestrian will be
     _, reward, terminated, _, info = env.step(np.zeros(2))
-    assert terminated and info["reward_parts"]["collision"] == 1.0
+    assert terminated and info["reward_parts"]["pedestrian_collision"] == 1.0
     assert info["metrics"]["ego_collisions"] == 1
     assert reward <= unwrapped.cfg.reward.collision + 1.0
 

@@ -59,7 +59,8 @@ class RewardWeights:
     goal: float = 10.0
     """once, on the step the ego reaches its goal"""
     collision: float = -10.0
-    """once, on the step the ego touches a pedestrian"""
+    """once, on the step the ego touches a pedestrian or a wall (parts ``pedestrian_collision`` and
+    ``wall_collision``, which exclude each other)"""
     off_map: float = -1.0
     """per step the ego stands on a non-walkable or off-image pixel"""
     time: float = -0.1

@@ -1,9 +1,15 @@
 """What the replay and simulated crowd environments share: spaces, observation, predictions, reward, info.
 
 A subclass provides the crowd (and moves the ego) through four hooks: ``_reset_world`` (frames up to
-now, drawn from ``self.np_random``), ``_step_world`` (one 0.4 s step), ``_ego_collided`` and
-``_world_ended``. It keeps ``ego_xy_m``, ``ego_velocity_mps`` and ``goal_m`` up to date, lists the
-``reset`` options it reads in ``RESET_OPTIONS`` and checks their values in ``_check_options``.
+now, drawn from ``self.np_random``), ``_step_world`` (one 0.4 s step), ``_ego_contacts`` (pedestrian and
+wall contact) and ``_world_ended``. It keeps ``ego_xy_m``, ``ego_velocity_mps`` and ``goal_m`` up to date
+(and ``ego_max_accel_mps2`` if its ego has inertia), lists the ``reset`` options it reads in
+``RESET_OPTIONS`` and checks their values in ``_check_options``.
+
+How an episode ends is in ``info["termination"]``: "goal", "pedestrian_collision", "wall_collision" (the
+step that terminated the episode; a collision outranks the goal, a pedestrian outranks a wall) or None
+while it goes on. The env never ends an episode for time: "timeout" is the ``TimeLimit`` wrapper's
+truncation (``truncated`` with ``termination`` None), like the end of a replay's recording.
 
 Input contract (both vectorisation modes of gymnasium): every check of an argument, option or action runs
 before anything changes, and raises the env's own ``envs.common.errors.EnvInputError`` (a ValueError) or
@@ -33,7 +39,11 @@ from replays.constants import POSITION_LIMIT_M, STEP_S, T_PRED
 from replays.scenes import Scene
 
 EGO_FIELDS = ("x_m", "y_m", "vx_mps", "vy_mps", "goal_x_m", "goal_y_m")  # layout of obs["ego"]
-REWARD_PARTS = ("progress", "goal", "collision", "off_map", "time")
+REWARD_PARTS = ("progress", "goal", "pedestrian_collision", "wall_collision", "off_map", "time")
+WEIGHT_OF: dict[str, str] = {"pedestrian_collision": "collision", "wall_collision": "collision"}
+"""reward parts weighted by a ``RewardWeights`` field of another name (both collision kinds share its weight)"""
+TERMINATIONS: tuple[str, ...] = ("pedestrian_collision", "wall_collision", "goal")
+"""values of ``info["termination"]`` besides None, by precedence (the first part that is 1 names the end)"""
 
 
 class CrowdEnv(gym.Env):
@@ -76,6 +86,8 @@ class CrowdEnv(gym.Env):
         self.ego_xy_m = np.zeros(2)
         self.ego_velocity_mps = np.zeros(2)
         self.goal_m = np.zeros(2)
+        self.ego_max_accel_mps2 = float("inf")
+        """how fast the ego's velocity can change [m/s^2]; inf: it moves at the commanded velocity at once"""
         self._obs: dict[str, np.ndarray] | None = None
         self._episode_over = False  # terminated, or the world ended: step needs a reset first
         self.anchors: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # (ids, prototype, adapted)
@@ -99,7 +111,7 @@ class CrowdEnv(gym.Env):
             require_on_map(self.scene, self.goal_m, "the ego's goal", walkable=True)
             self.metrics.update_ego(False, self.ego_xy_m, self.tracks.now.xy_m)
         self._obs = self._observe()
-        info = self._info(dict.fromkeys(REWARD_PARTS, 0.0))
+        info = self._info(dict.fromkeys(REWARD_PARTS, 0.0), None)
         self._log_rerun(info, 0.0)
         return self._obs, info
 
@@ -117,10 +129,12 @@ class CrowdEnv(gym.Env):
         self.tracks.push(self._step_world(velocity if self.ego else None))
         self._obs = self._observe()
         parts = self._reward_parts(previous_xy_m) if self.ego else dict.fromkeys(REWARD_PARTS, 0.0)
-        reward = float(sum(getattr(self.cfg.reward, name) * value for name, value in parts.items()))
-        terminated, truncated = bool(parts["goal"] or parts["collision"]), self._world_ended()
+        reward = float(sum(getattr(self.cfg.reward, WEIGHT_OF.get(name, name)) * value
+                           for name, value in parts.items()))
+        termination = next((name for name in TERMINATIONS if parts[name]), None)
+        terminated, truncated = termination is not None, self._world_ended()
         self._episode_over = terminated or truncated
-        info = self._info(parts)
+        info = self._info(parts, termination)
         self._log_rerun(info, reward)
         return self._obs, reward, terminated, truncated, info
 
@@ -152,12 +166,13 @@ class CrowdEnv(gym.Env):
         """Advance 0.4 s with the ego moving at ``ego_velocity_mps`` (None in spectator mode)."""
         raise NotImplementedError
 
-    def _ego_collided(self, frame: Frame) -> bool:
-        """Ego touches a pedestrian (default: centre distance below the two radii)."""
+    def _ego_contacts(self, frame: Frame) -> tuple[bool, bool]:
+        """(touched a pedestrian, touched a wall) this step (default: centre distance below the two radii;
+        no walls)."""
         if len(frame.xy_m) == 0:
-            return False
+            return False, False
         reach = self.cfg.ego_radius_m + self.cfg.pedestrian_radius_m
-        return bool(np.min(np.linalg.norm(frame.xy_m - self.ego_xy_m, axis=1)) < reach)
+        return bool(np.min(np.linalg.norm(frame.xy_m - self.ego_xy_m, axis=1)) < reach), False
 
     def _world_ended(self) -> bool:
         """No further step possible (a recording's last frame)."""
@@ -202,15 +217,20 @@ class CrowdEnv(gym.Env):
                 "futures": futures, "futures_mask": futures_mask}
 
     def _reward_parts(self, previous_xy_m: np.ndarray) -> dict[str, float]:
-        """Named reward parts of the step from ``previous_xy_m`` (ego mode); also updates the ego metrics."""
+        """Named reward parts of the step from ``previous_xy_m`` (ego mode); also updates the ego metrics.
+
+        The collision kinds exclude each other (a step that touched both counts as a pedestrian collision),
+        so a step costs the collision weight at most once.
+        """
         frame = self.tracks.now
         distance_m = float(np.linalg.norm(self.goal_m - self.ego_xy_m))
-        collided = self._ego_collided(frame)
+        pedestrian, wall = self._ego_contacts(frame)
         walkable = bool(self.scene.is_walkable(self.ego_xy_m))
         parts = {"progress": float(np.linalg.norm(self.goal_m - previous_xy_m)) - distance_m,
                  "goal": float(distance_m <= self.cfg.goal_radius_m),
-                 "collision": float(collided), "off_map": float(not walkable), "time": 1.0}
-        self.metrics.update_ego(collided, self.ego_xy_m, frame.xy_m)
+                 "pedestrian_collision": float(pedestrian), "wall_collision": float(wall and not pedestrian),
+                 "off_map": float(not walkable), "time": 1.0}
+        self.metrics.update_ego(pedestrian or wall, self.ego_xy_m, frame.xy_m)
         return parts
 
     def _log_rerun(self, info: dict[str, Any], reward: float) -> None:
@@ -239,14 +259,16 @@ class CrowdEnv(gym.Env):
             metrics={**metrics, "reward": reward}, prototype_anchors=prototype, adapted_anchors=adapted)
         self._rerun_step += 1
 
-    def _info(self, reward_parts: dict[str, float]) -> dict[str, Any]:
-        """Fresh info dict; ``agent_ids[i]``/``predicted_ids[i]`` name the agent of observation row i (-1: none)."""
+    def _info(self, reward_parts: dict[str, float], termination: str | None) -> dict[str, Any]:
+        """Fresh info dict; ``agent_ids[i]``/``predicted_ids[i]`` name the agent of observation row i (-1: none);
+        ``termination`` is what ended the episode this step (see ``TERMINATIONS``), None otherwise."""
         row_ids = self.tracks.row_ids.copy()
         return {
             "frame": int(self.tracks.now.frame),
             "agent_ids": row_ids,
             "predicted_ids": np.where(self._obs["futures_mask"], row_ids, -1),
             "reward_parts": dict(reward_parts),
+            "termination": termination,
             "metrics": self.metrics.summary(),
         }
 

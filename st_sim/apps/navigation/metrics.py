@@ -16,7 +16,6 @@ from scipy import stats
 from replays.constants import STEP_S
 
 DISCOMFORT_M = 0.2  # the ego is uncomfortably close when its body is this near a pedestrian's [m]
-WALL_CONTACT_M = 0.1  # a collision with the robot's body this near a wall (and no pedestrian as near) hit the wall [m]
 CONFIDENCE = 0.95
 
 
@@ -29,20 +28,19 @@ class Outcome(str, Enum):
     TIMEOUT = "timeout"
 
 
-def outcome_of(reward_parts: dict[str, float], truncated: bool, clearance_m: float,
-               wall_gap_m: float) -> Outcome | None:
-    """Outcome of a step from the env's reward parts, or None while the episode goes on.
+TERMINATION_OUTCOMES: dict[str, Outcome] = {"goal": Outcome.GOAL, "pedestrian_collision": Outcome.PEDESTRIAN,
+                                            "wall_collision": Outcome.WALL}
+"""the env's ``info["termination"]`` values and the outcomes they name"""
 
-    The env's ``collision`` part counts pedestrians and walls alike. A collision is a wall collision when the
-    ego's body ends the step within WALL_CONTACT_M of a wall (``wall_gap_m``) and no pedestrian's body is as
-    close (``clearance_m``); otherwise a pedestrian collision (a pedestrian touched mid-step may have moved
-    off by the step's end, a wall has not). Collision beats goal.
+
+def outcome_of(termination: str | None, truncated: bool) -> Outcome | None:
+    """Outcome of a step from the env's ``info["termination"]`` and ``truncated``, or None while it goes on.
+
+    The env names its terminations (a collision outranks the goal); a truncation without one is a timeout
+    (the registered time limit, or a replay's recording that ended).
     """
-    if reward_parts["collision"]:
-        near_wall = wall_gap_m <= WALL_CONTACT_M and wall_gap_m < clearance_m
-        return Outcome.WALL if near_wall else Outcome.PEDESTRIAN
-    if reward_parts["goal"]:
-        return Outcome.GOAL
+    if termination is not None:
+        return TERMINATION_OUTCOMES[termination]
     return Outcome.TIMEOUT if truncated else None
 
 

@@ -86,9 +86,9 @@ def make_env(env_id: str, use_predictions: bool) -> gym.Env:
 
 
 def outcome(info: dict) -> str:
-    """goal / collision / timeout of a finished training episode (from the env's reward parts)."""
-    parts = info["reward_parts"]
-    return "goal" if parts["goal"] and not parts["collision"] else "collision" if parts["collision"] else "timeout"
+    """goal / collision / timeout of a finished training episode (from the env's ``info["termination"]``)."""
+    termination = info["termination"]
+    return "timeout" if termination is None else "goal" if termination == "goal" else "collision"
 
 
 def curve_callback(cfg: TrainConfig, curve: list[dict]) -> Any:

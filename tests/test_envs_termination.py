@@ -1,0 +1,78 @@
+"""How an episode ends: info["termination"], the two collision parts, timeouts, the ego's acceleration limit."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import envs  # noqa: F401  (registers the ids)
+from envs.common.crowd_env import REWARD_PARTS, TERMINATIONS
+
+SIM_ID = "STCrowd-SimCrossing-v1"  # ego starts at (10, 2.5) m, the crossing's bottom wall is at y = 0 m
+
+
+def run_until_end(env: gym.Env, action: np.ndarray, seed: int) -> tuple[int, float, bool, dict]:
+    """Step ``action`` from ``reset(seed=seed)`` until the episode ends: (steps, last reward, truncated, info)."""
+    _, info = env.reset(seed=seed)
+    assert info["termination"] is None, "reset names no termination"
+    for t in range(1, 500):
+        _, reward, terminated, truncated, info = env.step(action)
+        assert (info["termination"] is not None) == terminated, f"[step {t}] termination {info['termination']}"
+        if terminated or truncated:
+            return t, reward, truncated, info
+    raise AssertionError("the episode did not end")
+
+
+def test_sim_wall_contact_is_a_wall_collision_with_the_collision_weight() -> None:
+    env = gym.make(SIM_ID, predictor="cvm")
+    _, reward, _, info = run_until_end(env, np.array([0.0, -1.5]), seed=1)  # reverse into the wall behind
+    parts = info["reward_parts"]
+    assert info["termination"] == "wall_collision"
+    assert parts["wall_collision"] == 1.0 and parts["pedestrian_collision"] == 0.0
+    weights = env.unwrapped.cfg.reward
+    assert reward == pytest.approx(weights.collision + weights.time + parts["progress"] + weights.off_map
+                                   * parts["off_map"])
+
+
+def test_sim_walking_into_the_crowd_is_a_pedestrian_collision() -> None:
+    env = gym.make(SIM_ID, predictor="cvm")
+    _, _, _, info = run_until_end(env, np.array([0.0, 1.5]), seed=0)  # straight up through the crossing flow
+    assert info["termination"] == "pedestrian_collision"
+    assert info["reward_parts"]["pedestrian_collision"] == 1.0 and info["reward_parts"]["wall_collision"] == 0.0
+    assert info["metrics"]["ego_collisions"] == 1
+
+
+@pytest.mark.parametrize("env_id", [SIM_ID, "STCrowd-Zara2-v0"], ids=["sim", "replay"])
+def test_goal_and_timeout_are_named(env_id: str) -> None:
+    env = gym.make(env_id, predictor="cvm", max_episode_steps=3)
+    steps, _, truncated, info = run_until_end(env, np.zeros(2), seed=4)
+    assert (steps, truncated, info["termination"]) == (3, True, None), "the time limit is a truncation"
+    env.reset(seed=4)
+    env.unwrapped.goal_m = env.unwrapped.ego_xy_m + np.array([0.0, 0.3])
+    _, _, terminated, _, info = env.step(np.zeros(2))
+    assert terminated and info["termination"] == "goal"
+    assert set(info["reward_parts"]) == set(REWARD_PARTS) and info["termination"] in TERMINATIONS
+
+
+def test_replay_collision_is_a_pedestrian_collision() -> None:
+    env = gym.make("STCrowd-Zara1-v0", predictor="cvm")
+    env.reset(seed=0, options={"start_index": 100})
+    env.unwrapped.ego_xy_m = env.unwrapped.replay.frame(101).xy_m[0].copy()  # where a pedestrian will be
+    _, _, terminated, _, info = env.step(np.zeros(2))
+    assert terminated and info["termination"] == "pedestrian_collision"
+    assert info["reward_parts"]["wall_collision"] == 0.0
+
+
+def test_sim_ego_velocity_follows_the_command_within_the_exposed_acceleration_limit() -> None:
+    env = gym.make(SIM_ID, predictor="cvm")
+    accel_mps2 = env.unwrapped.ego_max_accel_mps2
+    assert accel_mps2 == pytest.approx(2.0)
+    assert gym.make("STCrowd-Zara1-v0", predictor="cvm").unwrapped.ego_max_accel_mps2 == float("inf")
+    obs, _ = env.reset(seed=2)
+    speeds = []
+    for t in range(4):  # full speed toward the goal from standing: 0.8 m/s more per 0.4 s step, no faster
+        obs, *_ = env.step(np.array([0.0, 1.5]))
+        speeds.append(float(np.linalg.norm(obs["ego"][2:4])))
+        assert speeds[-1] <= accel_mps2 * 0.4 * (t + 1) + 1e-3, f"[step {t}] speed {speeds[-1]:.3f} m/s"
+    assert speeds[1] > speeds[0] > 0.5, "the ego does accelerate"
