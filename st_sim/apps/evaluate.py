@@ -257,6 +257,12 @@ TASK_TITLES = {"domain": "domain adaptation (paper protocol: validation on the t
                "domain_strict": "domain adaptation, strict (validation on the source's own val portion)"}
 
 
+def _short_source(source: str) -> str:
+    """A checkpoint as a table shows it: ``<task>/<scene>/seed<k>/best.pt`` for a run, else as given."""
+    parts = Path(source).parts
+    return "/".join(parts[-4:]) if len(parts) > 4 else source
+
+
 def markdown_table(result: dict) -> str:
     """A markdown table of ``aggregate``'s result with the paper's numbers, the delta and the checkpoints."""
     seeds = result["seeds"]
@@ -272,7 +278,7 @@ def markdown_table(result: dict) -> str:
     for name, r in result["scenes"].items():
         paper = _pair(r["paper_ade"], r["paper_fde"]) if r["paper_ade"] is not None else "–"
         scores = _pair(r["ade"], r["fde"], r["ade_sd"], r["fde_sd"]) if several else _pair(r["ade"], r["fde"])
-        checkpoint = r["checkpoints"][0] or "–"
+        checkpoint = _short_source(r["checkpoints"][0]) if r["checkpoints"][0] else "–"
         if several and r["checkpoints"][0]:
             checkpoint += f" (+{len(seeds) - 1} seeds)"
         percent = {k: format_metric(r[k], ".1f" if k == "path_map_violation" else ".2f", 100)
