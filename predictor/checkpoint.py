@@ -132,8 +132,9 @@ def pretrained_manifest() -> dict:
 
 
 def load_pretrained(name: str = "universal") -> SingularTrajectory:
-    """A shipped checkpoint by name: ``"stochastic/eth"`` ... ``"stochastic/zara2"``, ``"universal"``, and their
-    2-frame counterparts ``"momentary/eth"`` ... ``"momentary/zara2"``, ``"momentary/universal"``."""
+    """A shipped checkpoint by name: ``"stochastic/eth"`` ... ``"stochastic/zara2"``, the single-sample
+    ``"deterministic/eth"`` ... ``"deterministic/zara2"``, ``"universal"``, and the 2-frame counterparts
+    ``"momentary/eth"`` ... ``"momentary/zara2"``, ``"momentary/universal"``."""
     manifest = pretrained_manifest()
     if name not in manifest["checkpoints"]:
         raise CheckpointError(f"no shipped checkpoint {name!r}; available: {', '.join(manifest['checkpoints'])}")

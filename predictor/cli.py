@@ -77,6 +77,9 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument("--init-noise", type=float,
                        help=f"scale of the sampler's starting noise, 0 = a deterministic chain "
                             f"(default: {defaults.init_noise})")
+    train.add_argument("--stand-speed", dest="stand_speed_m", type=float,
+                       help="agents whose last step is shorter [m per 0.4 s step] keep constant velocity at "
+                            "inference (default: 0.05 for single-sample tasks, else off)")
     train.add_argument("--seed", type=int, help=f"random seed (default: {defaults.seed})")
     train.add_argument("--threads", type=int, help=f"torch threads (default: {defaults.threads})")
     train.add_argument("--data-root", help="ETH/UCY folder (default: $STCROWD_DATA or the cache)")

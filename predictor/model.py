@@ -1,7 +1,9 @@
 """The SingularTrajectory predictor: agent frames + Singular space + adaptive anchors + diffusion refiner.
 
 Populations: index 0 = moving agents (speed-normalised), 1 = slow agents (see ``predictor.normalize``);
-each has its own Singular space, prototype anchors and coefficient scales.
+each has its own Singular space, prototype anchors and coefficient scales. Single-sample models leave
+agents that stand (last step under ``SINGLE_SAMPLE_STAND_SPEED_M``) at constant velocity: one path cannot
+hedge between staying and leaving, and staying is the better bet (chosen on the validation splits).
 """
 
 from __future__ import annotations
@@ -12,6 +14,7 @@ import numpy as np
 import torch
 
 from predictor.anchors import BEND_SHAPES, OFF_IMAGE_MODES, adapt_paths, adaptive_anchors
+from predictor.baselines import ConstantVelocity
 from predictor.config_check import check_config
 from predictor.normalize import AgentFrame, agent_frames, rotate
 from predictor.protocol import check_inputs, empty_prediction
@@ -21,6 +24,7 @@ from replays.constants import TASKS
 from replays.scenes import Scene
 
 BATCH_AGENTS = 512  # agents per refiner call at inference (whole windows; bounds attention memory)
+SINGLE_SAMPLE_STAND_SPEED_M = 0.05  # S = 1: slower agents keep constant velocity [m per 0.4 s step]
 
 
 @dataclass(frozen=True)
@@ -63,9 +67,13 @@ class ModelConfig:
     """scale of the starting noise x_M of the sampler"""
     zero_start: bool = True
     """the refiner's output layer starts at zero (untrained refiner = anchors)"""
+    stand_speed_m: float | None = None
+    """at inference, agents whose last observed step is shorter than this [m per 0.4 s step] keep their constant
+    velocity (people standing stay put); None: 0.05 for single-sample models, 0 (off) otherwise"""
 
     def __post_init__(self) -> None:
         check_config(self, {"obs_len": (2, 64), "num_samples": (1, 1000), "k": (1, 24), "slow_speed_m": (0.0, 10.0),
+                            "stand_speed_m": (0.0, 10.0),
                             "slow_scale_floor_m": (0.0, 10.0), "dim": (4, 4096), "denoiser_dim": (4, 4096),
                             "heads": (1, 64), "layers": (1, 16), "steps": (1, 1000), "init_noise": (0.0, 100.0)},
                      choices={"task": tuple(TASKS), "anchor_off_image": OFF_IMAGE_MODES, "anchor_bend": BEND_SHAPES})
@@ -76,6 +84,13 @@ class ModelConfig:
         """The refiner's architecture for this model."""
         shared = {f.name: getattr(self, f.name) for f in fields(RefinerConfig) if f.name != "history_dim"}
         return RefinerConfig(history_dim=self.history_dim, **shared)
+
+    @property
+    def standing_m(self) -> float:
+        """The effective ``stand_speed_m`` [m per step] (0 = every agent goes through the refiner)."""
+        if self.stand_speed_m is not None:
+            return self.stand_speed_m
+        return SINGLE_SAMPLE_STAND_SPEED_M if self.num_samples == 1 else 0.0
 
     @property
     def history_dim(self) -> int:
@@ -197,6 +212,9 @@ class SingularTrajectory:
         if self.cfg.adapt_output and self.cfg.adapt_anchors and scene is not None:
             futures, _ = adapt_paths(futures, scene, inputs.frames.origin_m, self.cfg.anchor_off_image,
                                      self.cfg.anchor_bend)
+        standing = np.linalg.norm(obs[:, -1] - obs[:, -2], axis=-1) < self.cfg.standing_m
+        if standing.any():
+            futures[standing] = ConstantVelocity().predict(obs[standing], group[standing], None, self.cfg.num_samples)
         futures = futures.astype(np.float32)
         keep = slice(0, num_samples)  # anchors are ordered by cluster size: the first are the likeliest
         return Prediction(futures[:, keep], inputs.anchor_paths_m[0][:, keep].astype(np.float32),

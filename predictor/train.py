@@ -91,6 +91,9 @@ class TrainConfig:
     """the refiner's output layer starts at zero, so training starts from the anchors"""
     init_noise: float = 1.0
     """scale of the sampler's starting noise x_M (0 = a deterministic refinement chain)"""
+    stand_speed_m: float | None = None
+    """inference only: slower agents [m per 0.4 s step] keep constant velocity; None: 0.05 for single-sample
+    tasks, 0 (off) otherwise"""
     max_train_windows: int | None = None
     """use only the first N training windows (quick checks and tests); None = all"""
     seed: int = 0
@@ -112,7 +115,7 @@ class TrainConfig:
             "fde_weight": (0.0, 100.0), "k": (1, 24), "dim": (4, 4096), "denoiser_dim": (4, 4096),
             "steps": (1, 1000), "init_noise": (0.0, 100.0), "seed": (0, 2**31 - 1), "threads": (1, 256),
             "select_tolerance_m": (0.0, 10.0), "max_train_windows": (1, 10**9),
-            "slow_speed_m": (0.0, 10.0), "slow_scale_floor_m": (0.0, 10.0),
+            "slow_speed_m": (0.0, 10.0), "slow_scale_floor_m": (0.0, 10.0), "stand_speed_m": (0.0, 10.0),
         }, choices={"task": tuple(TASKS), "objective": ("e2e", "eps"), "anchor_off_image": OFF_IMAGE_MODES,
                     "anchor_bend": BEND_SHAPES})
         if self.dim % 4:

@@ -11,7 +11,8 @@ from replays import load_scene, load_windows
 from st_sim.metrics import ade_fde
 
 SCENES = ("eth", "hotel", "univ", "zara1", "zara2")
-NAMES = [f"{task}/{s}" for task in ("stochastic", "momentary") for s in SCENES] + ["universal", "momentary/universal"]
+TASKS = ("stochastic", "deterministic", "momentary")
+NAMES = [f"{task}/{s}" for task in TASKS for s in SCENES] + ["universal", "momentary/universal"]
 
 
 def test_manifest_lists_every_shipped_checkpoint_with_its_numbers():
@@ -26,14 +27,16 @@ def test_manifest_lists_every_shipped_checkpoint_with_its_numbers():
 @pytest.mark.parametrize("name", NAMES, ids=NAMES)
 def test_pretrained_loads_by_name_and_beats_its_manifest_bound(name):
     model = predictor.load_pretrained(name)
-    task = "momentary" if name.startswith("momentary") else "stochastic"
+    task = {"universal": "stochastic", "momentary/universal": "momentary"}.get(name, name.split("/")[0])
     scene = "zara1" if name.endswith("universal") else name.split("/")[1]
     test = load_windows(task, scene, "test")
     keep = test.group < 40  # a slice of whole windows keeps the test fast
-    pred = model.predict(test.obs[keep], test.group[keep], load_scene(scene), 20)
-    assert pred.shape == (keep.sum(), 20, 12, 2)
+    samples = 1 if task == "deterministic" else 20
+    pred = model.predict(test.obs[keep], test.group[keep], load_scene(scene), samples)
+    assert pred.shape == (keep.sum(), samples, 12, 2)
     ade, fde = ade_fde(pred, test.fut[keep])
-    assert ade.mean() < 0.6 and fde.mean() < 1.2, (ade.mean(), fde.mean())
+    bound_ade, bound_fde = (1.0, 2.5) if samples == 1 else (0.6, 1.2)  # metres, far above the manifest's numbers
+    assert ade.mean() < bound_ade and fde.mean() < bound_fde, (ade.mean(), fde.mean())
 
 
 def test_manifest_numbers_are_reproduced_on_zara1():

@@ -8,9 +8,12 @@ import numpy as np
 import pytest
 import torch
 
+from predictor.baselines import ConstantVelocity
+from predictor.model import SINGLE_SAMPLE_STAND_SPEED_M
 from predictor.refiner import Refiner, RefinerConfig
 from predictor.train import SINGLE_SAMPLE_SLOW_SPEED_M, TrainConfig, fit_model
 from replays import load_scene, load_windows
+from replays.constants import TASKS
 
 
 def reference_ddim(refiner: Refiner, anchors: torch.Tensor, ctx: torch.Tensor, noise: torch.Tensor) -> torch.Tensor:
@@ -66,3 +69,19 @@ def test_untrained_refiner_returns_the_adapted_anchors() -> None:
     # a bent anchor is re-projected onto the K = 4 basis, which keeps it up to a small shape error
     assert np.abs(detail.futures[bent] - detail.adapted_anchors[bent]).max() < 0.5
     assert not np.allclose(detail.futures[:, 0], detail.futures[:, 1])  # the 20 anchors differ
+
+
+@pytest.mark.parametrize("task", ["deterministic", "stochastic"])
+def test_only_single_sample_models_keep_standing_agents_at_constant_velocity(task: str) -> None:
+    train = load_windows(task, "zara1", "train")
+    model = fit_model(TrainConfig(task=task, dim=32), train.subset(train.group < 100))
+    test = load_windows(task, "zara1", "test")
+    test = test.subset(test.group < 300)
+    standing = np.linalg.norm(test.obs[:, -1] - test.obs[:, -2], axis=-1) < SINGLE_SAMPLE_STAND_SPEED_M
+    assert standing.any() and (~standing).any()
+    samples = TASKS[task]["num_samples"]
+    pred = model.predict(test.obs, test.group, load_scene("zara1"), samples)
+    as_cvm = np.isclose(pred, ConstantVelocity().predict(test.obs, test.group, None, samples), atol=1e-5)
+    as_cvm = as_cvm.all(axis=(1, 2, 3))  # (N,)
+    assert as_cvm[standing].all() == (samples == 1)
+    assert not as_cvm[~standing].any()

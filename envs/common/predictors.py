@@ -26,14 +26,14 @@ def task_sizes(task: str) -> tuple[int, int]:
 def shipped_checkpoint(task: str, scene: str | None) -> str:
     """Name of the shipped SingularTrajectory checkpoint an env uses for ``task`` on a real ``scene``.
 
-    A replay gets its scene's leave-one-out model, which never saw that scene: ``stochastic/<scene>`` (also
-    for the deterministic task, which keeps the likeliest sample), or ``momentary/<scene>`` for 2-frame
-    observations. A simulated layout (``scene`` None) gets the model trained on all five scenes:
-    ``universal`` or ``momentary/universal``.
+    A replay gets its scene's leave-one-out model, which never saw that scene: ``stochastic/<scene>``,
+    ``deterministic/<scene>`` (one sample) or ``momentary/<scene>`` (2 observed frames). A simulated layout
+    (``scene`` None) gets the model trained on all five scenes: ``universal`` (the deterministic task keeps
+    its likeliest sample) or ``momentary/universal``.
     """
     if scene is None:
         return "momentary/universal" if task == "momentary" else "universal"
-    return f"{'momentary' if task == 'momentary' else 'stochastic'}/{scene}"
+    return f"{task}/{scene}"
 
 
 def resolve_predictor(spec: Any, task: str = "stochastic", pretrained: str = "universal") -> Any:
