@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -91,3 +93,22 @@ def test_orca_without_pyrvo_names_the_extra(open_world: NavWorld, monkeypatch: p
     monkeypatch.setitem(sys.modules, "pyrvo", None)  # import pyrvo now raises ImportError
     with pytest.raises(ImportError, match=r'pip install -e "\.\[orca\]"'):
         make_planner("orca", open_world, "none")
+
+
+def test_mpc_weighs_samples_by_their_prior(open_world: NavWorld) -> None:
+    """A pedestrian beside the path: its 15 likely samples stay put, 5 unlikely ones walk onto the path."""
+    obs = observation(np.zeros(2), np.zeros(2), 0)
+    stay = np.array([3.0, 1.5])
+    obs["history"][0] = stay
+    samples = np.repeat(stay[None, None], SAMPLES, axis=0).repeat(T_PRED, axis=1)  # (S, 12, 2)
+    ahead = np.arange(1, T_PRED + 1) * STEP_S
+    samples[15:, :, 1] = stay[1] - 0.75 * ahead  # crosses y = 0 at x = 3 m after 2 s, as the ego would
+    obs["futures"][0] = samples
+    prior = np.r_[np.full(15, 0.99 / 15), np.full(5, 0.01 / 5)]
+    heading_deg = {}
+    for name, world in (("prior", replace(open_world, sample_prior=prior)), ("uniform", open_world)):
+        command = make_planner("mpc", world, "singular").act(obs)
+        heading_deg[name] = np.degrees(np.arctan2(command[1], command[0]))
+        assert np.linalg.norm(command) > 0.5, f"{name}: the ego should move"
+    assert abs(heading_deg["prior"]) < 1.0, f"unlikely samples should not bend the path ({heading_deg})"
+    assert abs(heading_deg["uniform"]) > 10.0, f"a quarter of equally likely samples on the path should ({heading_deg})"
