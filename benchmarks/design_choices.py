@@ -1,6 +1,7 @@
 """Design choices measured: denoiser width, slow-agent threshold for S = 1, the refiner's zero start, min steps.
 
-    OMP_NUM_THREADS=1 STCROWD_DATA=../shared/datasets/eth_ucy python benchmarks/design_choices.py --runs runs/design
+    export OMP_NUM_THREADS=1 STCROWD_DATA=$PWD/../shared/datasets/eth_ucy
+    python benchmarks/design_choices.py --runs runs/design [--workers N | --executor ray --ray-address HOST:PORT]
 
 1. Denoiser width 128 (default) against 256: stochastic ETH, UNIV and ZARA1, three seeds each (test ADE/FDE
    per seed, then mean and standard deviation), and inference time of 50 agents x 20 samples, the two widths
@@ -11,7 +12,8 @@
 3. The refiner's output layer starting at zero (default) against a random start, and at least 300
    optimiser steps (default) against plain 6 epochs: stochastic UNIV (18 batches per epoch; seeds 0-2),
    few-shot on all five scenes and the domain pairs from ETH (101 training samples), seed 0.
-Checkpoints are reused when present, so the script resumes.
+All models train as one grid, then are scored as another (``st_sim.apps.grid``; see ``ablations.py`` for the
+folders). Finished runs and scores are reused, so the script resumes; the timing runs after the grids, alone.
 """
 
 from __future__ import annotations
@@ -23,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from ablations import run_variant
+from ablations import Model, add_arguments, grid_options, train_and_score
 
 from predictor.checkpoint import load
 from replays import load_scene, load_windows
@@ -36,27 +38,39 @@ SCENES = ("eth", "hotel", "univ", "zara1", "zara2")
 START_VARIANTS = {"default": {}, "random start": {"zero_start": False}, "6 epochs only": {"min_steps": 0}}
 START_CASES = ([("stochastic", "univ", seed) for seed in SEEDS] + [("fewshot", scene, 0) for scene in SCENES]
                + [("domain", pair, 0) for pair in ("A2B", "A2C", "A2D", "A2E")])
+WIDTH_MODELS = [Model("stochastic", scene, {"denoiser_dim": width}, seed)
+                for scene in WIDTH_SCENES for width in WIDTHS for seed in SEEDS]
+THRESHOLD_MODELS = [Model("deterministic", scene, {"slow_speed_m": threshold})
+                    for scene in SCENES for threshold in THRESHOLDS_M]
+START_MODELS = [Model(task, scene, overrides, seed) for task, scene, seed in START_CASES
+                for overrides in START_VARIANTS.values()]  # default stochastic UNIV = the width-128 models
 
 
-def width_table(runs: Path) -> None:
+def chunks(rows: list[dict], size: int) -> list[list[dict]]:
+    """``rows`` cut into consecutive lists of ``size``."""
+    return [rows[i:i + size] for i in range(0, len(rows), size)]
+
+
+def width_table(rows: list[dict]) -> None:
     print("| scene | denoiser width | ADE / FDE per seed (0, 1, 2) | mean ADE / FDE | sd ADE / FDE |")
     print("|---|---|---|---|---|")
+    cells = iter(chunks(rows, len(SEEDS)))
     for scene in WIDTH_SCENES:
         for width in WIDTHS:
-            rows = [run_variant(runs, f"width{width} {scene} seed{seed}", scene,
-                                {"denoiser_dim": width, "seed": seed}) for seed in SEEDS]
-            ade, fde = np.array([r["ade"] for r in rows]), np.array([r["fde"] for r in rows])
-            seeds = ", ".join(f"{a:.3f} / {f:.3f}" for a, f in zip(ade, fde, strict=True))
-            print(f"| {scene} | {width} | {seeds} | {ade.mean():.3f} / {fde.mean():.3f} | "
+            seeds = next(cells)
+            ade, fde = np.array([r["ade"] for r in seeds]), np.array([r["fde"] for r in seeds])
+            per_seed = ", ".join(f"{a:.3f} / {f:.3f}" for a, f in zip(ade, fde, strict=True))
+            print(f"| {scene} | {width} | {per_seed} | {ade.mean():.3f} / {fde.mean():.3f} | "
                   f"{ade.std(ddof=1):.3f} / {fde.std(ddof=1):.3f} |")
 
 
-def width_timing(runs: Path, repeats: int) -> None:
-    models = {width: load(runs / f"width{width}_zara1_seed0" / "best.pt") for width in WIDTHS}
-    test = load_windows("stochastic", "univ", "test")
+def width_timing(runs: Path, repeats: int, root: str | None) -> None:
+    folders = {width: Model("stochastic", "zara1", {"denoiser_dim": width}).config(runs, root).out for width in WIDTHS}
+    models = {width: load(Path(folder) / "best.pt") for width, folder in folders.items()}
+    test = load_windows("stochastic", "univ", "test", root)
     crowded = int(np.flatnonzero(np.bincount(test.group) >= 50)[0])
     idx = np.flatnonzero(test.group == crowded)[:50]
-    obs, group, scene = test.obs[idx], test.group[idx], load_scene("univ")
+    obs, group, scene = test.obs[idx], test.group[idx], load_scene("univ", root)
     times = {width: [] for width in WIDTHS}
     for _ in range(repeats):
         for width, model in models.items():  # alternate, so both widths see the same machine load
@@ -69,43 +83,34 @@ def width_timing(runs: Path, repeats: int) -> None:
     print(f"  ratio 128 / 256: {statistics.median(times[128][10:]) / statistics.median(times[256][10:]):.2f}")
 
 
-def threshold_table(runs: Path) -> None:
+def threshold_table(rows: list[dict]) -> None:
     print("\n| scene | deterministic, slow threshold 0.1 m/step (default): test ADE / FDE (val FDE) | 0.3 m/step |")
     print("|---|---|---|")
-    for scene in SCENES:
-        cells = []
-        for threshold in THRESHOLDS_M:
-            r = run_variant(runs, f"deterministic slow{threshold} {scene}", scene, {"slow_speed_m": threshold},
-                            task="deterministic")
-            cells.append(f"{r['ade']:.3f} / {r['fde']:.3f} ({r['val_fde']:.3f})")
+    for scene, pair in zip(SCENES, chunks(rows, len(THRESHOLDS_M)), strict=True):
+        cells = [f"{r['ade']:.3f} / {r['fde']:.3f} ({r['val_fde']:.3f})" for r in pair]
         print(f"| {scene} | {' | '.join(cells)} |")
 
 
-def start_table(runs: Path) -> None:
+def start_table(rows: list[dict]) -> None:
     print("\n| task | scene | seed | " + " | ".join(START_VARIANTS) + " |")
     print("|---|---|---|" + "---|" * len(START_VARIANTS))
-    for task, scene, seed in START_CASES:
-        cells = []
-        for variant, overrides in START_VARIANTS.items():
-            # the default stochastic UNIV runs are the width-128 runs above
-            name = (f"width128 {scene} seed{seed}" if (task, variant) == ("stochastic", "default")
-                    else f"{task} {variant} {scene} seed{seed}")
-            r = run_variant(runs, name, scene, {"seed": seed, **overrides}, task=task)
-            cells.append(f"{r['ade']:.3f} / {r['fde']:.3f}")
+    for (task, scene, seed), variants in zip(START_CASES, chunks(rows, len(START_VARIANTS)), strict=True):
+        cells = [f"{r['ade']:.3f} / {r['fde']:.3f}" for r in variants]
         print(f"| {task} | {scene} | {seed} | {' | '.join(cells)} |")
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--runs", default="runs/design", help="checkpoint folder (default: runs/design)")
+    add_arguments(parser, "runs/design")
     parser.add_argument("--repeats", type=int, default=300, help="timed calls per width (default: 300)")
     args = parser.parse_args()
-    torch.set_num_threads(1)
     runs = Path(args.runs)
-    width_table(runs)
-    width_timing(runs, args.repeats)
-    threshold_table(runs)
-    start_table(runs)
+    rows = train_and_score(WIDTH_MODELS + THRESHOLD_MODELS + START_MODELS, runs, grid_options(args), args.data_root)
+    torch.set_num_threads(1)
+    width_table(rows[:len(WIDTH_MODELS)])
+    width_timing(runs, args.repeats, args.data_root)
+    threshold_table(rows[len(WIDTH_MODELS):len(WIDTH_MODELS) + len(THRESHOLD_MODELS)])
+    start_table(rows[len(WIDTH_MODELS) + len(THRESHOLD_MODELS):])
 
 
 if __name__ == "__main__":

@@ -16,7 +16,8 @@ def check_config(cfg: Any, ranges: dict[str, tuple[float, float]], choices: dict
             field's default is None. Fields annotated ``int`` must hold integers (not bools or floats).
         choices: field -> allowed values.
 
-    Fields annotated ``bool`` must hold a bool.
+    Fields annotated ``bool`` must hold a bool, fields annotated ``str`` a non-empty string (or None where
+    the annotation allows it).
     """
     name = type(cfg).__name__
     defaults = {f.name: f.default for f in fields(cfg)}
@@ -32,8 +33,12 @@ def check_config(cfg: Any, ranges: dict[str, tuple[float, float]], choices: dict
         if not (math.isfinite(value) and low <= value <= high):
             raise ValueError(f"{name}.{field_name}={value!r}: must be in [{low}, {high}]")
     for field_name, kind in types.items():
-        if kind == "bool" and not isinstance(getattr(cfg, field_name), bool):
-            raise ValueError(f"{name}.{field_name}={getattr(cfg, field_name)!r}: must be True or False")
+        value = getattr(cfg, field_name)
+        if kind == "bool" and not isinstance(value, bool):
+            raise ValueError(f"{name}.{field_name}={value!r}: must be True or False")
+        allowed_none = value is None and "None" in kind
+        if kind in ("str", "str | None") and not ((isinstance(value, str) and value) or allowed_none):
+            raise ValueError(f"{name}.{field_name}={value!r}: must be a non-empty string")
     for field_name, allowed in (choices or {}).items():
         if getattr(cfg, field_name) not in allowed:
             raise ValueError(f"{name}.{field_name}={getattr(cfg, field_name)!r}: must be one of {', '.join(allowed)}")

@@ -5,10 +5,9 @@ from __future__ import annotations
 
 import argparse
 import sys
+import tempfile
 from collections.abc import Callable
 from pathlib import Path
-
-from replays.atomic import atomic_path
 
 
 class CliError(RuntimeError):
@@ -30,7 +29,7 @@ def check_writable(folder: Path) -> None:
     """Fail before any work if files cannot be written into ``folder`` (created if missing)."""
     try:
         folder.mkdir(parents=True, exist_ok=True)
-        with atomic_path(folder / ".write-test"):
+        with tempfile.TemporaryFile(dir=folder):  # leaves nothing behind
             pass
     except OSError as err:
         raise CliError(f"{folder}: cannot write there ({err.strerror or err})") from err

@@ -63,6 +63,7 @@ def test_evaluate_cli_out_folder_gets_json_and_markdown(tmp_path, capsys):
     assert result["scenes"]["zara1"]["samples"] == 2253  # the 8-frame protocol's samples, scored on 2 frames
     assert result["momentary_protocol"] == "from-8"
     assert "| zara1 | 2253 |" in (tmp_path / "momentary.md").read_text()
+    assert sorted(p.name for p in tmp_path.iterdir() if p.name != "runs") == ["momentary.json", "momentary.md"]
 
 
 def test_plot_cli_writes_a_png(tmp_path):

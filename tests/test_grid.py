@@ -1,5 +1,6 @@
 """The grid runner: local process pool and Ray give byte-identical results; finished jobs are skipped; a killed
-worker's job is retried; the local path never imports Ray."""
+worker's job is retried (pool and Ray), and a job that always kills its worker fails alone; the local path never
+imports Ray."""
 
 from __future__ import annotations
 
@@ -12,7 +13,7 @@ from pathlib import Path
 import pytest
 
 from predictor.train import TRAIN_SUMMARY, TrainConfig
-from st_sim.apps.grid import GridError, Job, raise_on_failure, run_jobs
+from st_sim.apps.grid import MAX_ATTEMPTS, GridError, Job, raise_on_failure, run_jobs
 
 TINY = {"epochs": 1, "min_steps": 0, "dim": 32, "denoiser_dim": 32, "max_train_windows": 60, "batch_agents": 256,
         "progress": False}
@@ -50,22 +51,37 @@ def scores_only(data: bytes) -> bytes:
     return json.dumps(result, sort_keys=True).encode()
 
 
-def test_local_and_ray_grids_give_identical_checkpoints_and_results(tmp_path):
+@pytest.fixture(scope="module")
+def local_ray():
+    """Ray on this machine with 2 CPUs; its workers see the data root and the job functions of these tests."""
     import ray  # part of the dev extra
 
+    paths = os.pathsep.join([str(Path(__file__).parent), os.environ.get("PYTHONPATH", "")])
+    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False, runtime_env={"env_vars": {
+        "STCROWD_DATA": str(Path(os.environ["STCROWD_DATA"]).resolve()), "PYTHONPATH": paths}})
+    yield
+    ray.shutdown()
+
+
+def test_local_and_ray_grids_give_identical_checkpoints_and_results(tmp_path, local_ray):
     local = run_tiny_grid(tmp_path / "local", "local")
-    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False,
-             runtime_env={"env_vars": {"STCROWD_DATA": str(Path(os.environ["STCROWD_DATA"]).resolve())}})
-    try:
-        on_ray = run_tiny_grid(tmp_path / "ray", "ray")
-    finally:
-        ray.shutdown()
+    on_ray = run_tiny_grid(tmp_path / "ray", "ray")
     assert local.keys() == on_ray.keys()
     for name in local:
         if name.endswith(".pt"):
             assert local[name] == on_ray[name], f"{name} differs between the local and the Ray grid"
         else:
             assert scores_only(local[name]) == scores_only(on_ray[name]), name
+
+
+def test_a_killed_ray_worker_loses_only_its_job_which_is_retried(tmp_path, local_ray):
+    dies, writes = str(tmp_path / "dies.txt"), str(tmp_path / "w.txt")
+    jobs = [Job("dies", "grid_targets:die_once", {"output": dies}, dies),
+            Job("write", "grid_targets:write", {"output": writes, "text": "ok"}, writes)]
+    reports = run_jobs(jobs, executor="ray", progress=False)
+    assert [r.status for r in reports] == ["done", "done"], reports
+    assert reports[0].attempts == 2 and reports[1].attempts == 1, reports
+    assert reports[0].where.startswith("ray node") and Path(dies).read_text() == "survived"
 
 
 def test_finished_jobs_are_skipped_and_failures_are_reported_by_name(tmp_path):
@@ -91,6 +107,19 @@ def test_a_killed_worker_loses_only_its_job_which_is_retried(tmp_path):
     reports = run_jobs(jobs, workers=2, progress=False)
     assert all(r.status == "done" for r in reports), reports
     assert reports[0].attempts == 2 and (tmp_path / "dies.txt").read_text() == "survived"
+
+
+def test_a_job_that_always_kills_its_worker_fails_alone(tmp_path):
+    """Jobs queued behind it when the pool breaks are resubmitted without being charged an attempt."""
+    never = str(tmp_path / "never.txt")
+    jobs = [Job("dies", "grid_targets:die", {"output": never}, never)]
+    jobs += [Job(f"write{i}", "grid_targets:write", {"output": str(tmp_path / f"{i}.txt"), "text": "ok"},
+                 str(tmp_path / f"{i}.txt")) for i in range(3)]
+    reports = run_jobs(jobs, workers=1, progress=False)
+    assert (reports[0].status, reports[0].attempts) == ("failed", MAX_ATTEMPTS), reports[0]
+    assert "died 3 times" in reports[0].error
+    for r in reports[1:]:
+        assert (r.status, r.attempts) == ("done", 1), r
 
 
 def test_the_local_executor_never_imports_ray(tmp_path):

@@ -195,7 +195,8 @@ def add_grid_arguments(parser: argparse.ArgumentParser) -> None:
                         help="local: a process pool on this machine; ray: a Ray cluster (pip install -e \".[ray]\") "
                              "(default: local)")
     parser.add_argument("--workers", type=positive_int, default=None,
-                        help="local: parallel jobs, one thread each (default: the number of cores)")
+                        help="parallel jobs, one thread each: the local pool's size, or the CPUs of a Ray started "
+                             "here when --ray-address is not given (default: the number of cores)")
     parser.add_argument("--ray-address", default=None,
                         help="ray: cluster address, auto or HOST:PORT (default: start Ray on this machine)")
 

@@ -97,8 +97,13 @@ class Plan:
     def trained(self) -> bool:
         return self.predictor == "singular"
 
+    def __post_init__(self) -> None:  # absolute paths: a cluster's workers do not run in this folder
+        for name in ("runs", "root", "rerun"):
+            if getattr(self, name) is not None:
+                object.__setattr__(self, name, str(Path(getattr(self, name)).expanduser().resolve()))
+
     def cells(self) -> list[tuple[str, str, int]]:
-        seeds = self.seeds if self.trained else (0,)
+        seeds = self.seeds if self.trained or Path(self.predictor).is_dir() else (0,)
         return [(task, scene, seed) for task in self.tasks for scene in self.scenes[task] for seed in seeds]
 
     def missing_models(self) -> list[tuple[str, str, int]]:
@@ -252,6 +257,12 @@ TASK_TITLES = {"domain": "domain adaptation (paper protocol: validation on the t
                "domain_strict": "domain adaptation, strict (validation on the source's own val portion)"}
 
 
+def _short_source(source: str) -> str:
+    """A checkpoint as a table shows it: ``<task>/<scene>/seed<k>/best.pt`` for a run, else as given."""
+    parts = Path(source).parts
+    return "/".join(parts[-4:]) if len(parts) > 4 else source
+
+
 def markdown_table(result: dict) -> str:
     """A markdown table of ``aggregate``'s result with the paper's numbers, the delta and the checkpoints."""
     seeds = result["seeds"]
@@ -267,7 +278,7 @@ def markdown_table(result: dict) -> str:
     for name, r in result["scenes"].items():
         paper = _pair(r["paper_ade"], r["paper_fde"]) if r["paper_ade"] is not None else "–"
         scores = _pair(r["ade"], r["fde"], r["ade_sd"], r["fde_sd"]) if several else _pair(r["ade"], r["fde"])
-        checkpoint = r["checkpoints"][0] or "–"
+        checkpoint = _short_source(r["checkpoints"][0]) if r["checkpoints"][0] else "–"
         if several and r["checkpoints"][0]:
             checkpoint += f" (+{len(seeds) - 1} seeds)"
         percent = {k: format_metric(r[k], ".1f" if k == "path_map_violation" else ".2f", 100)

@@ -16,6 +16,7 @@ from __future__ import annotations
 import importlib
 import os
 import socket
+import sys
 import time
 import traceback
 from collections.abc import Callable, Sequence
@@ -59,7 +60,11 @@ class Job:
 
 @dataclass
 class JobReport:
-    """What became of one job: ``status`` is done, skipped (output already there) or failed."""
+    """What became of one job: ``status`` is done, skipped (output already there) or failed.
+
+    ``wall_s`` and ``cpu_s`` are the last attempt's wall and CPU time [s]; a wall time well above the CPU time
+    of a one-thread job means the machine was shared (waiting for a core).
+    """
 
     name: str
     status: str
@@ -67,24 +72,23 @@ class JobReport:
     where: str = ""
     attempts: int = 0
     error: str | None = None
+    cpu_s: float = 0.0
 
 
 def _one_thread() -> None:
+    """One thread for this process: the variables cover a later ``import torch``, the call an earlier one."""
     for var in THREAD_VARS:
         os.environ[var] = "1"
-    try:
-        import torch
-
+    torch = sys.modules.get("torch")  # not imported here: a worker whose jobs never use torch skips its start-up
+    if torch is not None:
         torch.set_num_threads(1)
-    except ImportError:  # jobs that do not use torch
-        pass
 
 
 def execute(job: Job) -> JobReport:
     """Run ``job`` here, with one thread; its own exceptions become a failed report (not retried)."""
     _one_thread()
-    start = time.perf_counter()
-    where = f"{socket.gethostname()}:{os.getpid()}"
+    start, cpu_start = time.perf_counter(), time.process_time()
+    status, error = "done", None
     try:
         module, _, name = job.target.partition(":")
         function: Callable[..., Any] = getattr(importlib.import_module(module), name)
@@ -92,9 +96,9 @@ def execute(job: Job) -> JobReport:
         if job.output and not job.done():
             raise GridError(f"{job.name}: finished but wrote no {job.output}")
     except Exception as err:
-        detail = "".join(traceback.format_exception_only(type(err), err)).strip()
-        return JobReport(job.name, "failed", time.perf_counter() - start, where, 1, detail)
-    return JobReport(job.name, "done", time.perf_counter() - start, where, 1)
+        status, error = "failed", "".join(traceback.format_exception_only(type(err), err)).strip()
+    return JobReport(job.name, status, time.perf_counter() - start, f"{socket.gethostname()}:{os.getpid()}", 1,
+                     error, time.process_time() - cpu_start)
 
 
 def run_jobs(jobs: Sequence[Job], executor: str = "local", workers: int | None = None, address: str | None = None,
@@ -103,7 +107,8 @@ def run_jobs(jobs: Sequence[Job], executor: str = "local", workers: int | None =
 
     Args:
         executor: "local" (a spawn process pool; never imports Ray) or "ray".
-        workers: parallel jobs for "local" (default: the number of cores).
+        workers: parallel jobs: the local pool's size, or the CPUs of a Ray instance started here (default: the
+            number of cores); a Ray cluster given by ``address`` runs as many as it has CPUs.
         address: Ray cluster address (``"auto"``, ``"HOST:PORT"``); None starts a local Ray instance.
     """
     if executor not in EXECUTORS:
@@ -123,41 +128,90 @@ def run_jobs(jobs: Sequence[Job], executor: str = "local", workers: int | None =
 
 
 def _run_local(jobs: list[Job], workers: int | None, _address: str | None):
-    """Yield reports as jobs finish; a broken pool (a killed worker) is rebuilt and its jobs retried."""
+    """Yield reports as jobs finish. A killed worker breaks the whole pool: the pool is rebuilt, the jobs that
+    had started in it are charged an attempt and retried, and the jobs that had not are resubmitted free."""
     attempts = dict.fromkeys((job.name for job in jobs), 0)
-    pending = list(jobs)
+    pending, idle_breaks = list(jobs), 0
+    context = get_context("spawn")
     while pending:
         size = min(workers or os.cpu_count() or 1, len(pending))
-        lost: list[Job] = []
-        with ProcessPoolExecutor(size, mp_context=get_context("spawn"), initializer=_one_thread) as pool:
-            futures: dict[Future, Job] = {pool.submit(execute, job): job for job in pending}
+        started, began = context.SimpleQueue(), set()  # names of the jobs this pool's workers began
+        broken: list[Job] = []
+        with ProcessPoolExecutor(size, mp_context=context, initializer=_init_local_worker,
+                                 initargs=(started,)) as pool:
+            futures: dict[Future, Job] = {pool.submit(_execute_local, job): job for job in pending}
             while futures:
                 finished, _ = wait(futures, return_when=FIRST_COMPLETED)
+                _drain(started, began)  # at every completion, so the pipe never fills
                 for future in finished:
                     job = futures.pop(future)
-                    attempts[job.name] += 1
                     try:
                         report = future.result()
                     except BrokenProcessPool:
-                        if attempts[job.name] < MAX_ATTEMPTS:
-                            lost.append(job)
-                            continue
-                        report = JobReport(job.name, "failed", error="its worker process died "
-                                           f"{attempts[job.name]} times (killed or out of memory)")
+                        broken.append(job)
+                        continue
+                    attempts[job.name] += 1
                     report.attempts = attempts[job.name]
                     yield report
-        pending = lost
+        _drain(started, began)
+        pending = [job for job in broken if job.name not in began]
+        in_flight = [job for job in broken if job.name in began]
+        if broken and not in_flight:
+            idle_breaks += 1
+            if idle_breaks >= MAX_ATTEMPTS:
+                raise GridError(f"the local worker pool broke {idle_breaks} times before any job started")
+        for job in in_flight:
+            attempts[job.name] += 1
+            if attempts[job.name] < MAX_ATTEMPTS:
+                pending.append(job)
+            else:
+                yield JobReport(job.name, "failed", attempts=attempts[job.name], error="its worker process died "
+                                f"{attempts[job.name]} times (killed or out of memory)")
 
 
-def _run_ray(jobs: list[Job], _workers: int | None, address: str | None):
-    """Yield reports as jobs finish on Ray; jobs on a dead worker or node are resubmitted."""
+def _drain(queue: Any, into: set[str]) -> None:
+    while not queue.empty():
+        into.add(queue.get())
+
+
+_started: Any = None  # in a local pool's worker: the driver's queue of started job names
+
+
+def _init_local_worker(started: Any) -> None:
+    global _started
+    _one_thread()
+    _started = started
+
+
+def _execute_local(job: Job) -> JobReport:
+    _started.put(job.name)  # before the job runs, so a job that kills its worker is known to have been in flight
+    return execute(job)
+
+
+def connect_ray(address: str | None = None, workers: int | None = None) -> None:
+    """Connect this process to a Ray cluster, or start Ray here without ``address`` (``workers`` CPUs, default all
+    cores); nothing if already connected. Jobs run with one thread: the thread variables go to every worker."""
     try:
         import ray
     except ImportError as err:
         raise GridError('executor "ray" needs Ray: pip install -e ".[ray]"') from err
-    if not ray.is_initialized():
-        ray.init(address=address, log_to_driver=False, configure_logging=False,
-                 runtime_env={"env_vars": dict.fromkeys(THREAD_VARS, "1")})
+    if ray.is_initialized():
+        return
+    try:
+        ray.init(address=address, num_cpus=workers if address is None else None, log_to_driver=False,
+                 configure_logging=False, runtime_env={"env_vars": dict.fromkeys(THREAD_VARS, "1")})
+    except ConnectionError as err:
+        raise GridError(f"cannot connect to the Ray cluster at {address} ({err}). If the cluster uses token "
+                        "authentication (`ray start` turns it on where ~/.ray/auth_token exists), set "
+                        "RAY_AUTH_MODE=token here and give this machine the cluster's token (RAY_AUTH_TOKEN or "
+                        "~/.ray/auth_token); a cluster started with RAY_AUTH_MODE=disabled needs neither") from err
+
+
+def _run_ray(jobs: list[Job], workers: int | None, address: str | None):
+    """Yield reports as jobs finish on Ray; jobs on a dead worker or node are resubmitted."""
+    connect_ray(address, workers)
+    import ray
+
     remote = ray.remote(num_cpus=1, max_retries=0)(_execute_on_ray)
     attempts = dict.fromkeys((job.name for job in jobs), 0)
     refs: dict[Any, Job] = {}
@@ -191,8 +245,8 @@ def _execute_on_ray(job: Job) -> JobReport:
 
 
 def summary_lines(reports: Sequence[JobReport]) -> list[str]:
-    """One line per job that ran (wall time, where, attempts), then a count line."""
-    lines = [f"{r.name}: {r.status} in {r.wall_s:.0f} s on {r.where}"
+    """One line per job that ran (wall and CPU time, where, attempts), then a count line."""
+    lines = [f"{r.name}: {r.status} in {r.wall_s:.0f} s ({r.cpu_s:.0f} s CPU) on {r.where}"
              + (f" ({r.attempts} attempts)" if r.attempts > 1 else "") + (f": {r.error}" if r.error else "")
              for r in reports if r.status != "skipped"]
     counts = {status: sum(r.status == status for r in reports) for status in ("done", "skipped", "failed")}
