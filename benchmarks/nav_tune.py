@@ -75,8 +75,11 @@ def main() -> None:
     see_ego = SEE_EGO[args.pedestrians_see_ego]
     jobs = [(name, NavRun(args.env, "mpc", predictor, args.episodes, args.seed, see_ego, mpc=cfg), args.out)
             for name, cfg in variants for predictor in args.predictors]
-    with Pool(args.jobs) as pool:
-        paths = pool.map(run_cell, jobs, chunksize=1)
+    if args.jobs > 1:
+        with Pool(args.jobs) as pool:
+            paths = pool.map(run_cell, jobs, chunksize=1)
+    else:
+        paths = [run_cell(job) for job in jobs]
     print(f"{args.env}, seeds {args.seed}..{args.seed + args.episodes - 1}\n"
           "| variant | predictor | success | collision | time to goal [s] | path ratio | decisions/s |\n"
           "|---|---|---|---|---|---|---|")

@@ -112,3 +112,21 @@ def test_mpc_weighs_samples_by_their_prior(open_world: NavWorld) -> None:
         assert np.linalg.norm(command) > 0.5, f"{name}: the ego should move"
     assert abs(heading_deg["prior"]) < 1.0, f"unlikely samples should not bend the path ({heading_deg})"
     assert abs(heading_deg["uniform"]) > 10.0, f"a quarter of equally likely samples on the path should ({heading_deg})"
+
+
+def test_mpc_risk_counts_every_pedestrian_in_the_way(open_world: NavWorld) -> None:
+    """The risk is the expected number of collisions: it does not saturate at 1, so of two paths that both meet
+    pedestrians for certain, the one through fewer of them costs less."""
+    from st_sim.apps.navigation.mpc import MpcPlanner
+    from st_sim.apps.navigation.pedestrians import Pedestrians
+
+    planner = make_planner("mpc", open_world, "singular")
+    assert isinstance(planner, MpcPlanner)
+    standing = np.array([[1.0, 0.0], [0.0, 3.0], [0.2, 3.0]])  # one on the path east, two on the path north
+    peds = Pedestrians(standing, np.zeros((3, 2)), np.repeat(standing[:, None, None], SAMPLES, 1).repeat(8, 2),
+                       np.ones(3, bool))
+    checks = planner._check_steps[:, None] * STEP_S * open_world.max_speed_mps  # (J, 1) distance covered [m]
+    paths = np.stack([checks * [1.0, 0.0], checks * [0.0, 1.0]])  # (2, J, 2): east, north
+    risk, _ = planner._risk_terms(paths, np.zeros(2), peds)
+    assert 0.5 < risk[0] <= 1.0, "the east path meets one standing pedestrian, soon"
+    assert risk[1] > 1.0, "the north path meets two, later: two certain collisions count more than one"

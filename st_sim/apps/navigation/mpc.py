@@ -2,16 +2,17 @@
 
 Each decision rolls out K candidate commands (24 headings x 3 speeds, standing still, and the previous
 choice) through the ego's acceleration limit, at two checks per 0.4 s step, and scores them against the
-predicted samples of every pedestrian: the chance of collision, the clearance, the progress along the
-geodesic cost-to-go of the walkability map, and the change of command. Paths that go deeper into a wall
+predicted samples of every pedestrian: the expected number of collisions, the clearance, the progress along
+the geodesic cost-to-go of the walkability map, and the change of command. Paths that go deeper into a wall
 than the ego already is are discarded. The predictor is whatever the env put in the observation; with
 ``use_predictions=False`` everybody is assumed to stand still.
 
 The samples are weighted by their prior (``NavWorld.sample_prior``: how often each of a SingularTrajectory
 checkpoint's ordered samples is the closest to the truth; equal weights for CVM-S and other unordered
-samplers), so the chance of collision with a pedestrian is the prior mass of its colliding samples rather
-than their count. Only the ``top_samples`` likeliest samples are scored, and a candidate whose chance of
-collision is above ``chance_limit`` is ranked behind every candidate within it.
+samplers), so the chance of colliding with a pedestrian is the prior mass of its colliding samples rather
+than their share. The chances add up over pedestrians (expected collisions, which keep growing where
+1 - prod(1 - P) would saturate at 1 in a dense crowd), and a candidate whose expected collisions exceed
+``risk_limit`` ranks behind every candidate within it: when all are above, the least risky wins.
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ from st_sim.apps.navigation.pedestrians import Pedestrians, pedestrians_of
 from st_sim.apps.navigation.world import NavWorld
 
 INFEASIBLE = 1e6  # cost of a candidate that goes into a wall [-]
-CHANCE_PENALTY = 1e3  # cost of breaking the chance constraint, plus this times the chance of collision [-]
+RISK_PENALTY = 1e3  # cost of breaking the risk limit, plus this times the expected collisions [-]
 ARRIVAL_SHARE = 0.8  # a rollout this deep inside the goal radius has arrived and stops there [-]
 
 
@@ -51,15 +52,15 @@ class MpcConfig:
     use_prior: bool = True
     """weight the samples by the world's sample prior (False: equally likely)"""
     top_samples: int = 20
-    """score only this many of the likeliest samples (weights renormalised) [-]"""
-    chance_limit: float = 1.0
-    """chance of collision above which a candidate ranks behind every candidate within it (1: no limit) [-]"""
+    """with a prior, score only this many of the likeliest samples (weights renormalised) [-]"""
+    risk_limit: float = 0.3
+    """expected collisions above which a candidate ranks behind every candidate within it (inf: no limit) [-]"""
     wall_margin_m: float = 0.08
     """least wall clearance beyond the world's ``wall_clearance_m`` a path may enter [m]"""
     wall_comfort_m: float = 0.3
     """wall clearance beyond the world's ``wall_clearance_m`` below which the wall cost grows [m]"""
     risk_weight: float = 6.0
-    """cost of a certain collision [-]"""
+    """cost of one expected collision [-]"""
     clearance_weight: float = 0.4
     """cost of one pedestrian's sample paths all at contact [-]"""
     progress_weight: float = 1.0
@@ -106,7 +107,7 @@ class MpcPlanner:
                 + self.cfg.progress_weight * self._progress(path, ego_xy, goal)
                 + self.cfg.smooth_weight * self._smoothness(commands, ego_v)
                 + self._walls(path, ego_xy)
-                + np.where(risk > self.cfg.chance_limit, CHANCE_PENALTY * (1.0 + risk), 0.0))
+                + np.where(risk > self.cfg.risk_limit, RISK_PENALTY * (1.0 + risk), 0.0))
         self._previous = commands[int(np.argmin(cost))]
         return self._previous.astype(np.float32)
 
@@ -133,12 +134,12 @@ class MpcPlanner:
 
     # ---------------------------------------------------------------- costs, each (K,)
     def _risk_terms(self, path: np.ndarray, ego_xy: np.ndarray, peds: Pedestrians) -> tuple[np.ndarray, np.ndarray]:
-        """Chance of collision (K,) in [0, 1] and the clearance cost (K,) (sum over pedestrians).
+        """Expected collisions (K,) and the clearance cost (K,), both summed over pedestrians.
 
         A sample collides if it comes within contact + safety margin of the path at a check; its intrusion
         is 1 at contact, falling to 0 at contact + comfort. Both are discounted by the check's time, and the
         largest over the checks counts. P(collide with p) is the sample weights' sum over p's colliding
-        samples; pedestrians are independent: risk = 1 - prod(1 - P(collide with p)).
+        samples; risk = sum over p of P(collide with p).
         """
         k = len(path)
         kept, weights = self._sample_weights(peds.futures_m.shape[1])
@@ -155,14 +156,13 @@ class MpcPlanner:
         hit_level = 1.0 - self.cfg.safety_margin_m / self.cfg.comfort_m
         hit = np.max((intrusion > hit_level) * self._weights, axis=-1).reshape(k, n_peds, n_samples)
         crowding = np.max(intrusion * self._weights, axis=-1).reshape(k, n_peds, n_samples)
-        risk = 1.0 - np.prod(1.0 - hit @ weights, axis=1)
-        return risk, (crowding @ weights).sum(axis=1)
+        return (hit @ weights).sum(axis=1), (crowding @ weights).sum(axis=1)
 
     def _sample_weights(self, n_samples: int) -> tuple[np.ndarray, np.ndarray]:
         """Indices (S',) of the samples scored, the likeliest first, and their weights (S',) summing to 1."""
         prior = self.world.sample_prior
-        if not self.cfg.use_prior or prior is None or len(prior) != n_samples:
-            prior = np.full(n_samples, 1.0 / n_samples)
+        if not self.cfg.use_prior or prior is None or len(prior) != n_samples:  # unordered: keep them all
+            return np.arange(n_samples), np.full(n_samples, 1.0 / n_samples, np.float32)
         kept = np.argsort(-prior, kind="stable")[:self.cfg.top_samples]
         return kept, (prior[kept] / prior[kept].sum()).astype(np.float32)
 
