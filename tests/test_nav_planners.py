@@ -130,3 +130,22 @@ def test_mpc_risk_counts_every_pedestrian_in_the_way(open_world: NavWorld) -> No
     risk, _ = planner._risk_terms(paths, np.zeros(2), peds)
     assert 0.5 < risk[0] <= 1.0, "the east path meets one standing pedestrian, soon"
     assert risk[1] > 1.0, "the north path meets two, later: two certain collisions count more than one"
+
+
+def test_mpc_risk_limit_overrides_progress(open_world: NavWorld) -> None:
+    """With the risk and clearance costs off, only the limit keeps the MPC off a path on which a pedestrian
+    stands in 12 of 20 equally likely samples."""
+    from st_sim.apps.navigation.mpc import MpcConfig
+
+    obs = observation(np.zeros(2), np.zeros(2), 0)
+    obs["history"][0] = np.array([2.0, 0.0])
+    samples = np.full((SAMPLES, T_PRED, 2), [2.0, 0.0])
+    samples[12:] = [2.0, 6.0]  # the other 8 samples are far off
+    obs["futures"][0] = samples
+    heading_deg = {}
+    for limit in (np.inf, 0.3):
+        cfg = MpcConfig(risk_weight=0.0, clearance_weight=0.0, risk_limit=limit)
+        command = make_planner("mpc", open_world, "cvm-s", cfg=cfg).act(obs)
+        heading_deg[limit] = abs(np.degrees(np.arctan2(command[1], command[0])))
+    assert heading_deg[np.inf] < 1.0, f"without a limit nothing should bend the path ({heading_deg})"
+    assert heading_deg[0.3] > 10.0, f"the limit should turn the ego off the pedestrian ({heading_deg})"
