@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -91,3 +93,59 @@ def test_orca_without_pyrvo_names_the_extra(open_world: NavWorld, monkeypatch: p
     monkeypatch.setitem(sys.modules, "pyrvo", None)  # import pyrvo now raises ImportError
     with pytest.raises(ImportError, match=r'pip install -e "\.\[orca\]"'):
         make_planner("orca", open_world, "none")
+
+
+def test_mpc_weighs_samples_by_their_prior(open_world: NavWorld) -> None:
+    """A pedestrian beside the path: its 15 likely samples stay put, 5 unlikely ones walk onto the path."""
+    obs = observation(np.zeros(2), np.zeros(2), 0)
+    stay = np.array([3.0, 1.5])
+    obs["history"][0] = stay
+    samples = np.repeat(stay[None, None], SAMPLES, axis=0).repeat(T_PRED, axis=1)  # (S, 12, 2)
+    ahead = np.arange(1, T_PRED + 1) * STEP_S
+    samples[15:, :, 1] = stay[1] - 0.75 * ahead  # crosses y = 0 at x = 3 m after 2 s, as the ego would
+    obs["futures"][0] = samples
+    prior = np.r_[np.full(15, 0.99 / 15), np.full(5, 0.01 / 5)]
+    heading_deg = {}
+    for name, world in (("prior", replace(open_world, sample_prior=prior)), ("uniform", open_world)):
+        command = make_planner("mpc", world, "singular").act(obs)
+        heading_deg[name] = np.degrees(np.arctan2(command[1], command[0]))
+        assert np.linalg.norm(command) > 0.5, f"{name}: the ego should move"
+    assert abs(heading_deg["prior"]) < 1.0, f"unlikely samples should not bend the path ({heading_deg})"
+    assert abs(heading_deg["uniform"]) > 10.0, f"a quarter of equally likely samples on the path should ({heading_deg})"
+
+
+def test_mpc_risk_counts_every_pedestrian_in_the_way(open_world: NavWorld) -> None:
+    """The risk is the expected number of collisions: it does not saturate at 1, so of two paths that both meet
+    pedestrians for certain, the one through fewer of them costs less."""
+    from st_sim.apps.navigation.mpc import MpcPlanner
+    from st_sim.apps.navigation.pedestrians import Pedestrians
+
+    planner = make_planner("mpc", open_world, "singular")
+    assert isinstance(planner, MpcPlanner)
+    standing = np.array([[1.0, 0.0], [0.0, 3.0], [0.2, 3.0]])  # one on the path east, two on the path north
+    peds = Pedestrians(standing, np.zeros((3, 2)), np.repeat(standing[:, None, None], SAMPLES, 1).repeat(8, 2),
+                       np.ones(3, bool))
+    checks = planner._check_steps[:, None] * STEP_S * open_world.max_speed_mps  # (J, 1) distance covered [m]
+    paths = np.stack([checks * [1.0, 0.0], checks * [0.0, 1.0]])  # (2, J, 2): east, north
+    risk, _ = planner._risk_terms(paths, np.zeros(2), peds)
+    assert 0.5 < risk[0] <= 1.0, "the east path meets one standing pedestrian, soon"
+    assert risk[1] > 1.0, "the north path meets two, later: two certain collisions count more than one"
+
+
+def test_mpc_risk_limit_overrides_progress(open_world: NavWorld) -> None:
+    """With the risk and clearance costs off, only the limit keeps the MPC off a path on which a pedestrian
+    stands in 12 of 20 equally likely samples."""
+    from st_sim.apps.navigation.mpc import MpcConfig
+
+    obs = observation(np.zeros(2), np.zeros(2), 0)
+    obs["history"][0] = np.array([2.0, 0.0])
+    samples = np.full((SAMPLES, T_PRED, 2), [2.0, 0.0])
+    samples[12:] = [2.0, 6.0]  # the other 8 samples are far off
+    obs["futures"][0] = samples
+    heading_deg = {}
+    for limit in (np.inf, 0.3):
+        cfg = MpcConfig(risk_weight=0.0, clearance_weight=0.0, risk_limit=limit)
+        command = make_planner("mpc", open_world, "cvm-s", cfg=cfg).act(obs)
+        heading_deg[limit] = abs(np.degrees(np.arctan2(command[1], command[0])))
+    assert heading_deg[np.inf] < 1.0, f"without a limit nothing should bend the path ({heading_deg})"
+    assert heading_deg[0.3] > 10.0, f"the limit should turn the ego off the pedestrian ({heading_deg})"

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import inspect
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, is_dataclass
 from pathlib import Path
 from typing import Any
 
@@ -18,6 +18,7 @@ from tqdm import tqdm
 
 import envs  # noqa: F401  (registers the ids)
 from st_sim.apps.navigation.metrics import EpisodeTrace, episode_metrics, outcome_of, summarize
+from st_sim.apps.navigation.mpc import MpcConfig
 from st_sim.apps.navigation.planners import Planner, make_planner
 from st_sim.apps.navigation.predictors import env_predictor
 from st_sim.apps.navigation.world import NavWorld, world_of
@@ -45,6 +46,8 @@ class NavRun:
     """write one Rerun recording per episode into this folder"""
     data_root: str | None = None
     """ETH/UCY data root for replays (default: $STCROWD_DATA or the cache)"""
+    mpc: MpcConfig | None = None
+    """tunables of the MPC planner (None: the defaults); other planners take none"""
 
 
 def accepts_keyword(env_id: str, name: str) -> bool:
@@ -90,9 +93,8 @@ def run_episode(env: gym.Env, planner: Planner, world: NavWorld, seed: int) -> t
         xy.append(obs["ego"][:2].copy())
         velocity.append(obs["ego"][2:4].copy())
         clearance.append(pedestrian_clearance(obs, world))
-        wall_gap_m = float(world.terrain.clearance_at(obs["ego"][:2])) - world.ego_radius_m
-        outcome = outcome_of(info["reward_parts"], truncated, clearance[-1], wall_gap_m)
-        assert outcome is not None or not terminated, "the env terminated without goal or collision"
+        outcome = outcome_of(info["termination"], truncated)
+        assert outcome is not None or not terminated, "the env terminated without naming why"
     xy_m = np.array(xy, np.float64)
     trace = EpisodeTrace(xy_m, np.array(velocity, np.float64), np.array(clearance),
                          ~world.scene.is_walkable(xy_m), obs["ego"][4:6].astype(np.float64), outcome)
@@ -100,7 +102,8 @@ def run_episode(env: gym.Env, planner: Planner, world: NavWorld, seed: int) -> t
 
 
 def run_navigation(run: NavRun, progress: bool = True) -> dict[str, Any]:
-    """Run the episodes of ``run``; returns {run settings, episodes: [seed + metrics], summary, speed}.
+    """Run the episodes of ``run``; returns {run settings, planner_config, episodes: [seed + metrics], summary,
+    speed}.
 
     ``pedestrians_see_ego`` in the result is the value passed to the env, or None when the env does not
     take the keyword (then its own behaviour applies) or none was asked.
@@ -108,7 +111,7 @@ def run_navigation(run: NavRun, progress: bool = True) -> dict[str, Any]:
     see_ego = run.pedestrians_see_ego if accepts_keyword(run.env_id, SEE_EGO_KWARG) else None
     env = make_nav_env(run)
     world = world_of(env)
-    planner = make_planner(run.policy, world, run.predictor)
+    planner = make_planner(run.policy, world, run.predictor, **({} if run.mpc is None else {"cfg": run.mpc}))
     episodes, thinking_s, decisions = [], 0.0, 0
     start = time.perf_counter()
     for i in tqdm(range(run.episodes), desc=f"{run.policy}/{run.predictor} {run.env_id}", disable=not progress,
@@ -123,6 +126,9 @@ def run_navigation(run: NavRun, progress: bool = True) -> dict[str, Any]:
         thinking_s += seconds
         decisions += len(trace.ego_xy_m) - 1
     env.close()
-    return {**asdict(run), "pedestrians_see_ego": see_ego, "episodes": episodes, "summary": summarize(episodes),
+    settings = getattr(planner, "cfg", None)
+    return {**asdict(run), "pedestrians_see_ego": see_ego,
+            "planner_config": asdict(settings) if is_dataclass(settings) else None,
+            "episodes": episodes, "summary": summarize(episodes),
             "decisions_per_s": decisions / thinking_s if thinking_s > 0 else float("inf"),
             "wall_time_s": time.perf_counter() - start}

@@ -1,11 +1,18 @@
-"""Prediction-aware sampling MPC: candidate velocity commands rolled out 3.2 s and scored against every sample.
+"""Prediction-aware sampling MPC: candidate velocity commands rolled out 3.2 s and scored against the samples.
 
 Each decision rolls out K candidate commands (24 headings x 3 speeds, standing still, and the previous
-choice) through the ego's acceleration limit, at two checks per 0.4 s step, and scores them against every
-predicted sample of every pedestrian: the chance of collision over samples, the clearance, the progress
-along the geodesic cost-to-go of the walkability map, and the change of command. Paths that go deeper
-into a wall than the ego already is are discarded. The predictor is whatever the env put in the
-observation; with ``use_predictions=False`` everybody is assumed to stand still.
+choice) through the ego's acceleration limit, at two checks per 0.4 s step, and scores them against the
+predicted samples of every pedestrian: the expected number of collisions, the clearance, the progress along
+the geodesic cost-to-go of the walkability map, and the change of command. Paths that go deeper into a wall
+than the ego already is are discarded. The predictor is whatever the env put in the observation; with
+``use_predictions=False`` everybody is assumed to stand still.
+
+The samples are weighted by their prior (``NavWorld.sample_prior``: how often each of a SingularTrajectory
+checkpoint's ordered samples is the closest to the truth; equal weights for CVM-S and other unordered
+samplers), so the chance of colliding with a pedestrian is the prior mass of its colliding samples rather
+than their share. The chances add up over pedestrians (expected collisions, which keep growing where
+1 - prod(1 - P) would saturate at 1 in a dense crowd), and a candidate whose expected collisions exceed
+``risk_limit`` ranks behind every candidate within it: when all are above, the least risky wins.
 """
 
 from __future__ import annotations
@@ -18,6 +25,7 @@ from st_sim.apps.navigation.pedestrians import Pedestrians, pedestrians_of
 from st_sim.apps.navigation.world import NavWorld
 
 INFEASIBLE = 1e6  # cost of a candidate that goes into a wall [-]
+RISK_PENALTY = 1e3  # cost of breaking the risk limit, plus this times the expected collisions [-]
 ARRIVAL_SHARE = 0.8  # a rollout this deep inside the goal radius has arrived and stops there [-]
 
 
@@ -39,12 +47,20 @@ class MpcConfig:
     """clearance (beyond contact) below which the clearance cost grows [m]"""
     discount: float = 0.85
     """weight of a collision or intrusion one step later, relative to now [-]"""
+    risk_horizon_steps: int = 8
+    """steps of 0.4 s over which predicted samples are checked (the rollout still runs horizon_steps) [-]"""
+    use_prior: bool = True
+    """weight the samples by the world's sample prior (False: equally likely)"""
+    top_samples: int = 20
+    """with a prior, score only this many of the likeliest samples (weights renormalised) [-]"""
+    risk_limit: float = 0.3
+    """expected collisions above which a candidate ranks behind every candidate within it (inf: no limit) [-]"""
     wall_margin_m: float = 0.08
     """least wall clearance beyond the world's ``wall_clearance_m`` a path may enter [m]"""
     wall_comfort_m: float = 0.3
     """wall clearance beyond the world's ``wall_clearance_m`` below which the wall cost grows [m]"""
     risk_weight: float = 6.0
-    """cost of a certain collision [-]"""
+    """cost of one expected collision [-]"""
     clearance_weight: float = 0.4
     """cost of one pedestrian's sample paths all at contact [-]"""
     progress_weight: float = 1.0
@@ -73,6 +89,7 @@ class MpcPlanner:
         steps = np.arange(1, self.cfg.horizon_steps * self.cfg.checks_per_step + 1) / self.cfg.checks_per_step
         self._check_steps = steps  # (J,) time of each check in steps
         self._weights = (self.cfg.discount ** (steps - 1 / self.cfg.checks_per_step)).astype(np.float32)  # (J,)
+        self._weights[steps > self.cfg.risk_horizon_steps] = 0.0
         self.reset()
 
     def reset(self) -> None:
@@ -89,7 +106,8 @@ class MpcPlanner:
         cost = (self.cfg.risk_weight * risk + self.cfg.clearance_weight * crowding
                 + self.cfg.progress_weight * self._progress(path, ego_xy, goal)
                 + self.cfg.smooth_weight * self._smoothness(commands, ego_v)
-                + self._walls(path, ego_xy))
+                + self._walls(path, ego_xy)
+                + np.where(risk > self.cfg.risk_limit, RISK_PENALTY * (1.0 + risk), 0.0))
         self._previous = commands[int(np.argmin(cost))]
         return self._previous.astype(np.float32)
 
@@ -116,14 +134,16 @@ class MpcPlanner:
 
     # ---------------------------------------------------------------- costs, each (K,)
     def _risk_terms(self, path: np.ndarray, ego_xy: np.ndarray, peds: Pedestrians) -> tuple[np.ndarray, np.ndarray]:
-        """Chance of collision over samples (K,) in [0, 1] and the clearance cost (K,) (sum over pedestrians).
+        """Expected collisions (K,) and the clearance cost (K,), both summed over pedestrians.
 
         A sample collides if it comes within contact + safety margin of the path at a check; its intrusion
         is 1 at contact, falling to 0 at contact + comfort. Both are discounted by the check's time, and the
-        largest over the checks counts. Pedestrians are independent: risk = 1 - prod(1 - P(collide with p)).
+        largest over the checks counts. P(collide with p) is the sample weights' sum over p's colliding
+        samples; risk = sum over p of P(collide with p).
         """
         k = len(path)
-        futures = self._interpolated(peds)  # (P, S, J, 2)
+        kept, weights = self._sample_weights(peds.futures_m.shape[1])
+        futures = self._interpolated(peds.xy_m, peds.futures_m[:, kept])  # (P, S', J, 2)
         futures = futures[self._relevant(futures, ego_xy)]
         if len(futures) == 0:
             return np.zeros(k), np.zeros(k)
@@ -136,13 +156,21 @@ class MpcPlanner:
         hit_level = 1.0 - self.cfg.safety_margin_m / self.cfg.comfort_m
         hit = np.max((intrusion > hit_level) * self._weights, axis=-1).reshape(k, n_peds, n_samples)
         crowding = np.max(intrusion * self._weights, axis=-1).reshape(k, n_peds, n_samples)
-        risk = 1.0 - np.prod(1.0 - hit.mean(axis=2), axis=1)
-        return risk, crowding.mean(axis=2).sum(axis=1)
+        return (hit @ weights).sum(axis=1), (crowding @ weights).sum(axis=1)
 
-    def _interpolated(self, peds: Pedestrians) -> np.ndarray:
-        """(P, S, J, 2) float32 pedestrian positions at the checks (linear between the predicted steps)."""
-        now = np.broadcast_to(peds.xy_m[:, None, None], (len(peds), peds.futures_m.shape[1], 1, 2))
-        track = np.concatenate([now, peds.futures_m], axis=2)  # (P, S, H + 1, 2), step 0 = now
+    def _sample_weights(self, n_samples: int) -> tuple[np.ndarray, np.ndarray]:
+        """Indices (S',) of the samples scored, the likeliest first, and their weights (S',) summing to 1."""
+        prior = self.world.sample_prior
+        if not self.cfg.use_prior or prior is None or len(prior) != n_samples:  # unordered: keep them all
+            return np.arange(n_samples), np.full(n_samples, 1.0 / n_samples, np.float32)
+        kept = np.argsort(-prior, kind="stable")[:self.cfg.top_samples]
+        return kept, (prior[kept] / prior[kept].sum()).astype(np.float32)
+
+    def _interpolated(self, xy_m: np.ndarray, futures_m: np.ndarray) -> np.ndarray:
+        """(P, S, J, 2) float32 positions at the checks (linear between the predicted steps) from the positions
+        now (P, 2) and the futures (P, S, H, 2) [m]."""
+        now = np.broadcast_to(xy_m[:, None, None], (len(xy_m), futures_m.shape[1], 1, 2))
+        track = np.concatenate([now, futures_m], axis=2)  # (P, S, H + 1, 2), step 0 = now
         low = np.floor(self._check_steps).astype(int)
         high = np.minimum(low + 1, track.shape[2] - 1)
         frac = (self._check_steps - low)[:, None]

@@ -11,7 +11,7 @@ needed when that planner runs.
 from __future__ import annotations
 
 from importlib import import_module
-from typing import TYPE_CHECKING, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
@@ -26,7 +26,7 @@ PLANNERS: dict[str, str] = {
     "mpc": "st_sim.apps.navigation.mpc:MpcPlanner",
     "ppo": "st_sim.apps.navigation.ppo:PpoPlanner",
 }
-"""planner name -> "module:class"; every class is built as ``cls(world, use_predictions)``"""
+"""planner name -> "module:class"; every class is built as ``cls(world, use_predictions, **options)``"""
 USES_PREDICTIONS: dict[str, bool] = {"straight": False, "orca": False, "mpc": True, "ppo": True}
 """planners whose actions depend on the predicted futures (the others give the same episodes for any predictor)"""
 
@@ -41,11 +41,14 @@ class Planner(Protocol):
         """(2,) float32 ego velocity command [m/s], world frame, from an STCrowd observation."""
 
 
-def make_planner(name: str, world: NavWorld, predictor: str = "singular") -> Planner:
-    """Build planner ``name`` for an env's ``world``; ``predictor`` "none" means the futures are not used."""
+def make_planner(name: str, world: NavWorld, predictor: str = "singular", **options: Any) -> Planner:
+    """Build planner ``name`` for an env's ``world``; ``predictor`` "none" means the futures are not used.
+
+    ``options`` go to the planner's class (the MPC takes ``cfg=MpcConfig(...)``).
+    """
     if name not in PLANNERS:
         raise ValueError(f"planner={name!r}: expected one of {', '.join(PLANNERS)}")
     if predictor not in PREDICTORS:
         raise ValueError(f"predictor={predictor!r}: expected one of {', '.join(PREDICTORS)}")
     module, cls = PLANNERS[name].split(":")
-    return getattr(import_module(module), cls)(world, predictor != "none")
+    return getattr(import_module(module), cls)(world, predictor != "none", **options)
