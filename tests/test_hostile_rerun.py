@@ -117,7 +117,13 @@ def unclosed_runs(tmp_path_factory) -> Path:
     procs = {mode: subprocess.Popen([sys.executable, "-c", WRITER, mode, str(folder / f"{mode}.rrd")],
                                     stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True) for mode in MODES}
     assert procs["interrupt"].stdout.readline().strip() == "stepping"
-    procs["interrupt"].send_signal(signal.SIGINT)  # Ctrl-C: KeyboardInterrupt inside a step
+    for _ in range(10):  # Ctrl-C: KeyboardInterrupt inside a step. Python drops one that lands in a finaliser
+        procs["interrupt"].send_signal(signal.SIGINT)  # (``__del__``), so press again, as a user would
+        try:
+            procs["interrupt"].wait(timeout=20)
+            break
+        except subprocess.TimeoutExpired:
+            continue
     for proc in procs.values():
         proc.communicate(timeout=300)
     return folder
