@@ -110,20 +110,21 @@ if mode == "interrupt":
 MODES = ("gc", "exit", "kill", "interrupt")
 
 
+def default_sigint() -> None:
+    """In the writer before exec: Ctrl-C's default action, so Python turns it into KeyboardInterrupt (an
+    ignored SIGINT, as some test runners and pools leave it, would be inherited and ignored)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 @pytest.fixture(scope="module")
 def unclosed_runs(tmp_path_factory) -> Path:
     """One writer process per mode, run side by side; returns their folder (``<mode>.rrd`` each)."""
     folder = tmp_path_factory.mktemp("unclosed")
     procs = {mode: subprocess.Popen([sys.executable, "-c", WRITER, mode, str(folder / f"{mode}.rrd")],
-                                    stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True) for mode in MODES}
+                                    stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
+                                    preexec_fn=default_sigint) for mode in MODES}
     assert procs["interrupt"].stdout.readline().strip() == "stepping"
-    for _ in range(10):  # Ctrl-C: KeyboardInterrupt inside a step. Python drops one that lands in a finaliser
-        procs["interrupt"].send_signal(signal.SIGINT)  # (``__del__``), so press again, as a user would
-        try:
-            procs["interrupt"].wait(timeout=20)
-            break
-        except subprocess.TimeoutExpired:
-            continue
+    procs["interrupt"].send_signal(signal.SIGINT)  # Ctrl-C: KeyboardInterrupt inside a step
     for proc in procs.values():
         proc.communicate(timeout=300)
     return folder
