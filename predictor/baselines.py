@@ -16,6 +16,12 @@ SIGMA_GRID_RAD = np.linspace(0.0, 1.0, 41)  # CVM-S heading-noise candidates [ra
 FIT_MAX_SAMPLES = 4000  # sigma is fitted on at most this many training samples (fixed subset)
 
 
+def constant_velocity(obs: np.ndarray) -> np.ndarray:
+    """(N, T_obs, 2) checked observations [m] -> (N, 12, 2) paths repeating the last step [m]."""
+    velocity = obs[:, -1] - obs[:, -2]  # (N, 2) metres per 0.4 s step
+    return obs[:, None, -1] + FUTURE_STEPS[None, :, None] * velocity[:, None]
+
+
 class ConstantVelocity:
     """Repeat the last observed displacement for 12 steps; all S samples are the same path."""
 
@@ -25,9 +31,7 @@ class ConstantVelocity:
                 num_samples: int = 1) -> np.ndarray:
         """(N, T_obs, 2) metres -> (N, S, 12, 2) float32 metres."""
         obs, group = check_inputs(obs, group, num_samples)
-        velocity = obs[:, -1] - obs[:, -2]  # (N, 2) metres per 0.4 s step
-        path = obs[:, None, -1] + FUTURE_STEPS[None, :, None] * velocity[:, None]  # (N, 12, 2)
-        return np.repeat(path[:, None], num_samples, axis=1).astype(np.float32)
+        return np.repeat(constant_velocity(obs)[:, None], num_samples, axis=1).astype(np.float32)
 
 
 @dataclass

@@ -14,7 +14,7 @@ import numpy as np
 import torch
 
 from predictor.anchors import BEND_SHAPES, OFF_IMAGE_MODES, adapt_paths, adaptive_anchors
-from predictor.baselines import ConstantVelocity
+from predictor.baselines import constant_velocity
 from predictor.config_check import check_config
 from predictor.normalize import AgentFrame, agent_frames, rotate
 from predictor.protocol import check_inputs, empty_prediction
@@ -213,8 +213,7 @@ class SingularTrajectory:
             futures, _ = adapt_paths(futures, scene, inputs.frames.origin_m, self.cfg.anchor_off_image,
                                      self.cfg.anchor_bend)
         standing = np.linalg.norm(obs[:, -1] - obs[:, -2], axis=-1) < self.cfg.standing_m
-        if standing.any():
-            futures[standing] = ConstantVelocity().predict(obs[standing], group[standing], None, self.cfg.num_samples)
+        futures[standing] = constant_velocity(obs[standing])[:, None]  # (n, 1, 12, 2) onto every sample
         futures = futures.astype(np.float32)
         keep = slice(0, num_samples)  # anchors are ordered by cluster size: the first are the likeliest
         return Prediction(futures[:, keep], inputs.anchor_paths_m[0][:, keep].astype(np.float32),
