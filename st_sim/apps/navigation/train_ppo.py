@@ -1,7 +1,11 @@
 """Train the PPO navigation policy (stable-baselines3) on vectorised STCrowd envs, with or without predictions.
 
-    python -m st_sim.apps.navigation.train_ppo --timesteps 300000 --out runs/nav/ppo-predictions
-    python -m st_sim.apps.navigation.train_ppo --no-predictions --timesteps 300000 --out runs/nav/ppo-no-predictions
+    python -m st_sim.apps.navigation.train_ppo --timesteps 100000 --out runs/nav/ppo-predictions
+    python -m st_sim.apps.navigation.train_ppo --no-predictions --timesteps 100000 --out runs/nav/ppo-no-predictions
+
+By default both variants start from the same teacher: ``--demo-steps`` steps of the sampling MPC with
+SingularTrajectory are collected once into ``--demos`` (reused by the other variant) and cloned into the
+actor-critic before PPO (``demonstrations``); ``--demo-steps 0`` starts PPO from scratch.
 
 Writes into --out: ``policy.pt`` (loadable with ``ppo.load_policy``), ``curve.png`` and ``curve.json`` (the
 learning curve: success, collision and return over the last 100 training episodes against env steps) and
@@ -29,6 +33,7 @@ import numpy as np
 from tqdm import tqdm
 
 from replays.atomic import write_text_atomic
+from st_sim.apps.navigation.demonstrations import DemoSpec, behaviour_clone, load_or_collect
 from st_sim.apps.navigation.features import FeatureConfig, NavFeatures
 from st_sim.apps.navigation.ppo import PRETRAINED_DIR, build_policy, save_policy
 from st_sim.apps.navigation.predictors import env_predictor
@@ -44,7 +49,7 @@ class TrainConfig:
     """features hold the predicted futures (the env runs SingularTrajectory); False: positions only"""
     env_id: str = "STCrowd-SimCrossing-v1"
     """training env"""
-    timesteps: int = 300_000
+    timesteps: int = 100_000
     """env steps over all envs (the training budget)"""
     num_envs: int = 4
     """parallel envs (subprocesses)"""
@@ -56,16 +61,22 @@ class TrainConfig:
     """minibatch size"""
     n_epochs: int = 10
     """passes over each rollout"""
-    learning_rate: float = 3e-4
+    learning_rate: float = 1e-4
     """Adam learning rate"""
     gamma: float = 0.99
     """discount per 0.4 s step"""
     net_arch: tuple[int, ...] = (128, 128)
     """hidden layers of the actor and of the critic"""
-    log_std_init: float = -0.5
-    """initial log standard deviation of the Gaussian actions (std 0.6 of the speed limit)"""
+    log_std_init: float = -1.0
+    """initial log standard deviation of the Gaussian actions (std 0.37 of the speed limit)"""
     initial_forward: float = 0.7
-    """initial mean action along the path to the goal, in speed limits (the untrained policy walks to the goal)"""
+    """without demonstrations: initial mean action along the path to the goal, in speed limits"""
+    demo_steps: int = 16_000
+    """teacher steps cloned before PPO (0: none; they count towards the budget's wall time, not its env steps)"""
+    demos: str = "runs/nav/demos.npz"
+    """demonstrations file, shared by both variants (collected when missing or collected with other settings)"""
+    bc_epochs: int = 30
+    """passes of behaviour cloning over the demonstrations"""
     out: str = "runs/nav/ppo"
     """output folder"""
     ship_as: str | None = None
@@ -171,12 +182,21 @@ def main(cfg: TrainConfig) -> Path:
                 learning_rate=cfg.learning_rate, gamma=cfg.gamma, seed=cfg.seed, device="cpu", verbose=0,
                 policy_kwargs=dict(net_arch=dict(pi=net_arch, vf=net_arch), activation_fn=torch.nn.Tanh,
                                    log_std_init=cfg.log_std_init))
-    with torch.no_grad():  # start from "walk along the path": exploration then learns when to deviate
-        model.policy.action_net.bias.copy_(torch.tensor([cfg.initial_forward, 0.0]))
+
+    # start: clone the teacher (same demonstrations for both variants), or walk along the path
+    start = time.perf_counter()
+    cloning = None
+    if cfg.demo_steps > 0:
+        demos = load_or_collect(DemoSpec(cfg.env_id, cfg.demo_steps), cfg.demos, cfg.progress)
+        cloning = behaviour_clone(model.policy, demos, cfg.use_predictions, cfg.gamma, cfg.bc_epochs, seed=cfg.seed)
+        cloning["demo_collection_s"] = demos.wall_time_s
+        print(f"behaviour cloning on {len(demos.actions)} teacher steps: {cloning}")
+    else:
+        with torch.no_grad():  # exploration then learns when to deviate from the path
+            model.policy.action_net.bias.copy_(torch.tensor([cfg.initial_forward, 0.0]))
 
     # loop: rollouts -> PPO updates, a curve point per rollout
     curve: list[dict] = []
-    start = time.perf_counter()
     model.learn(total_timesteps=cfg.timesteps, callback=curve_callback(cfg, curve))
     wall_time_s = time.perf_counter() - start
     vec.close()
@@ -187,7 +207,8 @@ def main(cfg: TrainConfig) -> Path:
     sha256 = save_policy(policy, cfg.features, net_arch, out / "policy.pt")
     write_text_atomic(out / "curve.json", json.dumps(curve, indent=1))
     plot_curve(curve, out / "curve.png", run_name)
-    record = {"run": run_name, "config": asdict(cfg), "wall_time_s": wall_time_s, "sha256": sha256,
+    record = {"run": run_name, "config": asdict(cfg), "wall_time_s": wall_time_s, "cloning": cloning,
+              "sha256": sha256,
               "final": curve[-1] if curve else None, "command": "python -m st_sim.apps.navigation.train_ppo "
               + " ".join(sys.argv[1:])}
     write_text_atomic(out / "training.json", json.dumps(record, indent=1, default=str))
@@ -222,13 +243,22 @@ def parse_args(argv: list[str] | None = None) -> TrainConfig:
     parser.add_argument("--timesteps", type=int, default=d.timesteps, help=f"env steps (default: {d.timesteps})")
     parser.add_argument("--num-envs", type=int, default=d.num_envs, help=f"parallel envs (default: {d.num_envs})")
     parser.add_argument("--seed", type=int, default=d.seed, help=f"seed (default: {d.seed})")
+    parser.add_argument("--demo-steps", type=int, default=d.demo_steps,
+                        help=f"teacher steps cloned before PPO, 0 for none (default: {d.demo_steps})")
+    parser.add_argument("--demos", default=d.demos, help=f"demonstrations file, shared by both variants "
+                        f"(default: {d.demos})")
     parser.add_argument("--out", default=d.out, help=f"output folder (default: {d.out})")
     parser.add_argument("--ship", default=None, help="also copy the policy into pretrained/ under this name")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     args = parser.parse_args(argv)
+    for flag, value, least in (("--timesteps", args.timesteps, 1), ("--num-envs", args.num_envs, 1),
+                               ("--demo-steps", args.demo_steps, 0)):
+        if value < least:
+            parser.error(f"{flag}={value}: expected an integer >= {least}")
     use_predictions = not args.no_predictions
     return TrainConfig(use_predictions=use_predictions, env_id=args.env_id, timesteps=args.timesteps,
-                       num_envs=args.num_envs, seed=args.seed, out=args.out, ship_as=args.ship,
+                       num_envs=args.num_envs, seed=args.seed, demo_steps=args.demo_steps, demos=args.demos,
+                       out=args.out, ship_as=args.ship,
                        progress=not args.quiet, features=FeatureConfig(use_predictions))
 
 

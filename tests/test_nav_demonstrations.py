@@ -1,0 +1,109 @@
+"""Teacher demonstrations: returns per episode, the file's spec check, cloning, and a real (tiny) collection."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from st_sim.apps.navigation.demonstrations import (
+    DemoFileError,
+    Demos,
+    DemoSpec,
+    behaviour_clone,
+    load_or_collect,
+    save,
+)
+from st_sim.apps.navigation.features import FeatureConfig
+
+
+def hand_made(steps: int = 6, seed: int = 0) -> Demos:
+    rng = np.random.default_rng(seed)
+    sizes = FeatureConfig(True).size, FeatureConfig(False).size
+    return Demos(rng.normal(size=(steps, sizes[0])).astype(np.float32),
+                 rng.normal(size=(steps, sizes[1])).astype(np.float32),
+                 rng.uniform(-1, 1, (steps, 2)).astype(np.float32), np.ones(steps, np.float32),
+                 np.arange(steps) % 3 == 2, wall_time_s=1.5)
+
+
+def test_returns_restart_at_every_episode_end() -> None:
+    demos = hand_made()  # two episodes of three steps, reward 1 per step
+    returns = demos.returns(gamma=0.5)
+    np.testing.assert_allclose(returns, [1.75, 1.5, 1.0, 1.75, 1.5, 1.0])
+
+
+def test_a_file_with_another_spec_or_damaged_bytes_is_refused_by_name(tmp_path: Path) -> None:
+    path = tmp_path / "demos.npz"
+    save(hand_made(), DemoSpec(steps=6), path)
+    loaded = load_or_collect(DemoSpec(steps=6), path)
+    np.testing.assert_array_equal(loaded.actions, hand_made().actions)
+    assert loaded.wall_time_s == 1.5
+    with pytest.raises(DemoFileError, match=r"demos\.npz: collected with .*'steps': 6"):
+        load_or_collect(DemoSpec(steps=7), path)
+    path.write_bytes(path.read_bytes()[:100])
+    with pytest.raises(DemoFileError, match=r"demos\.npz: not a readable demonstrations file"):
+        load_or_collect(DemoSpec(steps=6), path)
+
+
+@pytest.mark.parametrize("use_predictions", [True, False])
+def test_cloning_fits_the_teacher_actions_and_returns(use_predictions: bool) -> None:
+    from st_sim.apps.navigation.ppo import build_policy
+
+    demos = hand_made(steps=512)
+    features = demos.features(use_predictions)
+    teacher = np.tanh(features[:, :2]).astype(np.float32)  # actions: a smooth function of the features
+    rewards = np.tanh(features[:, 2]).astype(np.float32)  # one-step episodes: the return is the reward
+    demos = Demos(demos.features_with, demos.features_without, teacher, rewards, np.ones(512, bool))
+    policy = build_policy(FeatureConfig(use_predictions), [64, 64])
+    fit = behaviour_clone(policy, demos, use_predictions, gamma=0.9, epochs=40, seed=0)
+    assert fit["action_mse"] < 0.1 * float(np.mean(np.sum(teacher ** 2, axis=1))), fit  # vs a zero policy
+    assert fit["value_mse"] < 0.1 * float(np.mean(rewards ** 2)), fit
+
+
+def test_collect_runs_the_teacher_and_keeps_both_feature_sets(tmp_path: Path) -> None:
+    spec = DemoSpec(steps=12, workers=1)
+    demos = load_or_collect(spec, tmp_path / "demos.npz", progress=False)
+    assert demos.features_with.shape == (12, FeatureConfig(True).size)
+    assert demos.features_without.shape == (12, FeatureConfig(False).size)
+    assert np.isfinite(demos.features_with).all() and np.isfinite(demos.rewards).all()
+    assert np.abs(demos.actions).max() <= 1.0 and demos.episode_ends[-1]
+    # the features without predictions are the ones with them, minus the prediction columns
+    np.testing.assert_array_equal(demos.features_with[:, :19], demos.features_without[:, :19])
+    assert demos.wall_time_s > 0
+
+
+@pytest.mark.parametrize("demo_steps", [0, 24])
+def test_train_ppo_writes_a_loadable_policy_curve_and_record(tmp_path: Path, demo_steps: int) -> None:
+    """The training script end to end on a tiny budget (256 env steps), from scratch and from demonstrations."""
+    from st_sim.apps.navigation.ppo import load_policy
+    from st_sim.apps.navigation.train_ppo import main, parse_args
+
+    cfg = parse_args(["--no-predictions", "--timesteps", "256", "--num-envs", "1", "--demo-steps", str(demo_steps),
+                      "--demos", str(tmp_path / "demos.npz"), "--out", str(tmp_path / "run"), "--quiet"])
+    policy_path = main(cfg)
+    policy, features = load_policy(policy_path)
+    assert not features.use_predictions and policy.observation_space.shape == (features.size,)
+    record = json.loads((tmp_path / "run" / "training.json").read_text())
+    assert record["config"]["timesteps"] == 256 and (tmp_path / "run" / "curve.png").stat().st_size > 0
+    assert (record["cloning"] is None) == (demo_steps == 0)
+    if demo_steps:
+        assert record["cloning"]["action_mse"] >= 0 and (tmp_path / "demos.npz").exists()
+
+
+@pytest.mark.parametrize(("flag", "value"), [("--timesteps", "0"), ("--num-envs", "0"), ("--demo-steps", "-1"),
+                                             ("--timesteps", "many")])
+def test_train_ppo_refuses_bad_budgets_by_flag(flag: str, value: str, capsys: pytest.CaptureFixture) -> None:
+    from st_sim.apps.navigation.train_ppo import parse_args
+
+    with pytest.raises(SystemExit):
+        parse_args([flag, value])
+    assert flag.lstrip("-") in capsys.readouterr().err.replace("_", "-")
+
+
+def test_an_empty_collection_is_refused_before_any_work() -> None:
+    from st_sim.apps.navigation.demonstrations import collect
+
+    with pytest.raises(ValueError, match=r"DemoSpec.steps=0"):
+        collect(DemoSpec(steps=0))
