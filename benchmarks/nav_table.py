@@ -7,7 +7,8 @@ Each cell (env, planner, predictor) is one ``run_navigation`` over episodes seed
 episodes for every cell of an env) and is written to ``OUT/<env>__<planner>__<predictor>.json``; a cell whose
 file exists with enough episodes is reused, so an interrupted run resumes. Planners that ignore predictions
 (straight, ORCA) run once, with predictor "none". The script prints one markdown table per env and McNemar's
-paired test of MPC with SingularTrajectory against MPC with CVM and with no prediction (collisions).
+paired test of MPC with SingularTrajectory against MPC with CVM and with no prediction (collisions), and of
+PPO with predictions against PPO without (successes).
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ from pathlib import Path
 
 from replays.atomic import write_text_atomic
 from st_sim.apps.navigation.episodes import NavRun, run_navigation
-from st_sim.apps.navigation.metrics import paired_collision_test
+from st_sim.apps.navigation.metrics import paired_collision_test, paired_success_test
 from st_sim.apps.navigation.planners import PLANNERS, USES_PREDICTIONS
 from st_sim.apps.navigation.predictors import PREDICTORS
 from st_sim.apps.navigation.report import markdown_header, markdown_row, see_ego_label
@@ -90,6 +91,12 @@ def main() -> None:
                 print(f"\nMPC singular vs MPC {other}: collisions {test['a_collisions']} vs {test['b_collisions']} "
                       f"of {test['n']}; only singular {test['only_a']}, only {other} {test['only_b']}; "
                       f"one-sided McNemar p = {test['p_value']:.4f}")
+        ppo = {r["predictor"]: r for r in rows if r["policy"] == "ppo"}
+        if {"singular", "none"} <= set(ppo):
+            test = paired_success_test(ppo["singular"]["episodes"], ppo["none"]["episodes"])
+            print(f"\nPPO with vs without predictions: successes {test['a_successes']} vs {test['b_successes']} "
+                  f"of {test['n']}; only with {test['only_a']}, only without {test['only_b']}; "
+                  f"one-sided McNemar p = {test['p_value']:.4f}")
 
 
 if __name__ == "__main__":

@@ -12,6 +12,7 @@ from st_sim.apps.navigation.metrics import (
     episode_metrics,
     outcome_of,
     paired_collision_test,
+    paired_success_test,
     rate_interval,
     summarize,
 )
@@ -81,3 +82,14 @@ def test_paired_test_finds_the_safer_planner_and_refuses_unpaired_runs() -> None
     assert paired_collision_test(safe, safe)["p_value"] == 1.0
     with pytest.raises(ValueError, match="same seeds"):
         paired_collision_test(safe, risky[::-1])
+
+
+def test_paired_success_test_finds_the_planner_that_arrives_more_often() -> None:
+    arrives = [{"seed": s, "outcome": "goal" if s % 5 else "timeout"} for s in range(40)]
+    stalls = [{"seed": s, "outcome": "goal" if s % 2 else "wall collision"} for s in range(40)]
+    result = paired_success_test(arrives, stalls)
+    assert (result["a_successes"], result["b_successes"]) == (32, 20)
+    assert (result["only_a"], result["only_b"]) == (16, 4) and result["p_value"] < 0.05
+    assert paired_success_test(stalls, arrives)["p_value"] > 0.5
+    with pytest.raises(ValueError, match="same seeds"):
+        paired_success_test(arrives, stalls[::-1])

@@ -145,12 +145,30 @@ def paired_collision_test(a: list[dict], b: list[dict]) -> dict[str, float | int
     Returns:
         {n, a_collisions, b_collisions, only_a, only_b, p_value}; A is significantly safer when p < 0.05.
     """
+    test = _mcnemar_fewer(a, b, (Outcome.PEDESTRIAN.value, Outcome.WALL.value))
+    return {"n": test["n"], "a_collisions": test["a"], "b_collisions": test["b"], "only_a": test["only_a"],
+            "only_b": test["only_b"], "p_value": test["p_value"]}
+
+
+def paired_success_test(a: list[dict], b: list[dict]) -> dict[str, float | int]:
+    """McNemar's exact test that planner A reaches the goal more often than B on the same seeds (one-sided).
+
+    Returns:
+        {n, a_successes, b_successes, only_a, only_b, p_value}; only_a counts seeds that only A completed.
+    """
+    test = _mcnemar_fewer(b, a, (Outcome.GOAL.value,))  # A succeeds more often = B succeeds less often
+    return {"n": test["n"], "a_successes": test["b"], "b_successes": test["a"], "only_a": test["only_b"],
+            "only_b": test["only_a"], "p_value": test["p_value"]}
+
+
+def _mcnemar_fewer(a: list[dict], b: list[dict], outcomes: tuple[str, ...]) -> dict[str, float | int]:
+    """One-sided exact McNemar test that episodes of A end in ``outcomes`` less often than B's (same seeds)."""
     seeds_a, seeds_b = [e["seed"] for e in a], [e["seed"] for e in b]
     if seeds_a != seeds_b:
         raise ValueError("paired test: the two runs must hold the same seeds in the same order")
-    hit_a = np.array([e["outcome"] in (Outcome.PEDESTRIAN.value, Outcome.WALL.value) for e in a])
-    hit_b = np.array([e["outcome"] in (Outcome.PEDESTRIAN.value, Outcome.WALL.value) for e in b])
+    hit_a = np.array([e["outcome"] in outcomes for e in a])
+    hit_b = np.array([e["outcome"] in outcomes for e in b])
     only_a, only_b = int((hit_a & ~hit_b).sum()), int((hit_b & ~hit_a).sum())
     p_value = stats.binomtest(only_a, only_a + only_b, 0.5, alternative="less").pvalue if only_a + only_b else 1.0
-    return {"n": len(a), "a_collisions": int(hit_a.sum()), "b_collisions": int(hit_b.sum()),
-            "only_a": only_a, "only_b": only_b, "p_value": float(p_value)}
+    return {"n": len(a), "a": int(hit_a.sum()), "b": int(hit_b.sum()), "only_a": only_a, "only_b": only_b,
+            "p_value": float(p_value)}
