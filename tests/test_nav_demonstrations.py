@@ -107,3 +107,20 @@ def test_an_empty_collection_is_refused_before_any_work() -> None:
 
     with pytest.raises(ValueError, match=r"DemoSpec.steps=0"):
         collect(DemoSpec(steps=0))
+
+
+def test_a_stopped_training_continues_from_its_saved_state(tmp_path: Path) -> None:
+    """A finished 256-step run, started again with a 512-step budget, continues at 256; other settings refuse."""
+    from st_sim.apps.navigation.train_ppo import main, parse_args
+
+    args = ["--no-predictions", "--num-envs", "1", "--demo-steps", "0", "--save-every", "1", "--out",
+            str(tmp_path / "run"), "--quiet"]
+    main(parse_args([*args, "--timesteps", "256"]))
+    first = json.loads((tmp_path / "run" / "curve.json").read_text())
+    main(parse_args([*args, "--timesteps", "512"]))
+    record = json.loads((tmp_path / "run" / "training.json").read_text())
+    curve = json.loads((tmp_path / "run" / "curve.json").read_text())
+    assert record["resumed_from"] == 256 and curve[:len(first)] == first
+    assert curve[-1]["timesteps"] == 512
+    with pytest.raises(ValueError, match=r"resume\.zip: saved by a run with other settings \(seed\)"):
+        main(parse_args([*args, "--timesteps", "768", "--seed", "1"]))

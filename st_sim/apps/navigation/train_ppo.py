@@ -12,6 +12,11 @@ learning curve: success, collision and return over the last 100 training episode
 ``training.json`` (config, wall time, final figures). ``--ship NAME`` also copies the policy into the
 package's ``pretrained/`` folder and records it in the manifest. The two variants differ only in whether the
 features hold the predicted futures; same env, seed, budget and hyper-parameters.
+
+Every ``--save-every`` rollouts the whole PPO state goes to ``resume.zip`` (with ``curve.json``); a run started
+again with the same --out and settings continues from there up to its --timesteps, so a killed run loses at
+most that many rollouts and a finished one can be extended with a larger budget. A resumed run is not
+bit-identical to an uninterrupted one (the envs restart their episodes).
 """
 
 from __future__ import annotations
@@ -32,13 +37,16 @@ import gymnasium as gym
 import numpy as np
 from tqdm import tqdm
 
-from replays.atomic import write_text_atomic
+from replays.atomic import atomic_path, write_text_atomic
 from st_sim.apps.navigation.demonstrations import DemoSpec, behaviour_clone, load_or_collect
 from st_sim.apps.navigation.features import FeatureConfig, NavFeatures
 from st_sim.apps.navigation.ppo import PRETRAINED_DIR, build_policy, save_policy
 from st_sim.apps.navigation.predictors import env_predictor
 
 CURVE_WINDOW = 100  # training episodes averaged per learning-curve point [-]
+RESUMABLE = ("use_predictions", "env_id", "num_envs", "seed", "n_steps", "batch_size", "n_epochs", "learning_rate",
+             "gamma", "net_arch", "log_std_init", "initial_forward", "demo_steps", "demos", "bc_epochs")
+"""settings a run must share with the saved state to continue it (the budget and output options may differ)"""
 
 
 @dataclass(frozen=True)
@@ -77,6 +85,8 @@ class TrainConfig:
     """demonstrations file, shared by both variants (collected when missing or collected with other settings)"""
     bc_epochs: int = 30
     """passes of behaviour cloning over the demonstrations"""
+    save_every: int = 10
+    """rollouts between two saves of the resumable state (``resume.zip``)"""
     out: str = "runs/nav/ppo"
     """output folder"""
     ship_as: str | None = None
@@ -103,12 +113,15 @@ def outcome(info: dict) -> str:
 
 
 def curve_callback(cfg: TrainConfig, curve: list[dict]) -> Any:
-    """A stable-baselines3 callback: progress bar, and a curve point every rollout."""
+    """A stable-baselines3 callback: progress bar, a curve point every rollout, the resumable state every
+    ``cfg.save_every`` rollouts."""
     from stable_baselines3.common.callbacks import BaseCallback
 
     class Curve(BaseCallback):
         def _on_training_start(self) -> None:
-            self.bar = tqdm(total=cfg.timesteps, unit="step", disable=not cfg.progress, desc="ppo")
+            self.bar = tqdm(total=cfg.timesteps, initial=self.model.num_timesteps, unit="step",
+                            disable=not cfg.progress, desc="ppo")
+            self.rollouts = 0
             self.recent: deque[tuple[str, float]] = deque(maxlen=CURVE_WINDOW)
 
         def _on_step(self) -> bool:
@@ -126,11 +139,42 @@ def curve_callback(cfg: TrainConfig, curve: list[dict]) -> Any:
                               "collision": kinds.count("collision") / len(kinds),
                               "return": float(np.mean([r for _, r in self.recent]))})
                 self.bar.set_postfix(success=f"{curve[-1]['success']:.2f}", collision=f"{curve[-1]['collision']:.2f}")
+            self.rollouts += 1
+            if self.rollouts % cfg.save_every == 0:
+                save_resumable(self.model, cfg, curve)
 
         def _on_training_end(self) -> None:
             self.bar.close()
 
     return Curve()
+
+
+def save_resumable(model: Any, cfg: TrainConfig, curve: list[dict]) -> None:
+    """Write the whole PPO state (``resume.zip``), the settings it needs and the curve so far, each atomically."""
+    out = Path(cfg.out)
+    with atomic_path(out / "resume.zip") as tmp, open(tmp, "wb") as file:
+        model.save(file)
+    write_text_atomic(out / "resume.json", json.dumps({k: asdict(cfg)[k] for k in RESUMABLE}, default=str))
+    write_text_atomic(out / "curve.json", json.dumps(curve, indent=1))
+
+
+def resumable_state(cfg: TrainConfig) -> tuple[Path, list[dict]] | None:
+    """(``resume.zip``, curve so far) of an earlier run with the same settings in ``cfg.out``, or None.
+
+    Raises:
+        ValueError: the folder holds the state of a run with other settings (names the differing ones).
+    """
+    out = Path(cfg.out)
+    if not (out / "resume.zip").is_file():
+        return None
+    saved = json.loads((out / "resume.json").read_text())
+    wanted = json.loads(json.dumps({k: asdict(cfg)[k] for k in RESUMABLE}, default=str))
+    differing = sorted(k for k in RESUMABLE if saved.get(k) != wanted[k])
+    if differing:
+        raise ValueError(f"{out}/resume.zip: saved by a run with other settings ({', '.join(differing)}); "
+                         "use another --out or delete it to start afresh")
+    curve_path = out / "curve.json"
+    return out / "resume.zip", json.loads(curve_path.read_text()) if curve_path.exists() else []
 
 
 def plot_curve(curve: list[dict], path: Path, title: str) -> Path:
@@ -183,10 +227,15 @@ def main(cfg: TrainConfig) -> Path:
                 policy_kwargs=dict(net_arch=dict(pi=net_arch, vf=net_arch), activation_fn=torch.nn.Tanh,
                                    log_std_init=cfg.log_std_init))
 
-    # start: clone the teacher (same demonstrations for both variants), or walk along the path
+    # start: continue a saved run, clone the teacher (same demonstrations for both variants), or walk the path
     start = time.perf_counter()
-    cloning = None
-    if cfg.demo_steps > 0:
+    cloning, resumed_from, curve = None, 0, []
+    saved = resumable_state(cfg)
+    if saved is not None:
+        model = PPO.load(saved[0], env=vec, device="cpu")
+        resumed_from, curve = int(model.num_timesteps), saved[1]
+        print(f"resuming {saved[0]} at {resumed_from} env steps")
+    elif cfg.demo_steps > 0:
         demos = load_or_collect(DemoSpec(cfg.env_id, cfg.demo_steps), cfg.demos, cfg.progress)
         cloning = behaviour_clone(model.policy, demos, cfg.use_predictions, cfg.gamma, cfg.bc_epochs, seed=cfg.seed)
         cloning["demo_collection_s"] = demos.wall_time_s
@@ -195,9 +244,10 @@ def main(cfg: TrainConfig) -> Path:
         with torch.no_grad():  # exploration then learns when to deviate from the path
             model.policy.action_net.bias.copy_(torch.tensor([cfg.initial_forward, 0.0]))
 
-    # loop: rollouts -> PPO updates, a curve point per rollout
-    curve: list[dict] = []
-    model.learn(total_timesteps=cfg.timesteps, callback=curve_callback(cfg, curve))
+    # loop: rollouts -> PPO updates, a curve point per rollout, the resumable state every save_every rollouts
+    model.learn(total_timesteps=max(cfg.timesteps - resumed_from, 0), callback=curve_callback(cfg, curve),
+                reset_num_timesteps=resumed_from == 0)
+    save_resumable(model, cfg, curve)
     wall_time_s = time.perf_counter() - start
     vec.close()
 
@@ -208,7 +258,7 @@ def main(cfg: TrainConfig) -> Path:
     write_text_atomic(out / "curve.json", json.dumps(curve, indent=1))
     plot_curve(curve, out / "curve.png", run_name)
     record = {"run": run_name, "config": asdict(cfg), "wall_time_s": wall_time_s, "cloning": cloning,
-              "sha256": sha256,
+              "resumed_from": resumed_from, "sha256": sha256,
               "final": curve[-1] if curve else None, "command": "python -m st_sim.apps.navigation.train_ppo "
               + " ".join(sys.argv[1:])}
     write_text_atomic(out / "training.json", json.dumps(record, indent=1, default=str))
@@ -247,18 +297,20 @@ def parse_args(argv: list[str] | None = None) -> TrainConfig:
                         help=f"teacher steps cloned before PPO, 0 for none (default: {d.demo_steps})")
     parser.add_argument("--demos", default=d.demos, help=f"demonstrations file, shared by both variants "
                         f"(default: {d.demos})")
+    parser.add_argument("--save-every", type=int, default=d.save_every,
+                        help=f"rollouts between saves of the resumable state (default: {d.save_every})")
     parser.add_argument("--out", default=d.out, help=f"output folder (default: {d.out})")
     parser.add_argument("--ship", default=None, help="also copy the policy into pretrained/ under this name")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     args = parser.parse_args(argv)
     for flag, value, least in (("--timesteps", args.timesteps, 1), ("--num-envs", args.num_envs, 1),
-                               ("--demo-steps", args.demo_steps, 0)):
+                               ("--demo-steps", args.demo_steps, 0), ("--save-every", args.save_every, 1)):
         if value < least:
             parser.error(f"{flag}={value}: expected an integer >= {least}")
     use_predictions = not args.no_predictions
     return TrainConfig(use_predictions=use_predictions, env_id=args.env_id, timesteps=args.timesteps,
                        num_envs=args.num_envs, seed=args.seed, demo_steps=args.demo_steps, demos=args.demos,
-                       out=args.out, ship_as=args.ship,
+                       save_every=args.save_every, out=args.out, ship_as=args.ship,
                        progress=not args.quiet, features=FeatureConfig(use_predictions))
 
 
