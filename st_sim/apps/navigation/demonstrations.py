@@ -70,6 +70,7 @@ class Demos:
     wall_time_s: float = 0.0
 
     def features(self, use_predictions: bool) -> np.ndarray:
+        """(T, F) features of the variant with or without the predicted futures."""
         return self.features_with if use_predictions else self.features_without
 
     def returns(self, gamma: float) -> np.ndarray:
