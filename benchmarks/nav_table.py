@@ -85,7 +85,7 @@ def main() -> None:
         print(markdown_header())
         print("\n".join(markdown_row(r) for r in rows))
         by_predictor = {r["predictor"]: r for r in rows if r["policy"] == "mpc"}
-        for other in ("cvm", "none"):
+        for other in ("cvm", "cvm-s", "none"):
             if "singular" in by_predictor and other in by_predictor:
                 test = paired_collision_test(by_predictor["singular"]["episodes"], by_predictor[other]["episodes"])
                 print(f"\nMPC singular vs MPC {other}: collisions {test['a_collisions']} vs {test['b_collisions']} "
