@@ -58,8 +58,8 @@ def crossing(size_m: float = 20.0, arm_width_m: float = 6.0) -> Layout:
     Args:
         size_m: 3 to 100 000 m, end to end.  arm_width_m: from 0.5 m to less than size_m.
     """
-    _check("crossing", size_m=(size_m, LENGTH), arm_width_m=(arm_width_m, Bounds(WIDTH.low, size_m, "m",
-                                                                                  open_high=True)))
+    arm = Bounds(WIDTH.low, size_m, f"m (below crossing.size_m = {size_m!r})", open_high=True)
+    _check("crossing", size_m=(size_m, LENGTH), arm_width_m=(arm_width_m, arm))
     a, b, s = (size_m - arm_width_m) / 2, (size_m + arm_width_m) / 2, size_m
     plus = np.array([[a, 0], [b, 0], [b, a], [s, a], [s, b], [b, b], [b, s], [a, s], [a, b], [0, b], [0, a], [a, a]],
                     dtype=np.float64)
@@ -76,8 +76,9 @@ def bottleneck(room_m: float = 8.5, wall_m: float = 1.0, height_m: float = 8.0, 
         room_m: depth of each room, 3 to 100 000 m.  wall_m: thickness of the wall, 0.05 to 100 m.
         height_m: 0.5 to 1000 m.  door_m: door width, more than 0 and less than height_m [m].
     """
+    door = Bounds(0.0, height_m, f"m (below bottleneck.height_m = {height_m!r})", open_low=True, open_high=True)
     _check("bottleneck", room_m=(room_m, LENGTH), wall_m=(wall_m, Bounds(0.05, 100.0, "m")),
-           height_m=(height_m, WIDTH), door_m=(door_m, Bounds(0.0, height_m, "m", open_low=True, open_high=True)))
+           height_m=(height_m, WIDTH), door_m=(door_m, door))
     x1, x2, x3 = room_m, room_m + wall_m, 2 * room_m + wall_m
     y1, y2 = (height_m - door_m) / 2, (height_m + door_m) / 2
     free = np.array([[0, 0], [x1, 0], [x1, y1], [x2, y1], [x2, 0], [x3, 0], [x3, height_m], [x2, height_m],
@@ -94,7 +95,8 @@ def corner(arm_m: float = 12.0, width_m: float = 2.0) -> Layout:
     Args:
         arm_m: length of each arm, outer side, 3 to 100 000 m.  width_m: 0.5 m to arm_m - GATE_DEPTH_M.
     """
-    _check("corner", arm_m=(arm_m, LENGTH), width_m=(width_m, Bounds(WIDTH.low, arm_m - GATE_DEPTH_M, "m")))
+    width = Bounds(WIDTH.low, arm_m - GATE_DEPTH_M, f"m (corner.arm_m = {arm_m!r} minus {GATE_DEPTH_M:g} m)")
+    _check("corner", arm_m=(arm_m, LENGTH), width_m=(width_m, width))
     a, w = arm_m, width_m
     free = np.array([[0, 0], [a, 0], [a, a], [a - w, a], [a - w, w], [0, w]], dtype=np.float64)
     west = Region("west", _box(0.0, 0.0, GATE_DEPTH_M, w))
