@@ -56,5 +56,6 @@ def main() -> None:
             means = [statistics.fmean(column) for column in zip(*rows.values(), strict=True)]
             print(f"| {task} | **mean of {len(rows)}** | " + " | ".join(f"{m:.4f}" for m in means) + " |")
 
+
 if __name__ == "__main__":
     main()

@@ -124,3 +124,21 @@ def test_a_stopped_training_continues_from_its_saved_state(tmp_path: Path) -> No
     assert curve[-1]["timesteps"] == 512
     with pytest.raises(ValueError, match=r"resume\.zip: saved by a run with other settings \(seed\)"):
         main(parse_args([*args, "--timesteps", "768", "--seed", "1"]))
+
+
+def test_dropping_the_prediction_columns_gives_the_features_without_predictions() -> None:
+    """Collection encodes once and derives the other variant: it must equal encoding without predictions."""
+    import gymnasium as gym
+
+    import envs  # noqa: F401  (registers the ids)
+    from st_sim.apps.navigation.features import drop_predictions, encode
+    from st_sim.apps.navigation.world import world_of
+
+    env = gym.make("STCrowd-SimCrossing-v1", predictor="cvm-s")
+    world = world_of(env)
+    obs, _ = env.reset(seed=3)
+    for _ in range(4):
+        with_predictions = encode(obs, world, FeatureConfig(True))
+        np.testing.assert_array_equal(drop_predictions(with_predictions), encode(obs, world, FeatureConfig(False)))
+        obs, *_ = env.step(np.array([1.0, 0.0], np.float32))
+    env.close()

@@ -24,7 +24,7 @@ import numpy as np
 from tqdm import tqdm
 
 from replays.atomic import atomic_path
-from st_sim.apps.navigation.features import FeatureConfig, encode, path_frame
+from st_sim.apps.navigation.features import FeatureConfig, drop_predictions, encode, path_frame
 
 FORMAT = "stcrowd-nav-demos/1"
 ARRAYS = ("features_with", "features_without", "actions", "rewards", "episode_ends")  # the arrays of ``Demos``
@@ -126,7 +126,6 @@ def _collect_share(job: tuple[DemoSpec, int, int]) -> tuple[np.ndarray, ...]:
     env = gym.make(spec.env_id, predictor=env_predictor("singular"))
     world = world_of(env)
     teacher = make_planner(spec.teacher, world, "singular")
-    configs = (FeatureConfig(True), FeatureConfig(False))
     rows: list[tuple[np.ndarray, ...]] = []
     episode = 0
     while len(rows) < share:
@@ -137,7 +136,8 @@ def _collect_share(job: tuple[DemoSpec, int, int]) -> tuple[np.ndarray, ...]:
         while not done and len(rows) < share:
             velocity = teacher.act(obs)
             action = np.clip(path_frame(obs, world) @ velocity / world.max_speed_mps, -1.0, 1.0)
-            features = [encode(obs, world, cfg) for cfg in configs]
+            features_with = encode(obs, world, FeatureConfig(True))  # rays and slots once for both variants
+            features = (features_with, drop_predictions(features_with))
             obs, reward, terminated, truncated, _ = env.step(velocity)
             done = terminated or truncated
             rows.append((*features, action.astype(np.float32), np.float32(reward), done))

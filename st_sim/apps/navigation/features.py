@@ -84,6 +84,14 @@ def encode(obs: dict[str, np.ndarray], world: NavWorld, cfg: FeatureConfig) -> n
     return np.concatenate([ego, free_m / RAY_RANGE_M, slots.ravel()]).astype(np.float32)
 
 
+def drop_predictions(features: np.ndarray) -> np.ndarray:
+    """(..., FeatureConfig(True).size) features -> (..., FeatureConfig(False).size): the same observation's
+    features without the prediction columns (each pedestrian slot keeps its first 5 values)."""
+    per_pedestrian = (FeatureConfig(True).size - 3 - RAY_COUNT) // NEAREST
+    slots = features[..., 3 + RAY_COUNT:].reshape(*features.shape[:-1], NEAREST, per_pedestrian)[..., :5]
+    return np.concatenate([features[..., :3 + RAY_COUNT], slots.reshape(*features.shape[:-1], -1)], axis=-1)
+
+
 def to_velocity(action: np.ndarray, obs: dict[str, np.ndarray], world: NavWorld) -> np.ndarray:
     """(2,) float32 world-frame velocity [m/s] of a policy action (2,) in [-1, 1] (path frame, speed limits)."""
     return (np.clip(action, -1.0, 1.0) @ path_frame(obs, world) * world.max_speed_mps).astype(np.float32)

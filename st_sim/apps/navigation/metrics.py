@@ -145,7 +145,7 @@ def paired_collision_test(a: list[dict], b: list[dict]) -> dict[str, float | int
     Returns:
         {n, a_collisions, b_collisions, only_a, only_b, p_value}; A is significantly safer when p < 0.05.
     """
-    test = _mcnemar_fewer(a, b, (Outcome.PEDESTRIAN.value, Outcome.WALL.value))
+    test = _mcnemar(a, b, (Outcome.PEDESTRIAN.value, Outcome.WALL.value), "less")
     return {"n": test["n"], "a_collisions": test["a"], "b_collisions": test["b"], "only_a": test["only_a"],
             "only_b": test["only_b"], "p_value": test["p_value"]}
 
@@ -156,19 +156,20 @@ def paired_success_test(a: list[dict], b: list[dict]) -> dict[str, float | int]:
     Returns:
         {n, a_successes, b_successes, only_a, only_b, p_value}; only_a counts seeds that only A completed.
     """
-    test = _mcnemar_fewer(b, a, (Outcome.GOAL.value,))  # A succeeds more often = B succeeds less often
-    return {"n": test["n"], "a_successes": test["b"], "b_successes": test["a"], "only_a": test["only_b"],
-            "only_b": test["only_a"], "p_value": test["p_value"]}
+    test = _mcnemar(a, b, (Outcome.GOAL.value,), "greater")
+    return {"n": test["n"], "a_successes": test["a"], "b_successes": test["b"], "only_a": test["only_a"],
+            "only_b": test["only_b"], "p_value": test["p_value"]}
 
 
-def _mcnemar_fewer(a: list[dict], b: list[dict], outcomes: tuple[str, ...]) -> dict[str, float | int]:
-    """One-sided exact McNemar test that episodes of A end in ``outcomes`` less often than B's (same seeds)."""
+def _mcnemar(a: list[dict], b: list[dict], outcomes: tuple[str, ...], alternative: str) -> dict[str, float | int]:
+    """One-sided exact McNemar test that episodes of A end in ``outcomes`` less ("less") or more ("greater")
+    often than B's, on the same seeds; a / b count them, only_a / only_b the seeds where one run alone does."""
     seeds_a, seeds_b = [e["seed"] for e in a], [e["seed"] for e in b]
     if seeds_a != seeds_b:
         raise ValueError("paired test: the two runs must hold the same seeds in the same order")
     hit_a = np.array([e["outcome"] in outcomes for e in a])
     hit_b = np.array([e["outcome"] in outcomes for e in b])
     only_a, only_b = int((hit_a & ~hit_b).sum()), int((hit_b & ~hit_a).sum())
-    p_value = stats.binomtest(only_a, only_a + only_b, 0.5, alternative="less").pvalue if only_a + only_b else 1.0
+    p_value = stats.binomtest(only_a, only_a + only_b, 0.5, alternative=alternative).pvalue if only_a + only_b else 1.0
     return {"n": len(a), "a": int(hit_a.sum()), "b": int(hit_b.sum()), "only_a": only_a, "only_b": only_b,
             "p_value": float(p_value)}
