@@ -6,7 +6,7 @@ anchors after adaptation to the walkability map (orange) and the ground-truth fu
 the photo with the non-walkable area tinted red. ``agent_colors`` is shared with ``st_sim.rerun_log``
 so an agent has the same colour in the PNGs and in the Rerun viewer.
 
-    plot_prediction(load_scene("zara1"), obs, futures, "/tmp/zara1.png", gt_m=fut, title="zara1 test")
+    plot_prediction(load_scene("zara1"), obs, futures, "zara1.png", gt_m=fut, title="zara1 test")
 """
 
 from __future__ import annotations

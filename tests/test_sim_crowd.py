@@ -11,7 +11,7 @@ from replays import read_recording
 from replays.constants import FRAME_STRIDE, STEP_S
 from st_sim.sim import CrowdConfig, CrowdSim, EgoConfig, PopulationConfig, PopulationError, make_layout
 from st_sim.sim.config import WALL_RADIUS_M
-from st_sim.sim.diagnostics import escaped, max_overlap_m, wall_penetration_m
+from st_sim.sim.diagnostics import max_overlap_m
 
 SYNTHETIC = ["corridor", "crossing", "bottleneck"]
 
@@ -35,20 +35,6 @@ def test_crowd_other_seed_gives_other_crowd() -> None:
     sim_a = CrowdSim(layout, CrowdConfig(), np.random.default_rng(0))
     sim_b = CrowdSim(layout, CrowdConfig(), np.random.default_rng(1))
     assert not np.array_equal(sim_a.positions_m, sim_b.positions_m)
-
-
-@pytest.mark.parametrize("name", SYNTHETIC, ids=SYNTHETIC)
-def test_crowd_stays_on_the_map_and_apart(name: str) -> None:
-    layout = make_layout(name)
-    cfg = CrowdConfig(max_pedestrians=80, spawn_rate_hz=2.0)
-    sim = CrowdSim(layout, cfg, np.random.default_rng(3))
-    for t in range(300):
-        sim.step()
-        xy = sim.positions_m
-        assert not escaped(layout, xy).any(), f"[step {t}] pedestrian off the walkable map"
-        assert wall_penetration_m(layout, xy, cfg.radius_m) < 0.02, f"[step {t}] pedestrian inside a wall"
-        assert max_overlap_m(xy, cfg.radius_m) < 0.05, f"[step {t}] pedestrians overlap"
-    assert len(sim.ids) > 40, "the crowd thinned out"
 
 
 def test_crowd_spawns_and_removes_pedestrians_with_fresh_ids() -> None:

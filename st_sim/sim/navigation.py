@@ -34,14 +34,15 @@ class NavigationField:
         cell_m: grid spacing [m].
         free: (Gy, Gx) bool, cells whose centre is walkable and at least clearance_m from every wall.
         startable: (Gy, Gx) bool, free cells with an exit reachable and farther than MIN_ROUTE_M: where a
-            pedestrian may be placed or appear.
+            pedestrian may be placed or appear (``startable_at`` also checks the point's own wall distance).
+        clearance_m: least distance of a free cell's centre, or of a startable point, from every wall [m].
         distance_m: (E, Gy, Gx) float32 geodesic distance to exit e [m]; inf if unreachable or not free.
         direction: (E, Gy, Gx, 2) float64 unit vectors toward exit e (zero where no path exists).
     """
 
     def __init__(self, layout: Layout, walls: WallGrid, clearance_m: float, cell_m: float):
         xmin, ymin, xmax, ymax = layout.bounds_m
-        self.cell_m = cell_m
+        self.cell_m, self.clearance_m, self._walls = cell_m, clearance_m, walls
         self.origin_m = np.array([xmin, ymin]) + cell_m / 2
         rows, cols = (ymax - ymin) / cell_m + 1, (xmax - xmin) / cell_m + 1
         check_memory(f"the {cols:.0f} x {rows:.0f} navigation grid of layout {layout.name}",
@@ -102,9 +103,11 @@ class NavigationField:
         return self.free[iy, ix]
 
     def startable_at(self, xy_m: np.ndarray) -> np.ndarray:
-        """(N, 2) metres -> (N,) bool, True on a startable cell (see ``startable``)."""
+        """(N, 2) metres -> (N,) bool, True on a startable cell (see ``startable``) and at least clearance_m from
+        every wall: a cell's centre keeps the clearance, but a point up to half a diagonal away from it need not,
+        and a pedestrian placed there would start inside a wall."""
         iy, ix = self.cells(xy_m)
-        return self.startable[iy, ix]
+        return self.startable[iy, ix] & (self._walls.distance_m(xy_m) >= self.clearance_m)
 
 
 def _grid_graph(free: np.ndarray, cell_m: float) -> coo_matrix:

@@ -18,7 +18,15 @@ PROGRESS_M = 0.5  # coming this much closer to one's exit counts as progress [m]
 
 
 class PopulationError(ValueError):
-    """A requested population does not fit: more than the layout holds, or more than the cap."""
+    """A requested population does not fit: more than the layout holds, or more than the cap.
+
+    Attributes:
+        fits: how many pedestrians do fit, when the layout is what limits them; else None.
+    """
+
+    def __init__(self, message: str, fits: int | None = None):
+        super().__init__(message)
+        self.fits = fits
 
 
 @dataclass

@@ -72,7 +72,7 @@ def initial_crowd(nav: NavigationField, layout: Layout, cfg: CrowdConfig, n: int
         area = layout.walkable_area_m2()
         raise PopulationError(f"CrowdSim: {n} pedestrians asked for in {where}, but only {len(xy_m)} fit (discs of "
                               f"{cfg.radius_m} m; the layout has {area:.0f} m^2 walkable); ask for at most "
-                              f"{len(xy_m)}")
+                              f"{len(xy_m)}", fits=len(xy_m))
     exit_idx, ok = choose_exits(nav, xy_m, np.ones(len(layout.exits), bool), rng)
     assert ok.all(), "lattice sites are startable, so every one has an exit"
     group = form_groups(xy_m, pop, rng, first_group)
