@@ -14,16 +14,21 @@ from envs.common.config import EnvConfig
 from envs.common.crowd_env import CrowdEnv, check_flag
 from envs.common.ego import move_within, spawn_start_goal, walkable_points
 from envs.common.errors import EnvInputError, ResetOptionsError
+from envs.common.layouts import build_layout
 from envs.common.predictors import shipped_checkpoint
+from envs.common.reactive import ReactiveCrowd
 from envs.common.tracks import Frame
 from replays.constants import COORD_DECIMALS, MIN_AGENTS_PER_WINDOW, STEP_S, T_PRED
 from replays.data_root import data_root
 from replays.errors import RecordingError
 from replays.recording import read_recording
 from replays.scenes import load_scene, scene_info
+from st_sim.sim.walls import WallGrid
 
 MIN_REPLAY_STEPS = 50  # a random start leaves at least this many steps (20 s) of recording
 MIN_FRAMES = 2  # a replay starts at one listed frame and steps to the next
+PEDESTRIAN_MODES: tuple[str, ...] = ("log", "reactive")  # the recording exactly, or stepping round the robot
+WALL_CELL_M = 0.2  # grid of the scene's walls that reactive pedestrians keep clear of [m]
 
 
 @dataclass(frozen=True, eq=False)
@@ -69,6 +74,13 @@ def _load_replay(path: Path, version: tuple[int, int, int]) -> Replay:
     return Replay(path, recording.frames, recording.agents, xy_m, present)
 
 
+@cache
+def scene_walls(scene: str, root: Path) -> WallGrid:
+    """The walls traced from a scene's walkability map, as reactive pedestrians see them (built once)."""
+    layout = build_layout(scene, root)
+    return WallGrid(layout.walls_m, layout.bounds_m, WALL_CELL_M, ReactiveCrowd.wall_reach_m())
+
+
 class ReplayCrowdEnv(CrowdEnv):
     """Replay one ETH/UCY test recording; the ego robot walks among the recorded pedestrians.
 
@@ -78,7 +90,9 @@ class ReplayCrowdEnv(CrowdEnv):
     up to now also gets S predicted futures (one batched predictor call per step, all agents in one group). The
     ego is a point robot of radius 0.3 m that moves at the commanded velocity at once (``ego_max_accel_mps2`` is
     inf) and cannot leave the arena (recorded area + 1 m, within the scene's image: a move off the image keeps
-    only the axis that stays on it); pedestrians do not react to it.
+    only the axis that stays on it). With ``pedestrians="log"`` (default) the pedestrians walk exactly as recorded
+    and do not react to it; with ``"reactive"`` each one walks its own log until the robot is in its way, then
+    steps round it with the simulator's steering and rejoins its log (``envs.common.reactive``).
 
     ## Action Space
     Box(-1.5, 1.5, (2,), float32): ego velocity (vx, vy) [m/s], world frame; scaled down to
@@ -143,12 +157,15 @@ class ReplayCrowdEnv(CrowdEnv):
     benchmark_windows (spectator only: predict exactly the agents of each benchmark window, as the
     offline evaluation does, instead of every agent with T_obs frames), rerun (a .rrd path or "spawn": log
     every step, with predictions and SingularTrajectory's anchors, to Rerun; an existing recording is never
-    overwritten: the new one is numbered, ``run-1.rrd``, and ``rerun_paths`` lists what was written).
+    overwritten: the new one is numbered, ``run-1.rrd``, and ``rerun_paths`` lists what was written),
+    pedestrians ("log": the recording exactly; "reactive": recorded pedestrians step round the robot).
 
     ## Version History
-    - v0: initial version. 2026-11-23, same id (reward, observation and dynamics unchanged):
-      ``info["termination"]``, the ``collision`` reward part renamed ``pedestrian_collision`` (and a
-      ``wall_collision`` part, always 0), the ``ego_max_accel_mps2`` attribute.
+    - v0: initial version. 2026-11-25, same id (the default is unchanged): ``pedestrians="reactive"``,
+      ``info["pedestrians"]``, ``info["off_log"]``, ``info["log_deviation_m"]``. 2026-11-23, same id
+      (reward, observation and dynamics unchanged): ``info["termination"]``, the ``collision`` reward part
+      renamed ``pedestrian_collision`` (and a ``wall_collision`` part, always 0), the ``ego_max_accel_mps2``
+      attribute.
     """
 
     RESET_OPTIONS: ClassVar[dict[str, str]] = {"start_index": "int, the listed frame to start at"}
@@ -156,8 +173,12 @@ class ReplayCrowdEnv(CrowdEnv):
     def __init__(self, scene: str = "zara1", recording: str | None = None, predictor: Any = "auto",
                  task: str = "stochastic", ego: bool = True, render_mode: str | None = None,
                  config: EnvConfig | None = None, root: str | os.PathLike | None = None,
-                 benchmark_windows: bool = False, rerun: str | os.PathLike | None = None):
+                 benchmark_windows: bool = False, rerun: str | os.PathLike | None = None,
+                 pedestrians: str = "log"):
         check_flag("benchmark_windows", benchmark_windows)
+        if not isinstance(pedestrians, str) or pedestrians not in PEDESTRIAN_MODES:
+            raise EnvInputError(f"pedestrians={pedestrians!r}: expected one of {', '.join(PEDESTRIAN_MODES)}")
+        self.pedestrians = pedestrians
         check_flag("ego", ego)
         if benchmark_windows and ego:
             raise EnvInputError("benchmark_windows=True is a spectator mode: pass ego=False")
@@ -177,6 +198,10 @@ class ReplayCrowdEnv(CrowdEnv):
         self.arena_low_m, self.arena_high_m = observed.min(axis=0) - margin, observed.max(axis=0) + margin
         self.candidates_m = walkable_points(self.scene, (*self.arena_low_m, *self.arena_high_m))
         self.index = 0
+        self.reactive: ReactiveCrowd | None = None
+        if pedestrians == "reactive":
+            self.reactive = ReactiveCrowd(self.replay.xy_m, self.replay.present, scene_walls(info.name, root),
+                                          self.cfg.ego_radius_m + self.cfg.pedestrian_radius_m)
 
     def _check_options(self, options: dict[str, Any]) -> None:
         if "start_index" not in options:
@@ -200,17 +225,33 @@ class ReplayCrowdEnv(CrowdEnv):
                 self.candidates_m, now.xy_m, self.cfg.spawn_clearance_m,
                 self.cfg.goal_min_fraction * diagonal_m, self.np_random)
             self.ego_velocity_mps = np.zeros(2)
+        if self.reactive is not None:
+            self.reactive.reset(self.index)
         first = max(0, self.index - self.t_obs + 1)
         return [self.replay.frame(i) for i in range(first, self.index + 1)]
 
     def _step_world(self, ego_velocity_mps: np.ndarray | None) -> Frame:
         self.index += 1  # the base class refuses a step once the recording has ended
+        start_m = self.ego_xy_m.copy()
         if ego_velocity_mps is not None:
             moved = move_within(self.scene, self.ego_xy_m, ego_velocity_mps, STEP_S, self.arena_low_m,
                                 self.arena_high_m)
             self.ego_velocity_mps = (moved - self.ego_xy_m) / STEP_S
             self.ego_xy_m = moved
-        return self.replay.frame(self.index)
+        if self.reactive is None:
+            return self.replay.frame(self.index)
+        robot = (start_m, self.ego_xy_m) if self.ego else (None, None)
+        xy = self.reactive.step(self.index, *robot)
+        cols = np.flatnonzero(self.replay.present[self.index])
+        return Frame(int(self.replay.frames[self.index]), self.replay.agents[cols], xy[cols])
+
+    def _info(self, reward_parts: dict[str, float], termination: str | None) -> dict[str, Any]:
+        info = {**super()._info(reward_parts, termination), "pedestrians": self.pedestrians}
+        if self.reactive is not None:
+            deviation = self.reactive.deviation_m(self.index)
+            info["off_log"] = int(self.reactive.state.off_log.sum())
+            info["log_deviation_m"] = float(deviation.mean()) if deviation.size else 0.0
+        return info
 
     def _world_ended(self) -> bool:
         return self.index >= len(self.replay.frames) - 1

@@ -3,45 +3,19 @@
 from __future__ import annotations
 
 import os
-from functools import cache
 from typing import Any
 
 import numpy as np
 
 from envs.common.config import EnvConfig
 from envs.common.crowd_env import CrowdEnv
+from envs.common.layouts import build_layout
 from envs.common.predictors import shipped_checkpoint
 from envs.common.tracks import Frame
-from replays.data_root import data_root
-from replays.scenes import SCENES, load_scene
-from st_sim.sim import (
-    CrowdConfig,
-    CrowdSim,
-    EgoConfig,
-    Layout,
-    PopulationConfig,
-    layout_from_scene,
-    make_layout,
-)
+from replays.scenes import SCENES
+from st_sim.sim import CrowdConfig, CrowdSim, EgoConfig, Layout, PopulationConfig
 from st_sim.sim import population_cap as sim_population_cap
 from st_sim.sim.physics import EGO_TYPE, PED_TYPE
-
-SYNTHETIC_LAYOUTS: tuple[str, ...] = ("crossing", "corridor", "bottleneck")
-
-
-@cache
-def _scene_layout(name: str, root: os.PathLike) -> Layout:
-    """A real scene's layout, built once per process (contour tracing is the slow part)."""
-    return layout_from_scene(load_scene(name, root))
-
-
-def build_layout(name: str, root: str | os.PathLike | None = None) -> Layout:
-    """Simulator layout by name: a synthetic one (no data needed) or an ETH/UCY scene's geometry."""
-    if name in SYNTHETIC_LAYOUTS:
-        return make_layout(name)
-    if name in SCENES:
-        return _scene_layout(name, data_root(root))
-    raise ValueError(f"layout={name!r}: expected one of {', '.join(SYNTHETIC_LAYOUTS + tuple(SCENES))}")
 
 
 def population_cap(crowd: CrowdConfig, layout: Layout) -> int:

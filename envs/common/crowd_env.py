@@ -8,8 +8,10 @@ wall contact) and ``_world_ended``. It keeps ``ego_xy_m``, ``ego_velocity_mps`` 
 
 How an episode ends is in ``info["termination"]``: "goal", "pedestrian_collision", "wall_collision" (the
 step that terminated the episode; a collision outranks the goal, a pedestrian outranks a wall) or None
-while it goes on. The env never ends an episode for time: "timeout" is the ``TimeLimit`` wrapper's
-truncation (``truncated`` with ``termination`` None), like the end of a replay's recording.
+while it goes on. On a pedestrian collision ``info["at_fault"]`` says whether the robot was at fault
+(``envs.common.fault``: unless it was nearly stopped or the pedestrian came from behind); None otherwise.
+The env never ends an episode for time: "timeout" is the ``TimeLimit`` wrapper's truncation (``truncated``
+with ``termination`` None), like the end of a replay's recording.
 
 Input contract (both vectorisation modes of gymnasium): every check of an argument, option or action runs
 before anything changes, and raises the env's own ``envs.common.errors.EnvInputError`` (a ValueError) or
@@ -32,6 +34,7 @@ from gymnasium import spaces
 from envs.common.config import EnvConfig
 from envs.common.ego import action_to_velocity, checked_action, on_image, require_on_map
 from envs.common.errors import ConfigError, EgoPlacementError, EnvInputError, NeedsResetError, ResetOptionsError
+from envs.common.fault import robot_at_fault, touching
 from envs.common.predictors import predict_futures, resolve_predictor, task_sizes
 from envs.common.running_metrics import RunningMetrics
 from envs.common.tracks import Frame, TrackBuffer
@@ -89,6 +92,7 @@ class CrowdEnv(gym.Env):
         self.ego_max_accel_mps2 = float("inf")
         """how fast the ego's velocity can change [m/s^2]; inf: it moves at the commanded velocity at once"""
         self._obs: dict[str, np.ndarray] | None = None
+        self._at_fault: bool | None = None  # on a pedestrian collision: was the robot at fault
         self._episode_over = False  # terminated, or the world ended: step needs a reset first
         self.anchors: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # (ids, prototype, adapted)
         self.rerun_target, self._rerun, self._rerun_step = rerun, None, 0
@@ -225,6 +229,11 @@ class CrowdEnv(gym.Env):
         frame = self.tracks.now
         distance_m = float(np.linalg.norm(self.goal_m - self.ego_xy_m))
         pedestrian, wall = self._ego_contacts(frame)
+        self._at_fault = None
+        if pedestrian:
+            reach = self.cfg.ego_radius_m + self.cfg.pedestrian_radius_m
+            hit = frame.xy_m[touching(self.ego_xy_m, frame.xy_m, reach)]
+            self._at_fault = robot_at_fault(self.ego_xy_m, self.ego_velocity_mps, hit)
         walkable = bool(self.scene.is_walkable(self.ego_xy_m))
         parts = {"progress": float(np.linalg.norm(self.goal_m - previous_xy_m)) - distance_m,
                  "goal": float(distance_m <= self.cfg.goal_radius_m),
@@ -269,6 +278,7 @@ class CrowdEnv(gym.Env):
             "predicted_ids": np.where(self._obs["futures_mask"], row_ids, -1),
             "reward_parts": dict(reward_parts),
             "termination": termination,
+            "at_fault": self._at_fault if termination == "pedestrian_collision" else None,
             "metrics": self.metrics.summary(),
         }
 

@@ -30,6 +30,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
     nav.add_argument("--pedestrians-see-ego", choices=list(SEE_EGO_CHOICES), default="default",
                      help="simulated envs that offer it: pedestrians steer around the robot (yes) or not (no); "
                           "default: the env's own setting")
+    nav.add_argument("--pedestrians", choices=["log", "reactive"], default=None,
+                     help="replays: log = the recording exactly, reactive = recorded pedestrians step round the "
+                          "robot (default: log)")
     nav.add_argument("--json", default=None, help="write settings, per-episode figures and the summary here")
     nav.add_argument("--rerun", default=None, help="write one Rerun recording per episode into this folder")
     nav.add_argument("--data-root", default=None, help="ETH/UCY folder (default: $STCROWD_DATA or the cache)")
@@ -46,6 +49,7 @@ def run(args: argparse.Namespace) -> int:
         raise SystemExit("--episodes must be at least 1")
     nav_run = NavRun(env_id=args.env, policy=args.policy, predictor=args.predictor, episodes=args.episodes,
                      seed=args.seed, pedestrians_see_ego=SEE_EGO_CHOICES[args.pedestrians_see_ego],
+                     pedestrians=args.pedestrians,
                      rerun_dir=args.rerun, data_root=args.data_root)
     result = run_navigation(nav_run, progress=not args.quiet)
     print(summary_text(result))

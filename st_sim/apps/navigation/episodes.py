@@ -24,6 +24,7 @@ from st_sim.apps.navigation.predictors import env_predictor
 from st_sim.apps.navigation.world import NavWorld, world_of
 
 SEE_EGO_KWARG = "pedestrians_see_ego"  # env keyword of the simulated envs: pedestrians steer around the ego
+PEDESTRIANS_KWARG = "pedestrians"  # env keyword of the replays: log or reactive pedestrians
 
 
 @dataclass(frozen=True)
@@ -42,6 +43,8 @@ class NavRun:
     """episode i is reset with seed + i"""
     pedestrians_see_ego: bool | None = None
     """pass this to envs that accept the keyword; None = the env's default"""
+    pedestrians: str | None = None
+    """replays: "log" (the recording) or "reactive" (pedestrians step round the robot); None = the env's default"""
     rerun_dir: str | None = None
     """write one Rerun recording per episode into this folder"""
     data_root: str | None = None
@@ -64,6 +67,10 @@ def make_nav_env(run: NavRun, rerun_path: str | None = None) -> gym.Env:
     kwargs: dict[str, Any] = {"predictor": env_predictor(run.predictor)}
     if run.pedestrians_see_ego is not None and accepts_keyword(run.env_id, SEE_EGO_KWARG):
         kwargs[SEE_EGO_KWARG] = run.pedestrians_see_ego
+    if run.pedestrians is not None:
+        if not accepts_keyword(run.env_id, PEDESTRIANS_KWARG):
+            raise ValueError(f"{run.env_id} has no pedestrians= mode (only the replays do): drop --pedestrians")
+        kwargs[PEDESTRIANS_KWARG] = run.pedestrians
     if run.data_root is not None and "Sim" not in run.env_id:
         kwargs["root"] = run.data_root
     if rerun_path is not None:
@@ -84,6 +91,7 @@ def run_episode(env: gym.Env, planner: Planner, world: NavWorld, seed: int) -> t
     obs, _ = env.reset(seed=seed)
     planner.reset()
     xy, velocity, clearance = [obs["ego"][:2].copy()], [obs["ego"][2:4].copy()], [pedestrian_clearance(obs, world)]
+    deviation: list[float] = []
     thinking_s, outcome = 0.0, None
     while outcome is None:
         start = time.perf_counter()
@@ -93,11 +101,14 @@ def run_episode(env: gym.Env, planner: Planner, world: NavWorld, seed: int) -> t
         xy.append(obs["ego"][:2].copy())
         velocity.append(obs["ego"][2:4].copy())
         clearance.append(pedestrian_clearance(obs, world))
+        if "log_deviation_m" in info:
+            deviation.append(info["log_deviation_m"])
         outcome = outcome_of(info["termination"], truncated)
         assert outcome is not None or not terminated, "the env terminated without naming why"
     xy_m = np.array(xy, np.float64)
     trace = EpisodeTrace(xy_m, np.array(velocity, np.float64), np.array(clearance),
-                         ~world.scene.is_walkable(xy_m), obs["ego"][4:6].astype(np.float64), outcome)
+                         ~world.scene.is_walkable(xy_m), obs["ego"][4:6].astype(np.float64), outcome,
+                         info.get("at_fault"), np.array(deviation, np.float64))
     return trace, thinking_s
 
 
@@ -106,7 +117,8 @@ def run_navigation(run: NavRun, progress: bool = True) -> dict[str, Any]:
     speed}.
 
     ``pedestrians_see_ego`` in the result is the value passed to the env, or None when the env does not
-    take the keyword (then its own behaviour applies) or none was asked.
+    take the keyword (then its own behaviour applies) or none was asked; ``pedestrians`` is the replay's mode
+    ("log" when none was asked), None for simulated envs.
     """
     see_ego = run.pedestrians_see_ego if accepts_keyword(run.env_id, SEE_EGO_KWARG) else None
     env = make_nav_env(run)
@@ -127,7 +139,8 @@ def run_navigation(run: NavRun, progress: bool = True) -> dict[str, Any]:
         decisions += len(trace.ego_xy_m) - 1
     env.close()
     settings = getattr(planner, "cfg", None)
-    return {**asdict(run), "pedestrians_see_ego": see_ego,
+    mode = (run.pedestrians or "log") if accepts_keyword(run.env_id, PEDESTRIANS_KWARG) else None
+    return {**asdict(run), "pedestrians_see_ego": see_ego, "pedestrians": mode,
             "planner_config": asdict(settings) if is_dataclass(settings) else None,
             "episodes": episodes, "summary": summarize(episodes),
             "decisions_per_s": decisions / thinking_s if thinking_s > 0 else float("inf"),

@@ -3,11 +3,15 @@
 Rates (success, collisions, timeout) get Wilson score intervals; means get Student-t intervals over the
 episodes where the figure exists (time to goal and path ratio: successful episodes only). Two planners run
 on the same seeds are compared with McNemar's exact test on the episodes where only one of them collided.
+
+A collision is at fault (``collision_at_fault``) when the robot hit a wall, or hit a pedestrian while it was not
+stopped and the pedestrian was not behind it (the env's ``info["at_fault"]``, ``envs.common.fault``).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, field
 from enum import Enum
 
 import numpy as np
@@ -53,6 +57,9 @@ class EpisodeTrace:
         clearance_m: (T + 1,) gap between the ego's body and the nearest pedestrian's [m] (inf: nobody there).
         off_map: (T + 1,) bool, the ego stood on non-walkable ground.
         goal_m: (2,) [m].  outcome: how it ended.
+        at_fault: on a pedestrian collision, whether the robot was at fault (the env's ``info["at_fault"]``).
+        log_deviation_m: (T,) mean distance of the pedestrians from their recorded paths after each step [m]
+            (reactive replays; empty elsewhere).
     """
 
     ego_xy_m: np.ndarray
@@ -61,14 +68,18 @@ class EpisodeTrace:
     off_map: np.ndarray
     goal_m: np.ndarray
     outcome: Outcome
+    at_fault: bool | None = None
+    log_deviation_m: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
 
 def episode_metrics(trace: EpisodeTrace) -> dict[str, float | int | str]:
     """Figures of one episode; NaN where a figure does not exist (e.g. time to goal of a failure).
 
-    Keys: outcome, steps, time_to_goal_s, path_ratio (path length / start-goal distance), min_clearance_m
-    (least body gap to a pedestrian), discomfort (share of steps with a gap under 0.2 m), jerk_mps3 (mean
-    norm of the velocity's second difference / 0.4 s^2), off_map (share of steps off the walkable map).
+    Keys: outcome, at_fault (a wall collision, or a pedestrian collision the robot caused), steps,
+    time_to_goal_s, path_ratio (path length / start-goal distance), min_clearance_m (least body gap to a
+    pedestrian), discomfort (share of steps with a gap under 0.2 m), jerk_mps3 (mean norm of the velocity's second
+    difference / 0.4 s^2), off_map (share of steps off the walkable map), log_ade_m (reactive replays: mean
+    distance of the pedestrians from their recorded paths [m]; NaN elsewhere).
     """
     steps = len(trace.ego_xy_m) - 1
     reached = trace.outcome is Outcome.GOAL
@@ -77,8 +88,10 @@ def episode_metrics(trace: EpisodeTrace) -> dict[str, float | int | str]:
     clearance = trace.clearance_m[1:] if steps else trace.clearance_m
     jerk = np.linalg.norm(np.diff(trace.ego_velocity_mps, n=2, axis=0), axis=1) / STEP_S ** 2
     finite = clearance[np.isfinite(clearance)]
+    at_fault = trace.outcome is Outcome.WALL or (trace.outcome is Outcome.PEDESTRIAN and trace.at_fault is not False)
     return {
         "outcome": trace.outcome.value,
+        "at_fault": bool(at_fault),
         "steps": steps,
         "time_to_goal_s": steps * STEP_S if reached else float("nan"),
         "path_ratio": path_m / straight_m if reached and straight_m > 0 else float("nan"),
@@ -86,17 +99,21 @@ def episode_metrics(trace: EpisodeTrace) -> dict[str, float | int | str]:
         "discomfort": float(np.mean(clearance < DISCOMFORT_M)) if steps else 0.0,
         "jerk_mps3": float(jerk.mean()) if jerk.size else float("nan"),
         "off_map": float(np.mean(trace.off_map[1:])) if steps else 0.0,
+        "log_ade_m": float(trace.log_deviation_m.mean()) if trace.log_deviation_m.size else float("nan"),
     }
 
 
-RATES: dict[str, tuple[Outcome, ...]] = {
-    "success": (Outcome.GOAL,),
-    "collision": (Outcome.PEDESTRIAN, Outcome.WALL),
-    "pedestrian_collision": (Outcome.PEDESTRIAN,),
-    "wall_collision": (Outcome.WALL,),
-    "timeout": (Outcome.TIMEOUT,),
+RATES: dict[str, Callable[[dict], bool]] = {
+    "success": lambda e: e["outcome"] == Outcome.GOAL.value,
+    "collision": lambda e: e["outcome"] in (Outcome.PEDESTRIAN.value, Outcome.WALL.value),
+    "collision_at_fault": lambda e: bool(e.get("at_fault")),  # older result files lack the field
+    "pedestrian_collision": lambda e: e["outcome"] == Outcome.PEDESTRIAN.value,
+    "wall_collision": lambda e: e["outcome"] == Outcome.WALL.value,
+    "timeout": lambda e: e["outcome"] == Outcome.TIMEOUT.value,
 }
-MEANS: tuple[str, ...] = ("time_to_goal_s", "path_ratio", "min_clearance_m", "discomfort", "jerk_mps3", "off_map")
+"""share of episodes that ... (an episode of ``episode_metrics``)"""
+MEANS: tuple[str, ...] = ("time_to_goal_s", "path_ratio", "min_clearance_m", "discomfort", "jerk_mps3", "off_map",
+                          "log_ade_m")
 
 
 def rate_interval(hits: int, n: int) -> tuple[float, float]:
@@ -123,10 +140,9 @@ def mean_interval(values: np.ndarray) -> tuple[float, float, float]:
 def summarize(episodes: list[dict]) -> dict[str, dict[str, float]]:
     """Every rate and mean of ``episodes`` (dicts of ``episode_metrics``): {name: {value, low, high, n}}."""
     n = len(episodes)
-    outcomes = [e["outcome"] for e in episodes]
     summary = {}
-    for name, kinds in RATES.items():
-        hits = sum(outcome in {k.value for k in kinds} for outcome in outcomes)
+    for name, counts in RATES.items():
+        hits = sum(counts(e) for e in episodes)
         low, high = rate_interval(hits, n)
         summary[name] = {"value": hits / n if n else float("nan"), "low": low, "high": high, "n": n}
     for name in MEANS:
@@ -136,16 +152,17 @@ def summarize(episodes: list[dict]) -> dict[str, dict[str, float]]:
     return summary
 
 
-def paired_collision_test(a: list[dict], b: list[dict]) -> dict[str, float | int]:
+def paired_collision_test(a: list[dict], b: list[dict], at_fault: bool = False) -> dict[str, float | int]:
     """McNemar's exact test that planner A collides less often than B on the same seeds (one-sided).
 
     Args:
         a, b: episodes of ``episode_metrics`` plus their ``seed``, the same seeds in both.
+        at_fault: count only the collisions the robot was at fault for (else every collision).
 
     Returns:
         {n, a_collisions, b_collisions, only_a, only_b, p_value}; A is significantly safer when p < 0.05.
     """
-    test = _mcnemar(a, b, (Outcome.PEDESTRIAN.value, Outcome.WALL.value), "less")
+    test = _mcnemar(a, b, RATES["collision_at_fault" if at_fault else "collision"], "less")
     return {"n": test["n"], "a_collisions": test["a"], "b_collisions": test["b"], "only_a": test["only_a"],
             "only_b": test["only_b"], "p_value": test["p_value"]}
 
@@ -156,19 +173,19 @@ def paired_success_test(a: list[dict], b: list[dict]) -> dict[str, float | int]:
     Returns:
         {n, a_successes, b_successes, only_a, only_b, p_value}; only_a counts seeds that only A completed.
     """
-    test = _mcnemar(a, b, (Outcome.GOAL.value,), "greater")
+    test = _mcnemar(a, b, RATES["success"], "greater")
     return {"n": test["n"], "a_successes": test["a"], "b_successes": test["b"], "only_a": test["only_a"],
             "only_b": test["only_b"], "p_value": test["p_value"]}
 
 
-def _mcnemar(a: list[dict], b: list[dict], outcomes: tuple[str, ...], alternative: str) -> dict[str, float | int]:
-    """One-sided exact McNemar test that episodes of A end in ``outcomes`` less ("less") or more ("greater")
-    often than B's, on the same seeds; a / b count them, only_a / only_b the seeds where one run alone does."""
+def _mcnemar(a: list[dict], b: list[dict], counts: Callable[[dict], bool], alternative: str) -> dict[str, float | int]:
+    """One-sided exact McNemar test that episodes of A are ``counts`` less ("less") or more ("greater") often than
+    B's, on the same seeds; a / b count them, only_a / only_b the seeds where one run alone does."""
     seeds_a, seeds_b = [e["seed"] for e in a], [e["seed"] for e in b]
     if seeds_a != seeds_b:
         raise ValueError("paired test: the two runs must hold the same seeds in the same order")
-    hit_a = np.array([e["outcome"] in outcomes for e in a])
-    hit_b = np.array([e["outcome"] in outcomes for e in b])
+    hit_a = np.array([counts(e) for e in a], bool)
+    hit_b = np.array([counts(e) for e in b], bool)
     only_a, only_b = int((hit_a & ~hit_b).sum()), int((hit_b & ~hit_a).sum())
     p_value = stats.binomtest(only_a, only_a + only_b, 0.5, alternative=alternative).pvalue if only_a + only_b else 1.0
     return {"n": len(a), "a": int(hit_a.sum()), "b": int(hit_b.sum()), "only_a": only_a, "only_b": only_b,

@@ -8,12 +8,15 @@ from st_sim.apps.navigation.metrics import MEANS, RATES
 
 LABELS: dict[str, str] = {
     "success": "success", "collision": "collision (any)", "pedestrian_collision": "  with a pedestrian",
-    "wall_collision": "  with a wall", "timeout": "timeout", "time_to_goal_s": "time to goal [s]",
+    "wall_collision": "  with a wall", "collision_at_fault": "collision at fault",
+    "timeout": "timeout", "time_to_goal_s": "time to goal [s]",
     "path_ratio": "path / straight line", "min_clearance_m": "min distance to pedestrians [m]",
     "discomfort": "discomfort (< 0.2 m)", "jerk_mps3": "jerk [m/s^3]", "off_map": "off-map steps",
+    "log_ade_m": "pedestrians off their log [m]",
 }
-TABLE_COLUMNS: tuple[str, ...] = ("success", "collision", "pedestrian_collision", "wall_collision", "timeout",
-                                  "time_to_goal_s", "path_ratio", "min_clearance_m", "discomfort", "jerk_mps3")
+TABLE_COLUMNS: tuple[str, ...] = ("success", "collision", "collision_at_fault", "pedestrian_collision",
+                                  "wall_collision", "timeout", "time_to_goal_s", "path_ratio", "min_clearance_m",
+                                  "discomfort", "jerk_mps3")
 
 
 def see_ego_label(value: bool | None) -> str:
@@ -24,7 +27,8 @@ def see_ego_label(value: bool | None) -> str:
 def summary_text(result: dict[str, Any]) -> str:
     """Plain-text table of a ``run_navigation`` result: every metric with its 95 % interval and count."""
     n = len(result["episodes"])
-    lines = [f"{result['env_id']}  planner {result['policy']}  predictor {result['predictor']}  episodes {n} "
+    mode = f", {result['pedestrians']} pedestrians" if result.get("pedestrians") else ""
+    lines = [f"{result['env_id']}{mode}  planner {result['policy']}  predictor {result['predictor']}  episodes {n} "
              f"(seeds {result['seed']}..{result['seed'] + n - 1})  [{see_ego_label(result['pedestrians_see_ego'])}]",
              f"{'metric':<32}{'value':>9}   95 % CI            n"]
     for name in (*RATES, *MEANS):
