@@ -1,30 +1,36 @@
 """The navigation table: every planner x predictor on each env, seeded episodes, 95 % intervals, paired tests.
 
-    OMP_NUM_THREADS=1 STCROWD_DATA=../shared/datasets/eth_ucy python benchmarks/nav_table.py \\
-        --envs STCrowd-SimCrossing-v1 STCrowd-Zara1-v0 STCrowd-Univ-v0 --episodes 500 --out runs/nav/table --jobs 2
+    export OMP_NUM_THREADS=1 STCROWD_DATA=$PWD/../shared/datasets/eth_ucy
+    python benchmarks/nav_table.py --episodes 500 --out runs/nav/table            # the RESULTS table
+    python benchmarks/nav_table.py --envs STCrowd-Zara1-v0:reactive --planners mpc --episodes 50 --out runs/nav/t
+    python benchmarks/nav_table.py ... --executor ray --ray-address HEAD:6379        # on a Ray cluster
 
-Each cell (env, planner, predictor) is one ``run_navigation`` over episodes seed .. seed + N - 1 (the same
-episodes for every cell of an env) and is written to ``OUT/<env>__<planner>__<predictor>.json``; a cell whose
-file exists with enough episodes is reused, so an interrupted run resumes. Planners that ignore predictions
-(straight, ORCA) run once, with predictor "none". The script prints one markdown table per env and McNemar's
-paired test of MPC with SingularTrajectory against MPC with CVM and with no prediction (collisions), and of
-PPO with predictions against PPO without (successes).
+An env is an id, and for a replay ``id:log`` or ``id:reactive`` (its pedestrians' mode; the default list has both
+for ZARA1 and UNIV). Each cell (env, mode, planner, predictor) is one ``run_navigation`` over episodes seed ..
+seed + N - 1 (the same episodes for every cell of an env) and one job of the grid runner (``st_sim.apps.grid``),
+written to ``OUT/<env>[__<mode>]__<planner>__<predictor>__<N>ep_seed<seed>.json``: a finished cell is reused, so
+an interrupted run resumes. Planners that ignore predictions (straight, ORCA) run once, with predictor "none".
+The script prints one markdown table per env and McNemar's paired tests of MPC with SingularTrajectory against
+MPC with CVM, CVM-S and no prediction (every collision, and the at-fault ones), and of PPO with predictions
+against PPO without (successes).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-from multiprocessing import Pool
 from pathlib import Path
 
-from replays.atomic import write_text_atomic
-from st_sim.apps.navigation.episodes import NavRun, run_navigation
+from st_sim.apps.cli import add_grid_arguments
+from st_sim.apps.grid import raise_on_failure, run_jobs
+from st_sim.apps.navigation.episodes import NavRun, grid_job
 from st_sim.apps.navigation.metrics import paired_collision_test, paired_success_test
 from st_sim.apps.navigation.planners import PLANNERS, USES_PREDICTIONS
 from st_sim.apps.navigation.predictors import PREDICTORS
 from st_sim.apps.navigation.report import markdown_header, markdown_row, see_ego_label
 
+ENVS = ("STCrowd-SimCrossing-v1", "STCrowd-Zara1-v0:log", "STCrowd-Zara1-v0:reactive", "STCrowd-Univ-v0:log",
+        "STCrowd-Univ-v0:reactive")
 SEE_EGO = {"yes": True, "no": False, "default": None}
 
 
@@ -34,69 +40,77 @@ def cells(planners: list[str], predictors: list[str]) -> list[tuple[str, str]]:
             for predictor in (predictors if USES_PREDICTIONS[planner] else ["none"])]
 
 
-def cell_path(out: Path, run: NavRun) -> Path:
+def env_and_mode(spec: str) -> tuple[str, str | None]:
+    """``id`` or ``id:log`` / ``id:reactive`` -> (id, mode or None)."""
+    env_id, _, mode = spec.partition(":")
+    if mode not in ("", "log", "reactive"):
+        raise SystemExit(f"--envs {spec}: the mode after ':' must be log or reactive")
+    return env_id, mode or None
+
+
+def cell_name(run: NavRun) -> str:
     see = "" if run.pedestrians_see_ego is None else f"__see-ego-{'yes' if run.pedestrians_see_ego else 'no'}"
-    return out / f"{run.env_id}__{run.policy}__{run.predictor}{see}.json"
+    mode = f"__{run.pedestrians}" if run.pedestrians else ""
+    return f"{run.env_id}{mode}{see}__{run.policy}__{run.predictor}__{run.episodes}ep_seed{run.seed}"
 
 
-def run_cell(job: tuple[NavRun, str]) -> str:
-    """Run one cell unless its file already holds enough episodes; returns the file path."""
-    run, out = job
-    path = cell_path(Path(out), run)
-    if path.exists() and len(json.loads(path.read_text())["episodes"]) >= run.episodes:
-        return str(path)
-    result = run_navigation(run, progress=False)
-    write_text_atomic(path, json.dumps(result, indent=1))
-    print(f"{path.name}: success {result['summary']['success']['value']:.3f}, "
-          f"collision {result['summary']['collision']['value']:.3f} ({result['wall_time_s'] / 60:.1f} min)",
-          flush=True)
-    return str(path)
+def paired_lines(rows: list[dict]) -> list[str]:
+    """The paired tests of one env's rows."""
+    lines = []
+    mpc = {r["predictor"]: r for r in rows if r["policy"] == "mpc"}
+    for other in ("cvm", "cvm-s", "none"):
+        if "singular" in mpc and other in mpc:
+            for at_fault in (False, True):
+                test = paired_collision_test(mpc["singular"]["episodes"], mpc[other]["episodes"], at_fault)
+                kind = "at-fault collisions" if at_fault else "collisions (any)"
+                lines.append(f"- MPC singular vs MPC {other}, {kind}: {test['a_collisions']} vs {test['b_collisions']} "
+                             f"of {test['n']}; only singular {test['only_a']}, only {other} {test['only_b']}; "
+                             f"one-sided McNemar p = {test['p_value']:.4f}")
+    ppo = {r["predictor"]: r for r in rows if r["policy"] == "ppo"}
+    if {"singular", "none"} <= set(ppo):
+        test = paired_success_test(ppo["singular"]["episodes"], ppo["none"]["episodes"])
+        lines.append(f"- PPO with vs without predictions, successes: {test['a_successes']} vs {test['b_successes']} "
+                     f"of {test['n']}; only with {test['only_a']}, only without {test['only_b']}; "
+                     f"one-sided McNemar p = {test['p_value']:.4f}")
+    return lines
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--envs", nargs="+", default=["STCrowd-SimCrossing-v1", "STCrowd-Zara1-v0", "STCrowd-Univ-v0"],
-                        help="env ids (default: SimCrossing, Zara1, Univ)")
-    parser.add_argument("--planners", nargs="+", default=list(PLANNERS), help="planners (default: all)")
-    parser.add_argument("--predictors", nargs="+", default=list(PREDICTORS), help="predictors (default: all)")
+    parser.add_argument("--envs", nargs="+", default=list(ENVS), help="env ids, replays as id:log or id:reactive "
+                        "(default: SimCrossing, ZARA1 and UNIV in both modes)")
+    parser.add_argument("--planners", nargs="+", default=list(PLANNERS), choices=list(PLANNERS),
+                        help="planners (default: all)")
+    parser.add_argument("--predictors", nargs="+", default=list(PREDICTORS), choices=list(PREDICTORS),
+                        help="predictors (default: all)")
     parser.add_argument("--episodes", type=int, default=500, help="episodes per cell (default: 500)")
     parser.add_argument("--seed", type=int, default=0, help="first episode seed (default: 0)")
     parser.add_argument("--pedestrians-see-ego", choices=list(SEE_EGO), default="default",
                         help="simulated envs that offer it: yes / no (default: the env's setting)")
-    parser.add_argument("--out", default="runs/nav/table",
-                        help="folder of the per-cell JSON files (default: runs/nav/table)")
-    parser.add_argument("--jobs", type=int, default=1, help="cells run in parallel processes (default: 1)")
+    parser.add_argument("--out", default="runs/nav/table", help="folder of the per-cell JSON (default: runs/nav/table)")
+    parser.add_argument("--data-root", default=None, help="ETH/UCY folder (default: $STCROWD_DATA or the cache)")
+    add_grid_arguments(parser)
     args = parser.parse_args()
+    if args.episodes < 1:
+        parser.error("--episodes must be at least 1")
 
-    see_ego = SEE_EGO[args.pedestrians_see_ego]
-    jobs = [(NavRun(env_id, planner, predictor, args.episodes, args.seed, see_ego), args.out)
-            for env_id in args.envs for planner, predictor in cells(args.planners, args.predictors)]
-    if args.jobs > 1:
-        with Pool(args.jobs) as pool:
-            paths = pool.map(run_cell, jobs, chunksize=1)
-    else:
-        paths = [run_cell(job) for job in jobs]
-
-    results = [json.loads(Path(p).read_text()) for p in paths]
-    for env_id in args.envs:
-        rows = [r for r in results if r["env_id"] == env_id]
-        print(f"\n### {env_id} ({see_ego_label(rows[0]['pedestrians_see_ego'])}, seeds {args.seed}.."
+    see_ego, out = SEE_EGO[args.pedestrians_see_ego], Path(args.out)
+    runs = [NavRun(env_id, planner, predictor, args.episodes, args.seed, see_ego, mode, data_root=args.data_root)
+            for env_id, mode in map(env_and_mode, args.envs) for planner, predictor in cells(args.planners,
+                                                                                            args.predictors)]
+    jobs = [grid_job(f"nav/{cell_name(run)}", run, out / f"{cell_name(run)}.json") for run in runs]
+    reports = run_jobs(jobs, executor=args.executor, workers=args.workers, address=args.ray_address, desc="cells")
+    raise_on_failure(reports)
+    results = [json.loads(Path(job.output).read_text()) for job in jobs]
+    for spec in args.envs:
+        env_id, mode = env_and_mode(spec)
+        rows = [r for run, r in zip(runs, results, strict=True) if (run.env_id, run.pedestrians) == (env_id, mode)]
+        where = f", {rows[0]['pedestrians']} pedestrians" if rows[0].get("pedestrians") else ""
+        print(f"\n### {env_id}{where} ({see_ego_label(rows[0]['pedestrians_see_ego'])}, seeds {args.seed}.."
               f"{args.seed + args.episodes - 1})\n")
         print(markdown_header())
         print("\n".join(markdown_row(r) for r in rows))
-        by_predictor = {r["predictor"]: r for r in rows if r["policy"] == "mpc"}
-        for other in ("cvm", "cvm-s", "none"):
-            if "singular" in by_predictor and other in by_predictor:
-                test = paired_collision_test(by_predictor["singular"]["episodes"], by_predictor[other]["episodes"])
-                print(f"\nMPC singular vs MPC {other}: collisions {test['a_collisions']} vs {test['b_collisions']} "
-                      f"of {test['n']}; only singular {test['only_a']}, only {other} {test['only_b']}; "
-                      f"one-sided McNemar p = {test['p_value']:.4f}")
-        ppo = {r["predictor"]: r for r in rows if r["policy"] == "ppo"}
-        if {"singular", "none"} <= set(ppo):
-            test = paired_success_test(ppo["singular"]["episodes"], ppo["none"]["episodes"])
-            print(f"\nPPO with vs without predictions: successes {test['a_successes']} vs {test['b_successes']} "
-                  f"of {test['n']}; only with {test['only_a']}, only without {test['only_b']}; "
-                  f"one-sided McNemar p = {test['p_value']:.4f}")
+        print("\n" + "\n".join(paired_lines(rows)))
 
 
 if __name__ == "__main__":

@@ -1,13 +1,15 @@
-"""Tune the MPC on a seed range of its own: named variants of ``MpcConfig`` x predictors, seeded episodes.
+"""Tune the MPC on seeds of its own: named variants of ``MpcConfig`` x predictors x envs, seeded episodes.
 
-    OMP_NUM_THREADS=1 STCROWD_DATA=../shared/datasets/eth_ucy python benchmarks/nav_tune.py \\
-        --env STCrowd-SimCrossing-v1 --seed 10000 --episodes 100 --jobs 2 \\
-        --variant base use_prior=false top_samples=20 --variant prior --variant tight safety_margin_m=0.1
+    export OMP_NUM_THREADS=1 STCROWD_DATA=$PWD/../shared/datasets/eth_ucy
+    python benchmarks/nav_tune.py --envs STCrowd-SimCrossing-v1 STCrowd-Zara1-v0:reactive STCrowd-Univ-v0:reactive \\
+        --seed 10000 --episodes 100 --out runs/nav/tune \\
+        --variant default --variant no-stop safe_stop=false --variant no-modes track_modes=false
 
-The table's episodes are seeds 0..N-1; tuning runs start at --seed (default 10000), so the chosen setting
-never saw a table episode. Each variant is a name followed by ``field=value`` overrides of the defaults
-(tuples as ``a,b,c``); each (variant, predictor) cell is cached as ``OUT/<env>__<variant>__<predictor>.json``
-(a cell whose file holds as many episodes is reused). Prints success, collisions and time to goal per cell.
+The table's episodes are seeds 0..N-1; tuning runs start at --seed (default 10000), so the chosen setting never
+saw a table episode. Each variant is a name followed by ``field=value`` overrides of the defaults (tuples as
+``a,b,c``). Every (env, variant, predictor) cell is one job of the grid runner (``st_sim.apps.grid``: resumable,
+``--executor ray`` for a cluster), written to ``OUT/<env>[__<mode>]__<variant>__<predictor>__<N>ep_seed<seed>.json``.
+Prints success, collisions (any and at fault), timeouts and time to goal per cell.
 """
 
 from __future__ import annotations
@@ -15,12 +17,15 @@ from __future__ import annotations
 import argparse
 import json
 from dataclasses import fields, replace
-from multiprocessing import Pool
 from pathlib import Path
 
-from replays.atomic import write_text_atomic
-from st_sim.apps.navigation.episodes import NavRun, run_navigation
+from nav_table import env_and_mode
+
+from st_sim.apps.cli import add_grid_arguments
+from st_sim.apps.grid import raise_on_failure, run_jobs
+from st_sim.apps.navigation.episodes import NavRun, grid_job
 from st_sim.apps.navigation.mpc import MpcConfig
+from st_sim.apps.navigation.predictors import PREDICTORS
 
 SEE_EGO = {"yes": True, "no": False, "default": None}
 
@@ -44,23 +49,12 @@ def parse_variant(words: list[str]) -> tuple[str, MpcConfig]:
     return name, replace(defaults, **overrides)
 
 
-def run_cell(job: tuple[str, NavRun, str]) -> str:
-    """Run one (variant, predictor) cell unless cached; returns its file."""
-    variant, run, out = job
-    see = "" if run.pedestrians_see_ego is None else f"__see-ego-{'yes' if run.pedestrians_see_ego else 'no'}"
-    path = Path(out) / f"{run.env_id}{see}__{variant}__{run.predictor}__seed{run.seed}.json"
-    if path.exists() and len(json.loads(path.read_text())["episodes"]) >= run.episodes:
-        return str(path)
-    result = {"variant": variant, **run_navigation(run, progress=False)}
-    write_text_atomic(path, json.dumps(result, indent=1))
-    return str(path)
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--env", default="STCrowd-SimCrossing-v1", help="env id (default: STCrowd-SimCrossing-v1)")
-    parser.add_argument("--predictors", nargs="+", default=["none", "cvm", "singular"],
-                        help="predictors (default: none cvm singular)")
+    parser.add_argument("--envs", nargs="+", default=["STCrowd-SimCrossing-v1"],
+                        help="env ids, replays as id:log or id:reactive (default: STCrowd-SimCrossing-v1)")
+    parser.add_argument("--predictors", nargs="+", default=["cvm", "singular"], choices=list(PREDICTORS),
+                        help="predictors (default: cvm singular)")
     parser.add_argument("--variant", nargs="+", action="append", required=True,
                         help="a name and MpcConfig overrides field=value (repeatable)")
     parser.add_argument("--episodes", type=int, default=100, help="episodes per cell (default: 100)")
@@ -68,27 +62,35 @@ def main() -> None:
     parser.add_argument("--pedestrians-see-ego", choices=list(SEE_EGO), default="default",
                         help="simulated envs: yes / no (default: the env's setting)")
     parser.add_argument("--out", default="runs/nav/tune", help="cell files (default: runs/nav/tune)")
-    parser.add_argument("--jobs", type=int, default=2, help="cells in parallel processes (default: 2)")
+    parser.add_argument("--data-root", default=None, help="ETH/UCY folder (default: $STCROWD_DATA or the cache)")
+    add_grid_arguments(parser)
     args = parser.parse_args()
+    if args.seed < 10_000:
+        print(f"warning: --seed {args.seed} overlaps the table's seeds (0..N-1); tune on 10000 and up")
 
     variants = [parse_variant(words) for words in args.variant]
-    see_ego = SEE_EGO[args.pedestrians_see_ego]
-    jobs = [(name, NavRun(args.env, "mpc", predictor, args.episodes, args.seed, see_ego, mpc=cfg), args.out)
-            for name, cfg in variants for predictor in args.predictors]
-    if args.jobs > 1:
-        with Pool(args.jobs) as pool:
-            paths = pool.map(run_cell, jobs, chunksize=1)
-    else:
-        paths = [run_cell(job) for job in jobs]
-    print(f"{args.env}, seeds {args.seed}..{args.seed + args.episodes - 1}\n"
-          "| variant | predictor | success | collision | time to goal [s] | path ratio | decisions/s |\n"
-          "|---|---|---|---|---|---|---|")
-    for path in paths:
-        result = json.loads(Path(path).read_text())
+    see_ego, out = SEE_EGO[args.pedestrians_see_ego], Path(args.out)
+    cells = []
+    for env_id, mode in map(env_and_mode, args.envs):
+        for name, cfg in variants:
+            for predictor in args.predictors:
+                run = NavRun(env_id, "mpc", predictor, args.episodes, args.seed, see_ego, mode,
+                             data_root=args.data_root, mpc=cfg)
+                label = f"{env_id}{f'__{mode}' if mode else ''}__{name}__{predictor}__{args.episodes}ep_seed{args.seed}"
+                cells.append((name, grid_job(f"tune/{label}", run, out / f"{label}.json")))
+    reports = run_jobs([job for _, job in cells], executor=args.executor, workers=args.workers,
+                       address=args.ray_address, desc="cells")
+    raise_on_failure(reports)
+    print(f"seeds {args.seed}..{args.seed + args.episodes - 1}\n"
+          "| env | variant | predictor | success | collision | at fault | timeout | time to goal [s] | decisions/s |\n"
+          "|---|---|---|---|---|---|---|---|---|")
+    for name, job in cells:
+        result = json.loads(Path(job.output).read_text())
         s = result["summary"]
-        print(f"| {result['variant']} | {result['predictor']} | {s['success']['value']:.3f} | "
-              f"{s['collision']['value']:.3f} | {s['time_to_goal_s']['value']:.1f} | {s['path_ratio']['value']:.2f} | "
-              f"{result['decisions_per_s']:.0f} |")
+        env = result["env_id"] + (f" {result['pedestrians']}" if result.get("pedestrians") else "")
+        print(f"| {env} | {name} | {result['predictor']} | {s['success']['value']:.3f} | "
+              f"{s['collision']['value']:.3f} | {s['collision_at_fault']['value']:.3f} | {s['timeout']['value']:.3f} | "
+              f"{s['time_to_goal_s']['value']:.1f} | {result['decisions_per_s']:.0f} |")
 
 
 if __name__ == "__main__":

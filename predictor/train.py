@@ -10,6 +10,8 @@ import math
 import os
 import random
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import asdict, dataclass, fields, replace
 from pathlib import Path
 
@@ -104,6 +106,9 @@ class TrainConfig:
     """ETH/UCY folder (default: $STCROWD_DATA or the cache)"""
     progress: bool = True
     """show progress bars"""
+    ema_decay: float = 0.0
+    """0: validate and keep the trained weights; in (0, 1): validate and keep their exponential moving average
+    over the optimiser steps (this decay per step), which varies less from run to run [-]"""
     select_tolerance_m: float = 0.002
     """a later epoch replaces the selected one unless its validation FDE is worse by more than this [m]
     (near-ties go to the later epoch, so float differences between machines do not flip the choice)"""
@@ -114,7 +119,7 @@ class TrainConfig:
             "weight_decay": (0.0, 1.0), "warmup_epochs": (0.0, 10_000.0), "clip_grad": (1e-6, 1e6),
             "fde_weight": (0.0, 100.0), "k": (1, 24), "dim": (4, 4096), "denoiser_dim": (4, 4096),
             "steps": (1, 1000), "init_noise": (0.0, 100.0), "seed": (0, 2**31 - 1), "threads": (1, 256),
-            "select_tolerance_m": (0.0, 10.0), "max_train_windows": (1, 10**9),
+            "select_tolerance_m": (0.0, 10.0), "max_train_windows": (1, 10**9), "ema_decay": (0.0, 0.99999),
             "slow_speed_m": (0.0, 10.0), "slow_scale_floor_m": (0.0, 10.0), "stand_speed_m": (0.0, 10.0),
         }, choices={"task": tuple(TASKS), "objective": ("e2e", "eps"), "anchor_off_image": OFF_IMAGE_MODES,
                     "anchor_bend": BEND_SHAPES})
@@ -227,6 +232,46 @@ def data_checksums(cfg: TrainConfig, root: Path) -> dict[str, str]:
     return {str(f.relative_to(root)): sums.get(str(f.relative_to(root)), "unlisted") for f in files}
 
 
+class WeightAverage:
+    """Exponential moving average of a module's parameters over the optimiser steps (off when decay is 0)."""
+
+    def __init__(self, module: torch.nn.Module, decay: float):
+        self.module, self.decay = module, decay
+        self.shadow = {name: p.detach().clone() for name, p in module.named_parameters()} if decay > 0 else {}
+
+    @torch.no_grad()
+    def update(self) -> None:
+        """Fold the module's current parameters into the average."""
+        for name, p in self.module.named_parameters():
+            if name in self.shadow:
+                self.shadow[name].mul_(self.decay).add_(p.detach(), alpha=1 - self.decay)
+
+    @contextmanager
+    def applied(self) -> Iterator[None]:
+        """The averaged parameters in the module inside the block, the trained ones again after it."""
+        if not self.shadow:
+            yield
+            return
+        trained = {name: p.detach().clone() for name, p in self.module.named_parameters()}
+        with torch.no_grad():
+            for name, p in self.module.named_parameters():
+                p.copy_(self.shadow[name])
+        try:
+            yield
+        finally:
+            with torch.no_grad():
+                for name, p in self.module.named_parameters():
+                    p.copy_(trained[name])
+
+    def state_dict(self) -> dict[str, torch.Tensor]:
+        return dict(self.shadow)
+
+    def load_state_dict(self, state: dict[str, torch.Tensor]) -> None:
+        for name, value in state.items():
+            if name in self.shadow:
+                self.shadow[name].copy_(value)
+
+
 class TrainingError(RuntimeError):
     """A training run cannot start, resume or produce a checkpoint (the message says what to do)."""
 
@@ -273,9 +318,11 @@ def main(cfg: TrainConfig) -> Path:
     schedule = torch.optim.lr_scheduler.LambdaLR(optimizer, lambda i: min((i + 1) / warmup, 0.5 * (
         1 + math.cos(math.pi * min(1.0, max(0, i - warmup) / max(1, total - warmup))))))
     start_epoch, best, history = 0, {"fde": float("inf")}, []
+    average = WeightAverage(refiner, cfg.ema_decay)
     if resume is not None:
         optimizer.load_state_dict(resume["optimizer"])
         schedule.load_state_dict(resume["schedule"])
+        average.load_state_dict(resume.get("average", {}))
         start_epoch, best, history = resume["epoch"] + 1, resume["best"], resume["history"]
         print(f"{run_name}: resuming after epoch {start_epoch}")
 
@@ -302,21 +349,23 @@ def main(cfg: TrainConfig) -> Path:
             torch.nn.utils.clip_grad_norm_(refiner.parameters(), cfg.clip_grad)
             optimizer.step()
             schedule.step()
+            average.update()
             losses.append(loss.item())
             bar.set_postfix(loss=f"{np.mean(losses[-20:]):.4f}")
-        val_ade, val_fde = validate(model, t_val, cfg.batch_agents)
+        with average.applied():  # validation and best.pt see the averaged weights (when averaging)
+            val_ade, val_fde = validate(model, t_val, cfg.batch_agents)
+            if math.isfinite(val_fde) and val_fde <= best["fde"] + cfg.select_tolerance_m:  # near-ties: later epoch
+                best = {"fde": val_fde, "ade": val_ade, "epoch": epoch + 1}
+                save_atomic({"model": model_state(model), **recorded, "best": best}, out / "best.pt")
         record = {"epoch": epoch + 1, "train/loss": float(np.mean(losses)), "val/ade_m": val_ade,
                   "val/fde_m": val_fde, "wall_s": time.perf_counter() - began}
         history.append(record)
         if epochs <= 20 or (epoch + 1) % (epochs // 10) == 0 or epoch + 1 == epochs:  # at most ~20 lines
             print(f"{run_name} epoch {epoch + 1}: loss {record['train/loss']:.4f}  val ADE {val_ade:.4f}  "
                   f"FDE {val_fde:.4f}  ({record['wall_s']:.0f} s)")
-        if math.isfinite(val_fde) and val_fde <= best["fde"] + cfg.select_tolerance_m:  # near-ties: the later epoch
-            best = {"fde": val_fde, "ade": val_ade, "epoch": epoch + 1}
-            save_atomic({"model": model_state(model), **recorded, "best": best}, out / "best.pt")
         save_atomic({"model": model_state(model), **recorded, "best": best, "history": history, "epoch": epoch,
-                     "epochs": epochs, "optimizer": optimizer.state_dict(), "schedule": schedule.state_dict()},
-                    out / "last.pt")
+                     "epochs": epochs, "optimizer": optimizer.state_dict(), "schedule": schedule.state_dict(),
+                     "average": average.state_dict()}, out / "last.pt")
 
     # ---- the run's summary, written last: its presence marks a finished run
     if not (out / "best.pt").is_file():

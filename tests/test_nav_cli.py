@@ -62,3 +62,25 @@ def test_shipped_policies_load_by_name_and_a_broken_file_is_refused(tmp_path: Pa
     broken.write_bytes(b"not a policy")
     with pytest.raises(PolicyFileError, match=r"broken\.pt"):
         load_policy(broken)
+
+
+def test_a_grid_job_writes_the_run_with_its_mode_and_at_fault_counts(tmp_path: Path) -> None:
+    from st_sim.apps.grid import execute
+    from st_sim.apps.navigation.episodes import grid_job
+    from st_sim.apps.navigation.mpc import MpcConfig
+
+    run = NavRun("STCrowd-Zara1-v0", "mpc", "cvm", episodes=2, seed=7, pedestrians="reactive",
+                 mpc=MpcConfig(risk_limit=0.5))
+    job = grid_job("nav/test", run, tmp_path / "cell.json")
+    assert execute(job).status == "done"
+    result = json.loads((tmp_path / "cell.json").read_text())
+    assert result["pedestrians"] == "reactive" and result["planner_config"]["risk_limit"] == 0.5
+    assert {"collision", "collision_at_fault", "log_ade_m"} <= set(result["summary"])
+    assert all(e["at_fault"] in (True, False) for e in result["episodes"])
+    assert all(np.isfinite(e["log_ade_m"]) for e in result["episodes"]), "a reactive replay reports its price"
+
+
+def test_a_simulated_env_has_no_pedestrian_mode() -> None:
+    with pytest.raises(ValueError, match="only the replays"):
+        run_navigation(NavRun("STCrowd-SimCorridor-v1", "straight", "none", episodes=1, pedestrians="reactive"),
+                       progress=False)

@@ -149,3 +149,43 @@ def test_mpc_risk_limit_overrides_progress(open_world: NavWorld) -> None:
         heading_deg[limit] = abs(np.degrees(np.arctan2(command[1], command[0])))
     assert heading_deg[np.inf] < 1.0, f"without a limit nothing should bend the path ({heading_deg})"
     assert heading_deg[0.3] > 10.0, f"the limit should turn the ego off the pedestrian ({heading_deg})"
+
+
+def test_mpc_brakes_when_every_command_is_above_the_risk_limit(open_world: NavWorld) -> None:
+    """Surrounded by pedestrians who all head for the robot: no command stays within the limit, so it stops
+    (a stopped robot is not at fault) instead of taking the least risky move; without safe_stop it moves."""
+    from st_sim.apps.navigation.mpc import MpcConfig
+
+    obs = observation(np.zeros(2), np.array([1.0, 0.0]), 0)
+    ring = 1.2 * np.stack([np.cos(np.linspace(0, 2 * np.pi, 9)[:-1]), np.sin(np.linspace(0, 2 * np.pi, 9)[:-1])], 1)
+    n = len(ring)
+    obs["history"] = np.repeat(ring[:, None], T_OBS, axis=1).astype(np.float32)
+    obs["history_mask"] = np.ones((n, T_OBS), bool)
+    inward = -ring / np.linalg.norm(ring, axis=1, keepdims=True) * 0.6  # each walks to the centre at 0.6 m/s
+    ahead = np.arange(1, T_PRED + 1)[None, :, None] * STEP_S
+    obs["futures"] = np.repeat((ring[:, None] + ahead * inward[:, None])[:, None], SAMPLES, 1).astype(np.float32)
+    obs["futures_mask"] = np.ones(n, bool)
+    stop = make_planner("mpc", open_world, "cvm-s").act(obs)
+    move = make_planner("mpc", open_world, "cvm-s", cfg=MpcConfig(safe_stop=False)).act(obs)
+    assert np.linalg.norm(stop) == 0.0, f"every command is risky: the robot should stop, got {stop}"
+    assert np.linalg.norm(move) > 0.0, "without safe_stop the least risky command is a move"
+
+
+def test_the_sample_belief_follows_the_sample_a_pedestrian_walks() -> None:
+    from st_sim.apps.navigation.modes import SampleBelief
+
+    prior = np.full(4, 0.25)
+    belief = SampleBelief(prior, sigma_m=0.2, floor=0.1)
+    steps = np.array([[0.5, 0.0], [0.0, 0.5], [-0.5, 0.0], [0.0, -0.5]])  # sample k's next step
+    xy = np.zeros(2)
+    for t in range(4):
+        obs = {"history": np.zeros((1, T_OBS, 2), np.float32), "history_mask": np.ones((1, T_OBS), bool),
+               "futures": np.zeros((1, 4, T_PRED, 2), np.float32), "futures_mask": np.ones(1, bool)}
+        obs["history"][0, -1], obs["history"][0, -2] = xy, xy - steps[1]
+        obs["futures"][0, :, 0] = xy + steps
+        weights = belief.update(obs)[0]
+        xy = xy + steps[1]  # the pedestrian walks as sample 1 said
+    assert weights[1] > 0.8 and np.isclose(weights.sum(), 1.0), weights
+    assert weights.min() >= 0.1 * 0.25 - 1e-12, "the floor keeps every sample possible"
+    obs["history"][0, -2] = [50.0, 50.0]  # somebody else in that row now
+    assert np.allclose(belief.update(obs)[0], prior), "a new pedestrian starts at the prior"

@@ -146,3 +146,34 @@ def test_predicted_end_points_are_pulled_onto_walkable_pixels(trained):
     model.cfg = replace(model.cfg, adapt_output=False)
     raw_ends = model.predict(test.obs, test.group, eth, 20)[:, :, -1]
     assert not eth.is_walkable(raw_ends).all()  # without the output adaptation some leave the walkway
+
+
+def test_averaged_weights_are_kept_and_a_stopped_run_continues_with_its_average(tmp_path, monkeypatch):
+    """ema_decay > 0: best.pt holds the moving average of the weights (not the last ones), and a run killed during
+    its second epoch and started again ends with the same checkpoint as one that ran through."""
+    from predictor import train
+
+    settings = {**SMALL, "ema_decay": 0.9}
+    main(TrainConfig(task="stochastic", scene="zara1", out=str(tmp_path / "whole"), **settings))
+    whole = read_checkpoint(tmp_path / "whole" / "last.pt")
+    trained_w, average = whole["model"]["weights"], whole["average"]
+    best = read_checkpoint(tmp_path / "whole" / "best.pt")["model"]["weights"]
+    assert average and all(k in best for k in average)
+    assert any(not torch.equal(best[k], trained_w[k]) for k in average), "best.pt holds the average"
+
+    validate, calls = train.validate, []
+
+    def killed_in_epoch_two(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        return validate(*args, **kwargs)
+
+    parts = TrainConfig(task="stochastic", scene="zara1", out=str(tmp_path / "parts"), **settings)
+    monkeypatch.setattr(train, "validate", killed_in_epoch_two)
+    with pytest.raises(KeyboardInterrupt):
+        main(parts)
+    monkeypatch.setattr(train, "validate", validate)
+    main(parts)
+    resumed = read_checkpoint(tmp_path / "parts" / "best.pt")["model"]["weights"]
+    assert all(torch.equal(resumed[k], best[k]) for k in best), "resuming lost the average"

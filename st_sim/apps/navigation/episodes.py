@@ -7,6 +7,7 @@ episodes (same crowd, start and goal) and runs can be compared pair by pair.
 from __future__ import annotations
 
 import inspect
+import json
 import time
 from dataclasses import asdict, dataclass, is_dataclass
 from pathlib import Path
@@ -17,6 +18,8 @@ import numpy as np
 from tqdm import tqdm
 
 import envs  # noqa: F401  (registers the ids)
+from replays.atomic import write_text_atomic
+from st_sim.apps.grid import Job
 from st_sim.apps.navigation.metrics import EpisodeTrace, episode_metrics, outcome_of, summarize
 from st_sim.apps.navigation.mpc import MpcConfig
 from st_sim.apps.navigation.planners import Planner, make_planner
@@ -145,3 +148,21 @@ def run_navigation(run: NavRun, progress: bool = True) -> dict[str, Any]:
             "episodes": episodes, "summary": summarize(episodes),
             "decisions_per_s": decisions / thinking_s if thinking_s > 0 else float("inf"),
             "wall_time_s": time.perf_counter() - start}
+
+
+def navigation_job(output: str, mpc: dict[str, Any] | None = None, **run: Any) -> None:
+    """Grid entry point (``st_sim.apps.grid``): ``run_navigation`` of ``NavRun(**run)`` (with ``MpcConfig(**mpc)``),
+    written as JSON to ``output``."""
+    cfg = None if mpc is None else MpcConfig(**{k: tuple(v) if isinstance(v, list) else v for k, v in mpc.items()})
+    result = run_navigation(NavRun(**run, mpc=cfg), progress=False)
+    write_text_atomic(output, json.dumps(result, indent=1))
+
+
+def grid_job(name: str, run: NavRun, output: Path) -> Job:
+    """The grid job that runs ``run`` and writes its result to ``output`` (made absolute: a cluster's workers run
+    in their own folders)."""
+    fields = asdict(run)
+    if fields["data_root"] is not None:
+        fields["data_root"] = str(Path(fields["data_root"]).resolve())
+    return Job(name, "st_sim.apps.navigation.episodes:navigation_job",
+               {"output": str(output.resolve()), **fields}, str(output.resolve()))

@@ -12,7 +12,11 @@ checkpoint's ordered samples is the closest to the truth; equal weights for CVM-
 samplers), so the chance of colliding with a pedestrian is the prior mass of its colliding samples rather
 than their share. The chances add up over pedestrians (expected collisions, which keep growing where
 1 - prod(1 - P) would saturate at 1 in a dense crowd), and a candidate whose expected collisions exceed
-``risk_limit`` ranks behind every candidate within it: when all are above, the least risky wins.
+``risk_limit`` ranks behind every candidate within it. When all are above, the robot brakes (``safe_stop``):
+a stopped robot is not at fault, and pedestrians who see it walk round it.
+
+With ``track_modes`` the weights are per pedestrian (``modes.SampleBelief``): the prior, sharpened step by step by
+how well each sample's first step matched where that pedestrian actually went.
 """
 
 from __future__ import annotations
@@ -21,6 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from st_sim.apps.navigation.modes import SampleBelief
 from st_sim.apps.navigation.pedestrians import Pedestrians, pedestrians_of
 from st_sim.apps.navigation.world import NavWorld
 
@@ -55,6 +60,14 @@ class MpcConfig:
     """with a prior, score only this many of the likeliest samples (weights renormalised) [-]"""
     risk_limit: float = 0.3
     """expected collisions above which a candidate ranks behind every candidate within it (inf: no limit) [-]"""
+    safe_stop: bool = True
+    """when every candidate is above the risk limit, brake (command zero) instead of taking the least risky"""
+    track_modes: bool = True
+    """with a prior: weigh each pedestrian's samples by how well they predicted its last step (``SampleBelief``)"""
+    mode_sigma_m: float = 0.2
+    """spread of the one-step likelihood of ``track_modes`` [m]"""
+    mode_floor: float = 0.2
+    """share of the prior mixed into every pedestrian's weights after each update [-]"""
     wall_margin_m: float = 0.08
     """least wall clearance beyond the world's ``wall_clearance_m`` a path may enter [m]"""
     wall_comfort_m: float = 0.3
@@ -82,6 +95,9 @@ class MpcPlanner:
 
     def __init__(self, world: NavWorld, use_predictions: bool = True, cfg: MpcConfig | None = None):
         self.world, self.use_predictions, self.cfg = world, use_predictions, cfg or MpcConfig()
+        prior = world.sample_prior
+        self._belief = (SampleBelief(prior, self.cfg.mode_sigma_m, self.cfg.mode_floor)
+                        if self.cfg.track_modes and self.cfg.use_prior and prior is not None else None)
         angles = np.linspace(0.0, 2 * np.pi, self.cfg.headings, endpoint=False)
         unit = np.stack([np.cos(angles), np.sin(angles)], axis=1)
         speeds = world.max_speed_mps * np.asarray(self.cfg.speed_fractions)
@@ -93,22 +109,29 @@ class MpcPlanner:
         self.reset()
 
     def reset(self) -> None:
-        """Forget the previous command (call at every episode start)."""
+        """Forget the previous command and the pedestrians (call at every episode start)."""
         self._previous = np.zeros(2)
+        if self._belief is not None:
+            self._belief.reset()
 
     def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
         """Velocity command (2,) [m/s], world frame."""
         ego_xy, ego_v, goal = (obs["ego"][i:i + 2].astype(np.float64) for i in (0, 2, 4))
         peds = pedestrians_of(obs, self.cfg.horizon_steps, self.use_predictions)
+        weights = None
+        if self._belief is not None and self.use_predictions:
+            weights = self._belief.update(obs)[obs["history_mask"][:, -1]]  # (P, S), rows of ``peds``
         commands = np.concatenate([self._commands, self._previous[None]])
         path = self._rollout(ego_xy, ego_v, commands, goal)  # (K, J, 2)
-        risk, crowding = self._risk_terms(path, ego_xy, peds)
+        risk, crowding = self._risk_terms(path, ego_xy, peds, weights)
         cost = (self.cfg.risk_weight * risk + self.cfg.clearance_weight * crowding
                 + self.cfg.progress_weight * self._progress(path, ego_xy, goal)
                 + self.cfg.smooth_weight * self._smoothness(commands, ego_v)
                 + self._walls(path, ego_xy)
                 + np.where(risk > self.cfg.risk_limit, RISK_PENALTY * (1.0 + risk), 0.0))
-        self._previous = commands[int(np.argmin(cost))]
+        best = int(np.argmin(cost))
+        stop = risk[best] > self.cfg.risk_limit and self.cfg.safe_stop
+        self._previous = np.zeros(2) if stop else commands[best]
         return self._previous.astype(np.float32)
 
     # ---------------------------------------------------------------- rollout
@@ -133,18 +156,25 @@ class MpcPlanner:
         return out
 
     # ---------------------------------------------------------------- costs, each (K,)
-    def _risk_terms(self, path: np.ndarray, ego_xy: np.ndarray, peds: Pedestrians) -> tuple[np.ndarray, np.ndarray]:
+    def _risk_terms(self, path: np.ndarray, ego_xy: np.ndarray, peds: Pedestrians,
+                    weights: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Expected collisions (K,) and the clearance cost (K,), both summed over pedestrians.
 
         A sample collides if it comes within contact + safety margin of the path at a check; its intrusion
         is 1 at contact, falling to 0 at contact + comfort. Both are discounted by the check's time, and the
         largest over the checks counts. P(collide with p) is the sample weights' sum over p's colliding
         samples; risk = sum over p of P(collide with p).
+
+        Args:
+            weights: (P, S) per-pedestrian sample weights (``track_modes``); None: ``_sample_weights`` for all.
         """
         k = len(path)
-        kept, weights = self._sample_weights(peds.futures_m.shape[1])
+        kept, shared = self._sample_weights(peds.futures_m.shape[1])
+        per_ped = (np.broadcast_to(shared, (len(peds), len(kept))) if weights is None
+                   else weights[:, kept] / weights[:, kept].sum(axis=1, keepdims=True)).astype(np.float32)
         futures = self._interpolated(peds.xy_m, peds.futures_m[:, kept])  # (P, S', J, 2)
-        futures = futures[self._relevant(futures, ego_xy)]
+        relevant = self._relevant(futures, ego_xy)
+        futures, per_ped = futures[relevant], per_ped[relevant]
         if len(futures) == 0:
             return np.zeros(k), np.zeros(k)
         n_peds, n_samples = futures.shape[:2]
@@ -156,7 +186,7 @@ class MpcPlanner:
         hit_level = 1.0 - self.cfg.safety_margin_m / self.cfg.comfort_m
         hit = np.max((intrusion > hit_level) * self._weights, axis=-1).reshape(k, n_peds, n_samples)
         crowding = np.max(intrusion * self._weights, axis=-1).reshape(k, n_peds, n_samples)
-        return (hit @ weights).sum(axis=1), (crowding @ weights).sum(axis=1)
+        return np.einsum("kps,ps->k", hit, per_ped), np.einsum("kps,ps->k", crowding, per_ped)
 
     def _sample_weights(self, n_samples: int) -> tuple[np.ndarray, np.ndarray]:
         """Indices (S',) of the samples scored, the likeliest first, and their weights (S',) summing to 1."""
