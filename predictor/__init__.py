@@ -1,4 +1,4 @@
-"""Trajectory predictors: the SingularTrajectory model and constant-velocity baselines.
+"""Trajectory predictors: the SingularTrajectory model, constant-velocity baselines, plug-ins from elsewhere.
 
 Dimension letters used across the project's docstrings:
     N agents, T steps (0.4 s each; T_obs observed, 12 predicted), S samples per agent,
@@ -9,13 +9,15 @@ heading along +x, moving agents' lengths in units of their recent speed per step
     import predictor
     model = predictor.load_pretrained("stochastic/zara1")   # or "universal", or predictor.load(path)
     futures = model.predict(obs, group, scene, num_samples=20)   # (N, 20, 12, 2) metres
+    own = predictor.load_plugin("examples.knn_predictor:make", "stochastic", "zara1")   # a plug-in (predictor.plugins)
 """
 
 from predictor.baselines import BASELINES, ConstantVelocity, ConstantVelocitySampler, LinearFit
+from predictor.plugins import PluginError, load_plugin
 from predictor.protocol import Predictor
 
-__all__ = ["BASELINES", "ConstantVelocity", "ConstantVelocitySampler", "LinearFit", "Predictor", "load",
-           "load_pretrained"]
+__all__ = ["BASELINES", "ConstantVelocity", "ConstantVelocitySampler", "LinearFit", "PluginError", "Predictor",
+           "load", "load_plugin", "load_pretrained"]
 
 
 def __getattr__(name: str):

@@ -12,7 +12,8 @@ from replays.scenes import Scene
 
 @runtime_checkable
 class Predictor(Protocol):
-    """Anything with this ``predict`` can run inside the environments and evaluators."""
+    """Anything with this ``predict`` can run inside the environments and evaluators (from outside the project:
+    a plug-in factory, ``predictor.plugins``)."""
 
     def predict(self, obs: np.ndarray, group: np.ndarray, scene: Scene | None, num_samples: int) -> np.ndarray:
         """Futures for every agent.

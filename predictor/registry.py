@@ -1,4 +1,5 @@
-"""Turn a predictor name (cvm, cvm-s, linear, singular, or a checkpoint path) into a predictor per task/scene.
+"""Turn a predictor name (cvm, cvm-s, linear, singular, a plug-in ``package.module:name`` or a checkpoint path)
+into a predictor per task/scene.
 
 Trained SingularTrajectory checkpoints live in ``runs/<task>/<scene>/seed<k>/best.pt``; a run counts once it
 has finished (``train.json`` written). Where none has, seed 0 falls back to the shipped checkpoint of that
@@ -10,6 +11,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from predictor.baselines import ConstantVelocity, ConstantVelocitySampler, LinearFit
+from predictor.plugins import is_plugin_spec, load_plugin
 from predictor.protocol import Predictor
 from replays.constants import TASKS
 from replays.windows import load_windows
@@ -55,8 +57,9 @@ def make_predictor(name: str, task: str, scene: str, root=None, runs_dir: str | 
 
     ``cvm-s`` fits its heading noise on that task's training split. ``singular`` uses the checkpoint that
     ``resolve_checkpoint`` names; if there is none, ``train_missing`` trains it (resuming an interrupted
-    run), otherwise ``MissingCheckpointError`` says how. Any other value is a checkpoint file, or a folder
-    holding ``<task>/<scene>/seed<seed>/best.pt``.
+    run), otherwise ``MissingCheckpointError`` says how. ``package.module:name`` is a plug-in (``predictor.plugins``:
+    the factory gets the task, scene, training and validation windows and data root). Any other value is a
+    checkpoint file, or a folder holding ``<task>/<scene>/seed<seed>/best.pt``.
     """
     if name == "cvm":
         return ConstantVelocity()
@@ -82,10 +85,13 @@ def make_predictor(name: str, task: str, scene: str, root=None, runs_dir: str | 
                 f"`python -m predictor train --task {task} --scene {scene} --seed {seed} --out {folder}`, or let "
                 "`python -m st_sim evaluate` train it (its default)")
         return load_checkpoint_spec(spec, task)
+    if is_plugin_spec(name):
+        return load_plugin(name, task, scene, root)
     path = Path(name)
     if path.is_dir():
         path = run_dir(path, task, scene, seed) / "best.pt"
     if not path.is_file():
         raise MissingCheckpointError(
-            f"predictor {name!r}: not one of {', '.join(PREDICTOR_NAMES)} and no checkpoint at {path}")
+            f"predictor {name!r}: not one of {', '.join(PREDICTOR_NAMES)}, not a plug-in package.module:name "
+            f"and no checkpoint at {path}")
     return load_checkpoint_spec(str(path), task)

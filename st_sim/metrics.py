@@ -1,4 +1,5 @@
-"""Prediction metrics: best-of-S ADE/FDE, map violations, pairwise collisions (all in metres).
+"""Prediction metrics: best-of-S ADE/FDE, map violations, pairwise collisions (all in metres), the check of a
+predictor's output, and a paired bootstrap interval for comparing two predictors on the same windows.
 
 A rate or mean over nothing is None, not 0.0 (which would read as a perfect score); ``format_metric`` prints
 None as "n/a".
@@ -6,11 +7,42 @@ None as "n/a".
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from typing import Any
+
 import numpy as np
 
+from replays.constants import T_PRED
 from replays.scenes import Scene
 
 COLLISION_DISTANCE_M = 0.2  # TrajNet++-style: two predicted agents closer than this at one step collide
+
+
+class PredictionError(ValueError):
+    """A predictor returned something other than (N, S, 12, 2) finite float positions."""
+
+
+def check_futures(futures: Any, num_agents: int, num_samples: int, name: str) -> np.ndarray:
+    """A predictor's output as (N, S, 12, 2) float32 metres; ``PredictionError`` names ``name`` and the expected shape.
+
+    Refused: anything but a NumPy array (a list, None), a non-float dtype, another shape (another S), NaN or inf
+    (also after the cast to float32).
+    """
+    expected = (num_agents, num_samples, T_PRED, 2)
+    if not isinstance(futures, np.ndarray):
+        problem = "None" if futures is None else f"a {type(futures).__name__}"
+    elif futures.dtype.kind != "f":
+        problem = f"dtype {futures.dtype}"
+    elif futures.shape != expected:
+        problem = f"shape {futures.shape}"
+    else:
+        with np.errstate(over="ignore"):
+            futures = futures.astype(np.float32, copy=False)
+        if np.isfinite(futures).all():
+            return futures
+        problem = "NaN or inf positions"
+    raise PredictionError(f"predictor {name!r}: predict returned {problem}; expected a float array of shape "
+                          f"(N, S, 12, 2) = {expected}, metres")
 
 
 def _check_pred_gt(pred: np.ndarray, gt: np.ndarray) -> None:
@@ -106,3 +138,36 @@ def collision_rate(pred: np.ndarray, group: np.ndarray, threshold_m: float = COL
         gap = np.linalg.norm(pred[a] - pred[b], axis=-1).min(axis=-1)  # (P, S)
         hits += int((gap < threshold_m).sum())
     return hits / (len(first) * pred.shape[1])
+
+
+def paired_bootstrap(differences: Sequence[np.ndarray], windows: Sequence[np.ndarray], resamples: int = 2000,
+                     seed: int = 0, confidence: float = 0.95
+                     ) -> tuple[list[tuple[float, float, float]], tuple[float, float, float]]:
+    """Mean paired differences with percentile bootstrap intervals, per stratum (scene) and for their mean.
+
+    Each stratum is resampled on its own, by whole windows with replacement (the agents of one scene moment are
+    not independent). The overall figure is the unweighted mean of the strata's means, as a table's AVG row.
+    Consecutive windows overlap in time and are not independent either, so the interval tends to be too narrow.
+
+    Args:
+        differences: per stratum, (N_i,) per-sample differences (e.g. FDE of B minus FDE of A) [m].
+        windows: per stratum, (N_i,) window id of each sample.
+        resamples: bootstrap draws, from ``np.random.default_rng(seed)``.
+
+    Returns:
+        ([(mean, low, high) per stratum], (mean, low, high) of the mean over strata), metres.
+    """
+    rng = np.random.default_rng(seed)
+    tails = [50 * (1 - confidence), 50 * (1 + confidence)]  # percentiles of the two interval ends
+    per_stratum, draws = [], []
+    for difference, window in zip(differences, windows, strict=True):
+        difference = np.asarray(difference, np.float64)
+        if difference.size == 0:
+            raise ValueError("paired_bootstrap: a stratum without samples")
+        ids = np.unique(np.asarray(window), return_inverse=True)[1]
+        sums, counts = np.bincount(ids, weights=difference), np.bincount(ids)
+        pick = rng.integers(0, len(sums), size=(resamples, len(sums)))  # (R, windows)
+        draws.append(sums[pick].sum(axis=1) / counts[pick].sum(axis=1))
+        per_stratum.append((float(difference.mean()), *map(float, np.percentile(draws[-1], tails))))
+    mean = float(np.mean([m for m, _, _ in per_stratum]))
+    return per_stratum, (mean, *map(float, np.percentile(np.mean(draws, axis=0), tails)))

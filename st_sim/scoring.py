@@ -15,7 +15,7 @@ import numpy as np
 from replays.constants import DOMAIN_TASKS, TASKS
 from replays.scenes import Scene, load_scene, scene_info
 from replays.windows import Windows, load_windows
-from st_sim.metrics import ade_fde, collision_rate, map_violation, mean_or_none, path_map_violation
+from st_sim.metrics import ade_fde, check_futures, collision_rate, map_violation, mean_or_none, path_map_violation
 from st_sim.paper import paper_numbers
 
 
@@ -44,16 +44,25 @@ class SceneResult:
     """samples scored through the spectator environment (None: not run)"""
     stream_ade: float | None = None
     stream_fde: float | None = None
+    sample_ade: list[float] | None = None
+    """best-of-S ADE of every test sample, in window order, rounded to 1e-5 m (for paired comparisons)"""
+    sample_fde: list[float] | None = None
+    """best-of-S FDE of every test sample, in window order, rounded to 1e-5 m"""
+    window_sizes: list[int] | None = None
+    """samples in each test window, in order (the samples of window g follow those of window g - 1)"""
 
 
-def score_predictions(pred: np.ndarray, windows: Windows, scene: Scene) -> dict[str, float | None]:
-    """Metrics of predictions (N, S, 12, 2) against ``windows.fut``, on ``scene``'s map (None: nothing to score)."""
+def score_predictions(pred: np.ndarray, windows: Windows, scene: Scene) -> dict[str, Any]:
+    """Metrics of predictions (N, S, 12, 2) against ``windows.fut``, on ``scene``'s map (None: nothing to score),
+    with the per-sample errors and window sizes of ``SceneResult``."""
     ade, fde = ade_fde(pred, windows.fut)
     return {
         "ade": mean_or_none(ade), "fde": mean_or_none(fde),
         "map_violation": map_violation(pred, scene), "path_map_violation": path_map_violation(pred, scene),
         "gt_map_violation": map_violation(windows.fut, scene),
         "collision_rate": collision_rate(pred, windows.group),
+        "sample_ade": np.round(ade, 5).tolist(), "sample_fde": np.round(fde, 5).tolist(),
+        "window_sizes": np.unique(windows.group, return_counts=True)[1].tolist(),
     }
 
 
@@ -84,6 +93,7 @@ def evaluate_offline(predictor: Any, task: str, scene: str, num_samples: int | N
         pred = predictor.predict_detailed(windows.obs, windows.group, map_scene, samples, steps).futures
     else:
         pred = predictor.predict(windows.obs, windows.group, map_scene, samples)
+    pred = check_futures(pred, len(windows), samples, getattr(predictor, "name", type(predictor).__name__))
     scores = score_predictions(pred, windows, map_scene)
     paper = paper_numbers(task, scene.upper() if task in DOMAIN_TASKS else scene)
     return SceneResult(scene=scene, samples=len(windows), **scores, wall_s=time.perf_counter() - start,

@@ -2,12 +2,14 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
 import pytest
 
 from predictor.registry import MissingCheckpointError, make_predictor
 from st_sim.apps.cli import main
-from st_sim.apps.evaluate import aggregate, markdown_table
+from st_sim.apps.evaluate import SAMPLE_KEYS, aggregate, markdown_table
 from st_sim.command_line import CliError
+from st_sim.metrics import paired_bootstrap
 
 
 def test_evaluate_cli_prints_table_and_writes_json(tmp_path, capsys):
@@ -92,3 +94,60 @@ def test_unwritable_output_paths_fail_before_any_work(tmp_path, capsys, flag):
                  "--runs", str(tmp_path / "runs")]) == 1
     assert f"error: {blocker}" in capsys.readouterr().err
     assert not (tmp_path / "runs").exists()  # nothing was evaluated
+
+
+def test_several_predictors_get_a_table_each_and_a_paired_comparison(tmp_path, capsys):
+    runs = tmp_path / "runs"
+    assert main(["evaluate", "--task", "deterministic", "--predictor", "cvm", "--scenes", "eth", "hotel",
+                 "--no-stream", "--quiet", "--runs", str(runs)]) == 0
+    cell = runs / "evaluations" / "deterministic" / "hotel" / "cvm-offline.json"
+    old = {k: v for k, v in json.loads(cell.read_text()).items() if k not in SAMPLE_KEYS}
+    assert len(json.loads(cell.read_text())["sample_fde"]) == 1053
+    cell.write_text(json.dumps(old))  # a cell written before cells kept per-sample errors
+    out = tmp_path / "res.json"
+    assert main(["evaluate", "--task", "deterministic", "--predictor", "cvm", "linear", "--scenes", "eth", "hotel",
+                 "--no-stream", "--quiet", "--runs", str(runs), "--json", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "predictor `cvm`" in printed and "predictor `linear`" in printed and "ΔFDE `linear`" in printed
+    assert sorted(p.name for p in tmp_path.iterdir() if p.is_file()) == [
+        "res_comparison.json", "res_cvm.json", "res_linear.json"]
+    tables = {name: json.loads((tmp_path / f"res_{name}.json").read_text()) for name in ("cvm", "linear")}
+    assert not set(SAMPLE_KEYS) & set(tables["cvm"]["scenes"]["eth"]["seeds"]["0"]), "tables stay small"
+    comparison = json.loads((tmp_path / "res_comparison.json").read_text())
+    assert comparison["predictors"] == ["cvm", "linear"] and comparison["reference"] == "cvm"
+    for scene in ("eth", "hotel"):
+        row = comparison["scenes"][scene]
+        delta = row["fde_difference"]["linear"]
+        expected = tables["linear"]["scenes"][scene]["fde"] - tables["cvm"]["scenes"][scene]["fde"]
+        assert abs(delta["mean"] - expected) < 1e-4, scene  # per-sample errors are rounded to 1e-5 m
+        assert delta["low"] < delta["mean"] < delta["high"], scene
+        assert row["fde"]["cvm"] == pytest.approx(tables["cvm"]["scenes"][scene]["fde"])
+    avg = comparison["avg"]["fde_difference"]["linear"]
+    assert avg["mean"] == pytest.approx(np.mean([comparison["scenes"][s]["fde_difference"]["linear"]["mean"]
+                                                 for s in ("eth", "hotel")]))
+
+
+def test_several_predictors_write_one_file_each_into_out_and_must_differ(tmp_path, capsys):
+    assert main(["evaluate", "--task", "deterministic", "--predictor", "cvm", "linear", "--scenes", "eth",
+                 "--no-stream", "--quiet", "--runs", str(tmp_path / "runs"), "--out", str(tmp_path / "t")]) == 0
+    assert sorted(p.name for p in (tmp_path / "t").iterdir()) == [
+        f"deterministic_{name}.{ext}" for name in ("comparison", "cvm", "linear") for ext in ("json", "md")]
+    assert "| **AVG** |" in (tmp_path / "t" / "deterministic_comparison.md").read_text()
+    assert main(["evaluate", "--predictor", "cvm", "linear", "cvm", "--runs", str(tmp_path / "runs")]) == 1
+    assert "error: --predictor cvm linear cvm: each must be given once" in capsys.readouterr().err
+
+
+def test_paired_bootstrap_resamples_windows_and_is_seeded():
+    rng = np.random.default_rng(1)
+    constant = paired_bootstrap([np.full(50, 0.25)], [np.arange(50) // 5])
+    assert constant == ([(0.25, 0.25, 0.25)], (0.25, 0.25, 0.25))
+    iid = rng.normal(0.1, 1.0, 4000)
+    [(_, low, high)], _ = paired_bootstrap([iid], [np.arange(4000)], seed=3)
+    assert high - low == pytest.approx(2 * 1.96 * iid.std() / np.sqrt(4000), rel=0.1)
+    assert paired_bootstrap([iid], [np.arange(4000)], seed=3) == paired_bootstrap([iid], [np.arange(4000)], seed=3)
+    clustered = np.repeat(rng.normal(0.0, 1.0, 40), 100)  # 40 windows of 100 identical samples
+    [(_, low_c, high_c)], _ = paired_bootstrap([clustered], [np.repeat(np.arange(40), 100)])
+    assert high_c - low_c > 5 * (high - low), "samples of one window are not independent evidence"
+    _, (mean, low_a, high_a) = paired_bootstrap([np.full(10, 1.0), np.full(30, 3.0)],
+                                                [np.arange(10), np.arange(30)])
+    assert mean == low_a == high_a == 2.0, "AVG is the mean over strata, not over samples"

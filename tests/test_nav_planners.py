@@ -178,7 +178,7 @@ def test_the_sample_belief_follows_the_sample_a_pedestrian_walks() -> None:
     belief = SampleBelief(prior, sigma_m=0.2, floor=0.1)
     steps = np.array([[0.5, 0.0], [0.0, 0.5], [-0.5, 0.0], [0.0, -0.5]])  # sample k's next step
     xy = np.zeros(2)
-    for t in range(4):
+    for _ in range(4):
         obs = {"history": np.zeros((1, T_OBS, 2), np.float32), "history_mask": np.ones((1, T_OBS), bool),
                "futures": np.zeros((1, 4, T_PRED, 2), np.float32), "futures_mask": np.ones(1, bool)}
         obs["history"][0, -1], obs["history"][0, -2] = xy, xy - steps[1]

@@ -8,6 +8,7 @@ import numpy as np
 
 from replays.constants import POSITION_LIMIT_M, T_PRED, TASKS
 from replays.scenes import Scene
+from st_sim.metrics import check_futures
 
 ENV_TASKS: tuple[str, ...] = ("stochastic", "deterministic", "momentary")  # tasks an env can play
 
@@ -36,23 +37,35 @@ def shipped_checkpoint(task: str, scene: str | None) -> str:
     return f"{task}/{scene}"
 
 
+def scene_of_checkpoint(pretrained: str) -> str | None:
+    """The scene ``shipped_checkpoint`` named ``pretrained`` for: ``"stochastic/zara1"`` -> zara1, a universal
+    checkpoint (a simulated layout) -> None."""
+    return None if pretrained.endswith("universal") else pretrained.rpartition("/")[2]
+
+
 def resolve_predictor(spec: Any, task: str = "stochastic", pretrained: str = "universal") -> Any:
-    """A predictor object from a name (auto, cvm, cvm-s, linear, singular) or an object with ``predict``.
+    """A predictor object from a name (auto, cvm, cvm-s, linear, singular), a plug-in ``package.module:name``, or
+    an object with ``predict``.
 
     ``singular`` (and ``auto``, its alias) loads the shipped checkpoint ``pretrained`` (see
-    ``shipped_checkpoint``); torch is only imported then.
+    ``shipped_checkpoint``); torch is only imported then. A plug-in's factory is called with ``task``, the env's
+    scene (None for a simulated layout), that scene's training and validation windows (all five scenes' for
+    None) and the default data root (``predictor.plugins.load_plugin``).
     """
     if spec == "auto":
         spec = "singular"
     if isinstance(spec, str):
         from predictor.baselines import BASELINES
+        from predictor.plugins import is_plugin_spec, load_plugin
 
         if spec in BASELINES:
             return BASELINES[spec]()
         if spec == "singular":
             return _load_singular(pretrained)
-        raise ValueError(f"predictor={spec!r}: expected one of {', '.join([*BASELINES, 'singular'])} "
-                         "or an object with predict(obs, group, scene, num_samples)")
+        if is_plugin_spec(spec):
+            return load_plugin(spec, task, scene_of_checkpoint(pretrained))
+        raise ValueError(f"predictor={spec!r}: expected one of {', '.join([*BASELINES, 'singular'])}, a plug-in "
+                         "package.module:name or an object with predict(obs, group, scene, num_samples)")
     if callable(getattr(spec, "predict", None)):
         return spec
     raise TypeError(f"predictor must be a name or have a predict(obs, group, scene, num_samples) method, "
@@ -84,7 +97,8 @@ def predict_futures(model: Any, history_m: np.ndarray, scene: Scene | None, num_
             ``predict_detailed`` (SingularTrajectory); None otherwise.
 
     Raises:
-        ValueError: the predictor returned the wrong shape or NaN/inf.
+        ValueError: the predictor returned anything but (P, S, 12, 2) finite floats (``st_sim.metrics.PredictionError``;
+            ``predictor.plugins.PluginError`` from a plug-in).
     """
     if len(history_m) == 0:
         return np.zeros((0, num_samples, T_PRED, 2), np.float32), None
@@ -92,13 +106,8 @@ def predict_futures(model: Any, history_m: np.ndarray, scene: Scene | None, num_
     anchors = None
     if callable(getattr(model, "predict_detailed", None)):
         detail = model.predict_detailed(history_m, group, scene, num_samples)
-        futures, anchors = np.asarray(detail.futures, np.float32), (detail.prototype_anchors, detail.adapted_anchors)
+        futures, anchors = detail.futures, (detail.prototype_anchors, detail.adapted_anchors)
     else:
-        futures = np.asarray(model.predict(history_m, group, scene, num_samples), np.float32)
-    expected = (len(history_m), num_samples, T_PRED, 2)
-    name = getattr(model, "name", type(model).__name__)
-    if futures.shape != expected:
-        raise ValueError(f"predictor {name!r} returned shape {futures.shape}, expected {expected}")
-    if not np.isfinite(futures).all():
-        raise ValueError(f"predictor {name!r} returned NaN or inf positions")
+        futures = model.predict(history_m, group, scene, num_samples)
+    futures = check_futures(futures, len(history_m), num_samples, getattr(model, "name", type(model).__name__))
     return np.clip(futures, -POSITION_LIMIT_M, POSITION_LIMIT_M), anchors

@@ -6,36 +6,30 @@ import argparse
 import json
 import os
 import sys
+from dataclasses import replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from replays.atomic import write_text_atomic
 from replays.constants import TASKS
 from st_sim.apps.navigation import cli as navigation_cli
 from st_sim.command_line import CliError, add_debug_flag, check_writable, positive_int, run_guarded
 
+if TYPE_CHECKING:
+    from st_sim.apps.evaluate import Plan
+
 
 def run_evaluate(args: argparse.Namespace) -> int:
-    """Evaluate a predictor on benchmark tasks (seeds x scenes); print markdown tables, optionally write JSON."""
-    from st_sim.apps.evaluate import TRAIN_ESTIMATE_S, Plan, aggregate, markdown_table, task_scenes
-    from st_sim.apps.grid import raise_on_failure, run_jobs, summary_lines
+    """Evaluate predictors on benchmark tasks (seeds x scenes); print markdown tables (and, for several predictors,
+    their comparison), optionally write JSON."""
+    from st_sim.apps.evaluate import TRAIN_ESTIMATE_S, forget_stale_results, raise_on_job_failure
+    from st_sim.apps.grid import run_jobs, summary_lines
 
-    tasks = tuple(TASKS) if args.task == "all" else (args.task,)
-    if args.json and len(tasks) > 1:
-        raise CliError("--json takes one task; use --out DIR for --task all")
-    for path in filter(None, [args.json, args.out]):
-        check_writable(Path(path) if path == args.out else Path(path).parent)
-    scenes = {task: tuple(args.scenes if args.scenes and len(tasks) == 1 else task_scenes(task)) for task in tasks}
-    for task in tasks:
-        unknown = [scene for scene in scenes[task] if scene not in task_scenes(task)]
-        if unknown:
-            raise CliError(f"--scenes {' '.join(unknown)}: not in the {task} table; expected some of "
-                           f"{' '.join(task_scenes(task))}")
-    plan = Plan(args.predictor, tasks, scenes, tuple(args.seeds), args.runs, args.data_root, not args.no_stream,
-                args.momentary_from_8, args.rerun, not args.no_shipped)
+    plans = evaluation_plans(args)
     grid = {"executor": args.executor, "workers": args.workers, "address": args.ray_address,
             "progress": not args.quiet}
     reports = []
-    missing = plan.train_jobs()
+    missing = [job for plan in plans for job in plan.train_jobs()]
     if missing:
         names = ", ".join(job.name.removeprefix("train/") for job in missing[:6]) + (" ..." if len(missing) > 6 else "")
         if args.no_train:
@@ -44,27 +38,84 @@ def run_evaluate(args: argparse.Namespace) -> int:
         print(f"training {len(missing)} missing models into {args.runs}/ ({names}); about "
               f"{len(missing) * TRAIN_ESTIMATE_S / 60 / min(workers, len(missing)):.0f} min with {workers} workers")
         reports += run_jobs(missing, desc="train", **grid)
-        raise_on_failure(reports)
-    jobs = plan.evaluation_jobs()
-    reports += run_jobs(jobs, desc="evaluate", **grid)
-    raise_on_failure(reports)
-    for task in tasks:
-        cells = {(scene, seed): json.loads(Path(job.output).read_text())
-                 for job, (t, scene, seed) in zip(jobs, plan.cells(), strict=True) if t == task}
-        result = aggregate(task, args.predictor, cells)
-        result["momentary_protocol"] = "from-8" if args.momentary_from_8 else "own-2-frame-windows"
-        table = markdown_table(result)
-        print(table + "\n")
-        if args.json:
-            write_json_atomic(Path(args.json), result)
-            print(f"wrote {args.json}")
-        if args.out:
-            write_json_atomic(Path(args.out) / f"{task}.json", result)
-            write_text_atomic(Path(args.out) / f"{task}.md", table + "\n")
-            print(f"wrote {args.out}/{task}.json and {task}.md")
+        raise_on_job_failure(reports)
+    jobs = {plan.predictor: plan.evaluation_jobs() for plan in plans}
+    for plan in plans:
+        forget_stale_results(plan, jobs[plan.predictor], need_samples=len(plans) > 1)
+        if len(plans) > 1:  # job names are unique within a grid
+            jobs[plan.predictor] = [replace(job, name=f"{job.name} ({plan.predictor})") for job in jobs[plan.predictor]]
+    reports += run_jobs([job for plan_jobs in jobs.values() for job in plan_jobs], desc="evaluate", **grid)
+    raise_on_job_failure(reports)
+    for task in plans[0].tasks:
+        report_task(args, task, {plan.predictor: {
+            (scene, seed): json.loads(Path(job.output).read_text())
+            for job, (t, scene, seed) in zip(jobs[plan.predictor], plan.cells(), strict=True) if t == task}
+            for plan in plans})
     if not args.quiet:
         print("\n".join(summary_lines(reports)))
     return 0
+
+
+def evaluation_plans(args: argparse.Namespace) -> list[Plan]:
+    """One ``Plan`` per ``--predictor``, after checking the flags and that every plug-in spec imports (before any
+    work)."""
+    from predictor.plugins import is_plugin_spec, resolve_factory
+    from st_sim.apps.evaluate import Plan, file_label, task_scenes
+
+    tasks = tuple(TASKS) if args.task == "all" else (args.task,)
+    if args.json and len(tasks) > 1:
+        raise CliError("--json takes one task; use --out DIR for --task all")
+    labels = [file_label(name) for name in args.predictor] + ["comparison"]  # file names of several predictors
+    if len(args.predictor) > 1 and len(set(labels)) < len(labels):
+        raise CliError(f"--predictor {' '.join(args.predictor)}: each must be given once, and their file names "
+                       f"({', '.join(labels[:-1])}) must differ from each other and from 'comparison'")
+    for path in filter(None, [args.json, args.out]):
+        check_writable(Path(path) if path == args.out else Path(path).parent)
+    scenes = {task: tuple(args.scenes if args.scenes and len(tasks) == 1 else task_scenes(task)) for task in tasks}
+    for task in tasks:
+        unknown = [scene for scene in scenes[task] if scene not in task_scenes(task)]
+        if unknown:
+            raise CliError(f"--scenes {' '.join(unknown)}: not in the {task} table; expected some of "
+                           f"{' '.join(task_scenes(task))}")
+    for name in filter(is_plugin_spec, args.predictor):
+        resolve_factory(name)
+    return [Plan(name, tasks, scenes, tuple(args.seeds), args.runs, args.data_root, not args.no_stream,
+                 args.momentary_from_8, args.rerun, not args.no_shipped) for name in args.predictor]
+
+
+def report_task(args: argparse.Namespace, task: str, cells: dict[str, dict[tuple[str, int], dict]]) -> None:
+    """Print one task's table per predictor (``cells``: predictor -> (scene, seed) -> result) and, for several,
+    their comparison; write them where ``--json`` / ``--out`` say (one file per predictor, plus the comparison)."""
+    from st_sim.apps.evaluate import aggregate, compare, comparison_table, file_label, markdown_table
+
+    several = len(cells) > 1
+    for name, per_cell in cells.items():
+        result = aggregate(task, name, per_cell)
+        result["momentary_protocol"] = "from-8" if args.momentary_from_8 else "own-2-frame-windows"
+        table = markdown_table(result)
+        print(table + "\n")
+        write_outputs(args, task, file_label(name) if several else None, result, table)
+    if several:
+        comparison = compare(task, cells)
+        table = comparison_table(comparison)
+        print(table + "\n")
+        write_outputs(args, task, "comparison", comparison, table)
+
+
+def write_outputs(args: argparse.Namespace, task: str, suffix: str | None, data: dict, table: str) -> None:
+    """``--json FILE`` -> FILE (``FILE_<suffix>.json`` with a suffix); ``--out DIR`` -> ``<task>.json`` and
+    ``<task>.md`` (``<task>_<suffix>.*``)."""
+    if args.json:
+        path = Path(args.json)
+        if suffix is not None:
+            path = path.with_name(f"{path.stem}_{suffix}{path.suffix or '.json'}")
+        write_json_atomic(path, data)
+        print(f"wrote {path}")
+    if args.out:
+        stem = task if suffix is None else f"{task}_{suffix}"
+        write_json_atomic(Path(args.out) / f"{stem}.json", data)
+        write_text_atomic(Path(args.out) / f"{stem}.md", table + "\n")
+        print(f"wrote {args.out}/{stem}.json and {stem}.md")
 
 
 def run_demo(args: argparse.Namespace) -> int:
@@ -136,18 +187,24 @@ def build_parser() -> argparse.ArgumentParser:
     add_debug_flag(parser)
     commands = parser.add_subparsers(dest="command", required=True)
 
-    evaluate = commands.add_parser("evaluate", help="score a predictor on a benchmark task's test windows")
+    evaluate = commands.add_parser("evaluate", help="score predictors on a benchmark task's test windows")
     evaluate.add_argument("--task", choices=[*TASKS, "all"], default="stochastic",
                           help="benchmark task, or all five (default: stochastic)")
-    evaluate.add_argument("--predictor", default="cvm-s",
-                          help="cvm | cvm-s | linear | singular | checkpoint file or folder (default: cvm-s)")
+    evaluate.add_argument("--predictor", nargs="+", default=["cvm-s"],
+                          help="cvm | cvm-s | linear | singular | a plug-in package.module:name | checkpoint file or "
+                               "folder; several: a table each, then one comparing them on the same windows, each "
+                               "against the first (default: cvm-s)")
     evaluate.add_argument("--scenes", nargs="+", default=None,
                           help="scenes (eth hotel univ zara1 zara2) or domain pairs (A2B ...); default: all")
     evaluate.add_argument("--momentary-from-8", action="store_true",
                           help="momentary task: score the 8-frame protocol's samples on their last 2 frames "
                                "(default: the loader's own 2-frame windows)")
-    evaluate.add_argument("--json", default=None, help="also write the results to this JSON file (one task)")
-    evaluate.add_argument("--out", default=None, help="write <task>.json and <task>.md into this folder")
+    evaluate.add_argument("--json", default=None, metavar="FILE",
+                          help="also write the results to this JSON file (one task); several predictors: "
+                               "FILE_<predictor>.json each and FILE_comparison.json")
+    evaluate.add_argument("--out", default=None, metavar="DIR",
+                          help="write <task>.json and <task>.md into this folder; several predictors: "
+                               "<task>_<predictor>.json/.md each and <task>_comparison.json/.md")
     evaluate.add_argument("--seeds", type=int, nargs="+", default=[0],
                           help="singular: training seeds; each row is the mean ± sd over them (default: 0)")
     evaluate.add_argument("--runs", default="runs",
@@ -170,7 +227,8 @@ def build_parser() -> argparse.ArgumentParser:
     plot.add_argument("--scene", default="zara1", help="scene (default: zara1)")
     plot.add_argument("--step", type=int, default=0, help="window index in the test split (default: 0)")
     plot.add_argument("--task", choices=list(TASKS), default="stochastic", help="task (default: stochastic)")
-    plot.add_argument("--predictor", default="singular", help="predictor name or checkpoint (default: singular)")
+    plot.add_argument("--predictor", default="singular",
+                      help="predictor name, plug-in package.module:name or checkpoint (default: singular)")
     plot.add_argument("--runs", default="runs", help="checkpoint folder for singular (default: runs)")
     plot.add_argument("--out", default="stcrowd_plot.png", help="PNG path (default: stcrowd_plot.png)")
     plot.add_argument("--data-root", default=None, help="ETH/UCY folder (default: $STCROWD_DATA or the cache)")

@@ -1,15 +1,18 @@
-"""Benchmark tables: a predictor on every scene of a task, for one or more training seeds.
+"""Benchmark tables: a predictor on every scene of a task, for one or more training seeds, and several predictors
+compared on the same windows.
 
 Each (task, scene, seed) is scored offline on the benchmark windows (``st_sim.scoring``) and, by default,
 again by replaying the test recordings through the spectator environment; the two must agree. The cells
 run as a grid (``st_sim.apps.grid``): missing SingularTrajectory checkpoints are trained first, then every
-cell is evaluated, each writing its own JSON, so an interrupted run resumes where it stopped.
+cell is evaluated, each writing its own JSON, so an interrupted run resumes where it stopped (a plug-in's
+cells are always evaluated afresh: the code or weights behind its spec may have changed).
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
+import re
 import statistics
 import time
 from dataclasses import asdict, dataclass
@@ -17,12 +20,15 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
+from predictor.plugins import PluginError, is_plugin_spec
 from predictor.protocol import Predictor
 from replays.atomic import write_text_atomic
 from replays.constants import DOMAIN_TASKS
 from replays.scenes import SCENE_NAMES, scene_info
-from st_sim.apps.grid import Job
-from st_sim.metrics import format_metric
+from st_sim.apps.grid import Job, JobReport, raise_on_failure
+from st_sim.metrics import format_metric, paired_bootstrap
 from st_sim.paper import paper_numbers
 from st_sim.scoring import SceneResult, evaluate_offline, target_scene
 
@@ -31,6 +37,9 @@ DOMAIN_PAIRS: tuple[str, ...] = tuple(
 )
 STREAM_TOLERANCE_M = 1e-6  # stream and offline ADE/FDE must agree to this
 TRAIN_ESTIMATE_S = 45.0  # one model with one thread on this project's 2-core machine, two jobs at a time [s]
+BOOTSTRAP_RESAMPLES = 2000  # draws of the windows behind a paired comparison's interval
+BOOTSTRAP_SEED = 0  # seed of those draws
+SAMPLE_KEYS = ("sample_ade", "sample_fde", "window_sizes")  # per-sample fields of a cell, kept out of the tables
 
 
 class StreamMismatchError(RuntimeError):
@@ -61,8 +70,11 @@ def evaluate_scene(predictor: Predictor, task: str, scene: str, num_samples: int
         if streamed["samples"] != result.samples or (result.samples and (
                 abs(streamed["ade"] - result.ade) > STREAM_TOLERANCE_M
                 or abs(streamed["fde"] - result.fde) > STREAM_TOLERANCE_M)):
-            raise StreamMismatchError(f"{task}/{scene}: stream {streamed} disagrees with offline "
-                                      f"({result.samples}, {result.ade}, {result.fde})")
+            raise StreamMismatchError(
+                f"{task}/{scene}: stream {streamed} disagrees with offline ({result.samples}, {result.ade}, "
+                f"{result.fde}); a predictor must give an agent the same futures whether it is called on all windows "
+                "at once or one scene moment at a time (no unseeded randomness, no batch effects); --no-stream skips "
+                "this check")
         result.wall_s = time.perf_counter() - start
     return result
 
@@ -77,7 +89,7 @@ class Plan:
     """What one ``evaluate`` command runs: a predictor on tasks x scenes x seeds."""
 
     predictor: str
-    """cvm | cvm-s | linear | singular | a checkpoint file or folder"""
+    """cvm | cvm-s | linear | singular | a plug-in package.module:name | a checkpoint file or folder"""
     tasks: tuple[str, ...]
     scenes: dict[str, tuple[str, ...]]
     """task -> scenes (or domain pairs)"""
@@ -96,6 +108,10 @@ class Plan:
     @property
     def trained(self) -> bool:
         return self.predictor == "singular"
+
+    @property
+    def plugin(self) -> bool:
+        return is_plugin_spec(self.predictor)
 
     def __post_init__(self) -> None:  # absolute paths: a cluster's workers do not run in this folder
         for name in ("runs", "root", "rerun"):
@@ -148,7 +164,8 @@ class Plan:
         return jobs
 
     def source(self, task: str, scene: str, seed: int) -> str:
-        """What a cell's predictor is made from: a baseline name, a checkpoint file, or ``shipped:<name>``."""
+        """What a cell's predictor is made from: a baseline name, a plug-in spec, a checkpoint file, or
+        ``shipped:<name>``."""
         if not self.trained:
             path = Path(self.predictor)
             if path.is_dir():
@@ -168,8 +185,11 @@ def source_label(source: str) -> str:
     """File-name-safe label of a predictor source.
 
     A checkpoint is labelled by the hash of its bytes and of its effective configuration (the stored one with
-    today's defaults for newer fields), so a result is not reused once the code would predict differently.
+    today's defaults for newer fields), so a result is not reused once the code would predict differently; a
+    plug-in by its spec (``plugin-<spec>``).
     """
+    if is_plugin_spec(source):
+        return f"plugin-{file_label(source)}"
     if source.startswith("shipped:"):
         from predictor.checkpoint import PRETRAINED_DIR, pretrained_manifest
 
@@ -188,19 +208,42 @@ def source_label(source: str) -> str:
     return f"{prefix}-{hashlib.sha256(path.read_bytes()).hexdigest()[:12]}-{config_hash}"
 
 
+def file_label(source: str) -> str:
+    """``source`` with every run of characters other than letters, digits, ``.``, ``_`` and ``-`` made one ``-``."""
+    return re.sub(r"[^\w.-]+", "-", source).strip("-") or "predictor"
+
+
 def evaluate_job(source: str, task: str, scene: str, root: str | None, stream: bool, momentary_from_8: bool,
                  rerun_path: str | None, output: str) -> None:
-    """Grid entry point: score one cell and write its ``SceneResult`` as JSON to ``output``."""
+    """Grid entry point: score one cell and write its ``SceneResult`` as JSON to ``output`` (compact: it holds the
+    per-sample errors)."""
     from predictor.registry import PREDICTOR_NAMES, load_checkpoint_spec, make_predictor
 
-    if source in PREDICTOR_NAMES:
-        predictor = make_predictor(source, task, scene, root)
-    else:
-        predictor = load_checkpoint_spec(source, task)
+    named = source in PREDICTOR_NAMES or is_plugin_spec(source)  # a baseline, singular or a plug-in: not a file
+    predictor = make_predictor(source, task, scene, root) if named else load_checkpoint_spec(source, task)
     result = evaluate_scene(predictor, task, scene, None, momentary_from_8, root, stream=stream,
                             rerun_path=rerun_path)
-    result.checkpoint = source if source not in PREDICTOR_NAMES else None
-    write_text_atomic(output, json.dumps(asdict(result), indent=1))
+    result.checkpoint = None if named else source
+    write_text_atomic(output, json.dumps(asdict(result), separators=(",", ":")))
+
+
+def forget_stale_results(plan: Plan, jobs: list[Job], need_samples: bool) -> None:
+    """Delete the outputs of ``jobs`` that must be evaluated again: all of a plug-in's, and with ``need_samples``
+    those written before cells kept their per-sample errors."""
+    for job in jobs:
+        path = Path(job.output)
+        if path.is_file() and (plan.plugin or (need_samples and "sample_fde" not in json.loads(path.read_text()))):
+            path.unlink()
+
+
+def raise_on_job_failure(reports: list[JobReport]) -> None:
+    """``grid.raise_on_failure``, except that a plug-in's failure is raised as its own ``PluginError``, one line."""
+    prefix = f"{PluginError.__module__}.{PluginError.__qualname__}: "
+    failed = [r for r in reports if r.status == "failed" and (r.error or "").startswith(prefix)]
+    if failed:
+        more = f"; {len(failed) - 1} more jobs failed the same way" if len(failed) > 1 else ""
+        raise PluginError(f"{failed[0].error.removeprefix(prefix)} (job {failed[0].name}{more})")
+    raise_on_failure(reports)
 
 
 def _mean_sd(values: list[float]) -> tuple[float, float]:
@@ -216,7 +259,8 @@ def aggregate(task: str, predictor: str, per_cell: dict[tuple[str, int], dict[st
         "seeds": {seed: SceneResult dict}}}}``; sd is over seeds (n - 1 in the denominator). Checkpoints and the
         predictor are named by ``portable_source``.
     """
-    per_cell = {cell: {**r, "checkpoint": portable_source(r["checkpoint"])} for cell, r in per_cell.items()}
+    per_cell = {cell: {**{k: v for k, v in r.items() if k not in SAMPLE_KEYS},
+                       "checkpoint": portable_source(r["checkpoint"])} for cell, r in per_cell.items()}
     scenes = list(dict.fromkeys(scene for scene, _ in per_cell))
     seeds = sorted({seed for _, seed in per_cell})
     table: dict[str, Any] = {}
@@ -302,4 +346,74 @@ def markdown_table(result: dict) -> str:
     paper = _pair(avg["paper_ade"], avg["paper_fde"]) if "paper_ade" in avg else "–"
     scores = _pair(avg["ade"], avg["fde"], avg["ade_sd"], avg["fde_sd"]) if several else _pair(avg["ade"], avg["fde"])
     lines.append(f"| **AVG** | | **{scores}** | {paper} | {_delta(avg)} | | | | | |")
+    return "\n".join(lines)
+
+
+def compare(task: str, cells: dict[str, dict[tuple[str, int], dict[str, Any]]]) -> dict:
+    """Several predictors on the same test windows of one task, each against the first one (the reference).
+
+    Args:
+        cells: predictor -> its cells, ``(scene, seed) -> SceneResult dict`` with per-sample errors; a predictor
+            with several seeds counts with each sample's mean error over them.
+
+    Returns:
+        ``{"task", "predictors", "reference", "bootstrap", "scenes": {scene: row}, "avg": row}`` where a row is
+        ``{"samples", "ade": {predictor: m}, "fde": {predictor: m}, "fde_difference": {predictor: {"mean", "low",
+        "high"}}}``: the mean per-sample FDE of a predictor minus the reference's, with a 95 % bootstrap interval
+        over windows (``st_sim.metrics.paired_bootstrap``; AVG: the mean over scenes, as the tables' AVG).
+    """
+    names = list(cells)
+    reference, shown = names[0], {name: portable_source(name) for name in names}  # shown: as results name it
+    scenes = list(dict.fromkeys(scene for scene, _ in cells[reference]))
+    errors: dict[str, dict[str, dict[str, np.ndarray]]] = {name: {} for name in names}  # name -> scene -> metric
+    windows: dict[str, np.ndarray] = {}
+    for scene in scenes:
+        for name in names:
+            runs = [r for (s, _), r in cells[name].items() if s == scene]
+            sizes = runs[0].get("window_sizes")
+            if sizes is None or any(r.get("window_sizes") != sizes for r in runs):
+                raise ValueError(f"{task}/{scene}: {name} has no per-sample errors, or its cells differ in windows")
+            ids = np.repeat(np.arange(len(sizes)), sizes)  # (N,) window of each sample
+            if not np.array_equal(windows.setdefault(scene, ids), ids):
+                raise ValueError(f"{task}/{scene}: {name} was scored on other windows than {reference}")
+            errors[name][scene] = {m: np.mean([r[f"sample_{m}"] for r in runs], axis=0) for m in ("ade", "fde")}
+    rows: dict[str, dict[str, Any]] = {scene: {"samples": len(windows[scene]), "ade": {}, "fde": {},
+                                               "fde_difference": {}} for scene in scenes}
+    avg: dict[str, Any] = {"ade": {}, "fde": {}, "fde_difference": {}}
+    for name in names:
+        for metric in ("ade", "fde"):
+            for scene in scenes:
+                rows[scene][metric][shown[name]] = float(errors[name][scene][metric].mean())
+            avg[metric][shown[name]] = statistics.fmean(rows[scene][metric][shown[name]] for scene in scenes)
+        if name == reference:
+            continue
+        differences = [errors[name][scene]["fde"] - errors[reference][scene]["fde"] for scene in scenes]
+        per_scene, overall = paired_bootstrap(differences, [windows[scene] for scene in scenes],
+                                              BOOTSTRAP_RESAMPLES, BOOTSTRAP_SEED)
+        for scene, interval in zip(scenes, per_scene, strict=True):
+            rows[scene]["fde_difference"][shown[name]] = dict(zip(("mean", "low", "high"), interval, strict=True))
+        avg["fde_difference"][shown[name]] = dict(zip(("mean", "low", "high"), overall, strict=True))
+    return {"task": task, "predictors": list(shown.values()), "reference": shown[reference],
+            "bootstrap": {"resamples": BOOTSTRAP_RESAMPLES, "seed": BOOTSTRAP_SEED, "confidence": 0.95,
+                          "unit": "window"},
+            "scenes": rows, "avg": avg}
+
+
+def comparison_table(comparison: dict) -> str:
+    """A markdown table of ``compare``'s result: rows = scenes + AVG, columns = each predictor's ADE / FDE, then
+    each other predictor's FDE difference to the reference with its 95 % interval."""
+    names, reference = comparison["predictors"], comparison["reference"]
+    others = names[1:]
+    lines = [f"**{TASK_TITLES.get(comparison['task'], comparison['task'])}** — predictors on the same windows "
+             f"(ADE / FDE in metres); ΔFDE = FDE − FDE of `{reference}` (negative: lower error), mean and 95 % "
+             f"bootstrap interval over windows ({comparison['bootstrap']['resamples']} resamples, seed "
+             f"{comparison['bootstrap']['seed']})", "",
+             "| scene | samples | " + " | ".join(f"`{name}`" for name in names) + "".join(
+                 f" | ΔFDE `{name}`" for name in others) + " |",
+             "|---|---|" + "---|" * (len(names) + len(others))]
+    for label, row in [*comparison["scenes"].items(), ("**AVG**", comparison["avg"])]:
+        pairs = [_pair(ade, fde) for ade, fde in zip(row["ade"].values(), row["fde"].values(), strict=True)]
+        deltas = [f"{d['mean']:+.3f} [{d['low']:+.3f}, {d['high']:+.3f}]"
+                  for d in row["fde_difference"].values()]
+        lines.append(f"| {label} | {row.get('samples', '')} | " + " | ".join(pairs + deltas) + " |")
     return "\n".join(lines)

@@ -12,7 +12,7 @@ from pathlib import Path
 
 from replays.atomic import write_text_atomic
 from st_sim.apps.navigation.planners import PLANNERS
-from st_sim.apps.navigation.predictors import PREDICTORS
+from st_sim.apps.navigation.predictors import predictor_argument
 
 SEE_EGO_CHOICES = {"yes": True, "no": False, "default": None}
 
@@ -23,8 +23,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
                                                  "95 %% confidence intervals")
     nav.add_argument("--env", default="STCrowd-SimCrossing-v1", help="env id (default: STCrowd-SimCrossing-v1)")
     nav.add_argument("--policy", choices=list(PLANNERS), default="mpc", help="planner (default: mpc)")
-    nav.add_argument("--predictor", choices=list(PREDICTORS), default="singular",
-                     help="predictor in the observation; none = pedestrians assumed to stand still (default: singular)")
+    nav.add_argument("--predictor", type=predictor_argument, default="singular",
+                     help="predictor in the observation: none (pedestrians assumed to stand still), cvm, cvm-s, "
+                          "singular, or a plug-in package.module:name, called with task=stochastic, the replay's "
+                          "scene (None in a simulated env), its train/val windows and the default data root "
+                          "(default: singular)")
     nav.add_argument("--episodes", type=int, default=100, help="episodes (default: 100)")
     nav.add_argument("--seed", type=int, default=0, help="episode i resets with seed + i (default: 0)")
     nav.add_argument("--pedestrians-see-ego", choices=list(SEE_EGO_CHOICES), default="default",

@@ -1,11 +1,14 @@
-"""The predictors a planner can be run with, by name, and "none": pedestrians assumed to stand still."""
+"""The predictors a planner can be run with: by name, "none" (pedestrians assumed to stand still), or a plug-in
+``package.module:name`` (``predictor.plugins``)."""
 
 from __future__ import annotations
 
+import argparse
 from typing import Any
 
 import numpy as np
 
+from predictor.plugins import is_plugin_spec, resolve_factory
 from replays.constants import T_PRED
 from replays.scenes import Scene
 
@@ -26,7 +29,24 @@ class StaticPredictor:
 
 
 def env_predictor(name: str) -> Any:
-    """The env's ``predictor=`` argument for a benchmark predictor name (see ``PREDICTORS``)."""
+    """The env's ``predictor=`` argument for a benchmark predictor name (see ``PREDICTORS``) or a plug-in spec.
+
+    A spec is checked here (it must import and name a callable: ``PluginError`` otherwise) and passed on as
+    given: the env calls the factory with ``task``, its scene (None for a simulated layout) and that scene's
+    training and validation windows.
+    """
+    if is_plugin_spec(name):
+        resolve_factory(name)
+        return name
     if name not in PREDICTORS:
-        raise ValueError(f"predictor={name!r}: expected one of {', '.join(PREDICTORS)}")
+        raise ValueError(f"predictor={name!r}: expected one of {', '.join(PREDICTORS)} or a plug-in "
+                         "package.module:name")
     return StaticPredictor() if name == "none" else name
+
+
+def predictor_argument(text: str) -> str:
+    """argparse type of ``--predictor``: a name of ``PREDICTORS`` or anything with ":" (a plug-in, checked later)."""
+    if text in PREDICTORS or ":" in text:
+        return text
+    raise argparse.ArgumentTypeError(f"{text!r}: expected one of {', '.join(PREDICTORS)} or a plug-in "
+                                     "package.module:name")

@@ -1,0 +1,1 @@
+"""Examples that use STCrowd from outside its four packages (run them from the repository root)."""
