@@ -192,7 +192,8 @@ class ReplayCrowdEnv(CrowdEnv):
         self.replay = replays[recording]
         n_max = max(int(r.present.sum(axis=1).max()) for r in replays.values())
         super().__init__(load_scene(info.name, root), n_max, str(self.replay.path), predictor, task, ego,
-                         render_mode, config, pretrained=shipped_checkpoint(task, info.name), rerun=rerun)
+                         render_mode, config, pretrained=shipped_checkpoint(task, info.name), rerun=rerun,
+                         root=root)
         observed = self.replay.xy_m[self.replay.present]
         margin = self.cfg.arena_margin_m  # checked by EnvConfig: [0, 100] m
         self.arena_low_m, self.arena_high_m = observed.min(axis=0) - margin, observed.max(axis=0) + margin

@@ -94,7 +94,8 @@ class SimCrowdEnv(CrowdEnv):
         self.crowd_cfg = crowd or default_crowd(layout)
         self.pedestrians_see_ego = bool(pedestrians_see_ego)
         super().__init__(self.layout.scene, population_cap(self.crowd_cfg, self.layout), f"sim layout {layout}",
-                         predictor, task, ego, render_mode, config, shipped_checkpoint(task, None), rerun=rerun)
+                         predictor, task, ego, render_mode, config, shipped_checkpoint(task, None), rerun=rerun,
+                         root=root)
         self.ego_max_accel_mps2 = EgoConfig().max_accel_mps2
         self.sim: CrowdSim | None = None
         self._touched_pedestrian = False  # set by the pymunk contact callback during a step

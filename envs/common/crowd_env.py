@@ -59,7 +59,7 @@ class CrowdEnv(gym.Env):
     def __init__(self, scene: Scene, n_max: int, where: str, predictor: Any = "auto",
                  task: str = "stochastic", ego: bool = True, render_mode: str | None = None,
                  config: EnvConfig | None = None, pretrained: str = "universal",
-                 rerun: str | os.PathLike | None = None):
+                 rerun: str | os.PathLike | None = None, root: str | os.PathLike | None = None):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise EnvInputError(f"render_mode={render_mode!r}: expected None or 'rgb_array'")
         check_flag("ego", ego)
@@ -71,7 +71,7 @@ class CrowdEnv(gym.Env):
         self.cfg = config or EnvConfig()
         self.t_obs, self.num_samples = task_sizes(task)
         self.task, self.ego, self.render_mode = task, bool(ego), render_mode
-        self.predictor = resolve_predictor(predictor, task, pretrained)
+        self.predictor = resolve_predictor(predictor, task, pretrained, root)
         self.tracks = TrackBuffer(n_max, self.t_obs, where)
         self.metrics = RunningMetrics(scene)
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from typing import Any
 
 import numpy as np
@@ -43,14 +44,15 @@ def scene_of_checkpoint(pretrained: str) -> str | None:
     return None if pretrained.endswith("universal") else pretrained.rpartition("/")[2]
 
 
-def resolve_predictor(spec: Any, task: str = "stochastic", pretrained: str = "universal") -> Any:
+def resolve_predictor(spec: Any, task: str = "stochastic", pretrained: str = "universal",
+                      root: str | os.PathLike | None = None) -> Any:
     """A predictor object from a name (auto, cvm, cvm-s, linear, singular), a plug-in ``package.module:name``, or
     an object with ``predict``.
 
     ``singular`` (and ``auto``, its alias) loads the shipped checkpoint ``pretrained`` (see
     ``shipped_checkpoint``); torch is only imported then. A plug-in's factory is called with ``task``, the env's
     scene (None for a simulated layout), that scene's training and validation windows (all five scenes' for
-    None) and the default data root (``predictor.plugins.load_plugin``).
+    None) and the env's data root ``root`` (``predictor.plugins.load_plugin``).
     """
     if spec == "auto":
         spec = "singular"
@@ -63,7 +65,7 @@ def resolve_predictor(spec: Any, task: str = "stochastic", pretrained: str = "un
         if spec == "singular":
             return _load_singular(pretrained)
         if is_plugin_spec(spec):
-            return load_plugin(spec, task, scene_of_checkpoint(pretrained))
+            return load_plugin(spec, task, scene_of_checkpoint(pretrained), root)
         raise ValueError(f"predictor={spec!r}: expected one of {', '.join([*BASELINES, 'singular'])}, a plug-in "
                          "package.module:name or an object with predict(obs, group, scene, num_samples)")
     if callable(getattr(spec, "predict", None)):

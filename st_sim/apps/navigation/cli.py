@@ -26,7 +26,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
     nav.add_argument("--predictor", type=predictor_argument, default="singular",
                      help="predictor in the observation: none (pedestrians assumed to stand still), cvm, cvm-s, "
                           "singular, or a plug-in package.module:name, called with task=stochastic, the replay's "
-                          "scene (None in a simulated env), its train/val windows and the default data root "
+                          "scene (None in a simulated env), its train/val windows and --data-root "
                           "(default: singular)")
     nav.add_argument("--episodes", type=int, default=100, help="episodes (default: 100)")
     nav.add_argument("--seed", type=int, default=0, help="episode i resets with seed + i (default: 0)")

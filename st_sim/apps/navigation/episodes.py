@@ -74,7 +74,7 @@ def make_nav_env(run: NavRun, rerun_path: str | None = None) -> gym.Env:
         if not accepts_keyword(run.env_id, PEDESTRIANS_KWARG):
             raise ValueError(f"{run.env_id} has no pedestrians= mode (only the replays do): drop --pedestrians")
         kwargs[PEDESTRIANS_KWARG] = run.pedestrians
-    if run.data_root is not None and "Sim" not in run.env_id:
+    if run.data_root is not None:
         kwargs["root"] = run.data_root
     if rerun_path is not None:
         kwargs["rerun"] = rerun_path
