@@ -13,7 +13,7 @@ from dataclasses import dataclass, fields
 import numpy as np
 import torch
 
-from predictor.anchors import BEND_SHAPES, OFF_IMAGE_MODES, adapt_paths, adaptive_anchors
+from predictor.anchors import BEND_SHAPES, OFF_IMAGE_MODES, adapt_paths, adaptive_anchors, walkable_points
 from predictor.baselines import constant_velocity
 from predictor.config_check import check_config
 from predictor.normalize import AgentFrame, agent_frames, rotate
@@ -53,6 +53,9 @@ class ModelConfig:
     """how a path is bent onto its target end point: "ramp" (linear offset) or "scale" (per image axis)"""
     adapt_output: bool = True
     """bend the refined futures onto the map the same way at inference (end points on walkable pixels)"""
+    output_on_map: bool = False
+    """at inference, after the bending, move every predicted point that is still off the walkable map onto its
+    nearest walkable pixel"""
     dim: int = 256
     """width of the refiner's context transformer"""
     denoiser_dim: int = 128
@@ -212,6 +215,8 @@ class SingularTrajectory:
         if self.cfg.adapt_output and self.cfg.adapt_anchors and scene is not None:
             futures, _ = adapt_paths(futures, scene, inputs.frames.origin_m, self.cfg.anchor_off_image,
                                      self.cfg.anchor_bend)
+        if self.cfg.output_on_map and scene is not None:
+            futures, _ = walkable_points(futures, scene)
         standing = np.linalg.norm(obs[:, -1] - obs[:, -2], axis=-1) < self.cfg.standing_m
         futures[standing] = constant_velocity(obs[standing])[:, None]  # (n, 1, 12, 2) onto every sample
         futures = futures.astype(np.float32)

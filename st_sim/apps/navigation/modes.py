@@ -19,7 +19,7 @@ class SampleBelief:
         sigma_m: spread of the one-step likelihood [m].  floor: share of the prior mixed in after every update [-].
     """
 
-    def __init__(self, prior: np.ndarray, sigma_m: float = 0.2, floor: float = 0.2):
+    def __init__(self, prior: np.ndarray, sigma_m: float = 0.15, floor: float = 0.1):
         self.prior = np.asarray(prior, np.float64) / np.sum(prior)
         self.sigma_m, self.floor = sigma_m, floor
         self.reset()

@@ -52,7 +52,7 @@ class MpcConfig:
     """clearance (beyond contact) below which the clearance cost grows [m]"""
     discount: float = 0.85
     """weight of a collision or intrusion one step later, relative to now [-]"""
-    risk_horizon_steps: int = 8
+    risk_horizon_steps: int = 6
     """steps of 0.4 s over which predicted samples are checked (the rollout still runs horizon_steps) [-]"""
     use_prior: bool = True
     """weight the samples by the world's sample prior (False: equally likely)"""
@@ -64,9 +64,9 @@ class MpcConfig:
     """when every candidate is above the risk limit, brake (command zero) instead of taking the least risky"""
     track_modes: bool = True
     """with a prior: weigh each pedestrian's samples by how well they predicted its last step (``SampleBelief``)"""
-    mode_sigma_m: float = 0.2
+    mode_sigma_m: float = 0.15
     """spread of the one-step likelihood of ``track_modes`` [m]"""
-    mode_floor: float = 0.2
+    mode_floor: float = 0.1
     """share of the prior mixed into every pedestrian's weights after each update [-]"""
     wall_margin_m: float = 0.08
     """least wall clearance beyond the world's ``wall_clearance_m`` a path may enter [m]"""
