@@ -1,0 +1,227 @@
+"""Open loop against closed loop: do ADE/FDE rank predictors the way the MPC's safety with them does?
+
+    export OMP_NUM_THREADS=1 STCROWD_DATA=$PWD/../shared/datasets/eth_ucy
+    python benchmarks/open_closed_loop.py --episodes 300 --out runs/study          # the RESULTS figures
+    python benchmarks/open_closed_loop.py --episodes 20 --envs zara1 --out runs/study-quick
+
+For each environment (ZARA1 and UNIV replays with reactive pedestrians, and the simulated crossing) and each
+predictor (CVM, CVM-S, the least-squares line, SingularTrajectory as the envs ship it, its stochastic, deterministic,
+momentary, few-shot and universal models and its 5 likeliest samples as plug-ins from ``study_models.py``, and the
+k-nearest-neighbour example): the open-loop ADE/FDE (best of 20) on the scene's test windows (the simulated crossing:
+on the stream of a spectator env, seeds 0..19, 200 steps each) beside the MPC's success and collision rates with that
+predictor over the same seeded episodes. Kendall's tau between the open-loop FDE and the closed-loop at-fault
+collision rate (positive: the lower the FDE, the safer the robot) and between FDE and the failure rate (1 - success),
+each with a paired bootstrap 95 % interval (2000 resamples of windows or stream seeds, and of episodes, the same for
+every predictor). The few-shot models are trained first (every 10th training window, seed 0). Everything runs through
+the grid runner (resumable, ``--executor ray``). Writes ``OUT/study.json`` and the scatter plot ``OUT/study.png``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+from dataclasses import asdict
+from pathlib import Path
+
+import numpy as np
+from scipy import stats
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # `examples` imports from the repository root
+
+from predictor.train import TRAIN_SUMMARY, TrainConfig
+from replays.atomic import write_text_atomic
+from st_sim.apps.cli import add_grid_arguments
+from st_sim.apps.grid import Job, raise_on_failure, run_jobs
+from st_sim.apps.navigation.episodes import NavRun, grid_job
+
+PREDICTORS = {  # label -> spec (in envs and on windows); "singular" is the envs' own, its samples weighed by prior
+    "cvm": "cvm", "cvm-s": "cvm-s", "linear": "linear", "singular": "singular",
+    "stochastic": "study_models:stochastic", "deterministic": "study_models:deterministic",
+    "momentary": "study_models:momentary", "fewshot": "study_models:fewshot", "universal": "study_models:universal",
+    "singular5": "study_models:singular5", "knn": "examples.knn_predictor:make",
+}
+ENVS = {"zara1": ("STCrowd-Zara1-v0", "reactive"), "univ": ("STCrowd-Univ-v0", "reactive"),
+        "sim": ("STCrowd-SimCrossing-v1", None)}
+PER_SCENE_ONLY = {"fewshot"}  # no simulated-env version
+STREAM_SEEDS, STREAM_STEPS = 20, 200  # open loop in the simulated crossing
+RESAMPLES = 2000
+
+
+def stream_job(spec: str, seeds: int, steps: int, output: str) -> None:
+    """Grid job: best-of-20 ADE/FDE of ``spec`` on the simulated crossing's stream (spectator), per seed."""
+    import gymnasium as gym
+
+    import envs  # noqa: F401
+
+    env = gym.make("STCrowd-SimCrossing-v1", ego=False, predictor=spec, max_episode_steps=steps + 1)
+    per_seed = []
+    for seed in range(seeds):
+        env.reset(seed=seed)
+        for _ in range(steps):
+            *_, info = env.step(np.zeros(2))
+        metrics = info["metrics"]
+        per_seed.append({"ade": metrics["ade_m"], "fde": metrics["fde_m"], "matured": metrics["matured"]})
+    write_text_atomic(output, json.dumps({"spec": spec, "per_seed": per_seed}))
+
+
+def open_loop_of(env: str, label: str, out: Path) -> tuple[Job, Path]:
+    """The job scoring a predictor open loop in an env, and its output."""
+    spec = PREDICTORS[label]
+    if env == "sim":
+        output = out / "open" / f"sim__{label}.json"
+        return Job(f"open/sim/{label}", "open_closed_loop:stream_job",
+                   {"spec": spec, "seeds": STREAM_SEEDS, "steps": STREAM_STEPS, "output": str(output)},
+                   str(output)), output
+    source = f"shipped:stochastic/{env}" if spec == "singular" else spec
+    output = out / "open" / f"{env}__{label}.json"
+    return Job(f"open/{env}/{label}", "st_sim.apps.evaluate:evaluate_job",
+               {"source": source, "task": "stochastic", "scene": env, "root": None, "stream": False,
+                "momentary_from_8": False, "rerun_path": None, "output": str(output)}, str(output)), output
+
+
+def open_loop_samples(env: str, result: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per-unit FDE and ADE, and the unit of each (a window's samples, or a stream seed) for the bootstrap."""
+    if env == "sim":
+        rows = result["per_seed"]
+        return (np.array([r["fde"] for r in rows], float), np.array([r["ade"] for r in rows], float),
+                np.arange(len(rows)))
+    sizes = np.asarray(result["window_sizes"])
+    return (np.asarray(result["sample_fde"], float), np.asarray(result["sample_ade"], float),
+            np.repeat(np.arange(len(sizes)), sizes))
+
+
+def kendall(x: np.ndarray, y: np.ndarray) -> float:
+    tau = stats.kendalltau(x, y).statistic
+    return float(tau) if np.isfinite(tau) else 0.0
+
+
+def study_env(env: str, labels: list[str], open_results: dict, closed_results: dict, seed: int = 0) -> dict:
+    """Table rows and tau with bootstrap intervals for one env."""
+    samples = {label: open_loop_samples(env, open_results[label]) for label in labels}
+    units = samples[labels[0]][2]
+    episodes = {label: closed_results[label]["episodes"] for label in labels}
+    at_fault = np.array([[bool(e["at_fault"]) for e in episodes[label]] for label in labels], float)  # (P, E)
+    failed = np.array([[e["outcome"] != "goal" for e in episodes[label]] for label in labels], float)
+    fde = np.array([samples[label][0] for label in labels])  # (P, U) per sample/seed
+    ade = np.array([samples[label][1] for label in labels])
+    rng = np.random.default_rng(seed)
+    n_units, n_episodes = units.max() + 1, at_fault.shape[1]
+    point = {"fault": kendall(fde.mean(1), at_fault.mean(1)), "failure": kendall(fde.mean(1), failed.mean(1))}
+    boot = {"fault": [], "failure": []}
+    for _ in range(RESAMPLES):
+        picked_units = rng.integers(0, n_units, n_units)
+        rows = np.concatenate([np.flatnonzero(units == u) for u in picked_units])
+        picked_episodes = rng.integers(0, n_episodes, n_episodes)
+        open_fde = fde[:, rows].mean(1)
+        boot["fault"].append(kendall(open_fde, at_fault[:, picked_episodes].mean(1)))
+        boot["failure"].append(kendall(open_fde, failed[:, picked_episodes].mean(1)))
+    taus = {kind: {"tau": point[kind], "low": float(np.percentile(boot[kind], 2.5)),
+                   "high": float(np.percentile(boot[kind], 97.5))} for kind in point}
+    rows = [{"predictor": label, "ade": float(ade[i].mean()), "fde": float(fde[i].mean()),
+             **{name: closed_results[label]["summary"][name]["value"]
+                for name in ("success", "collision", "collision_at_fault", "timeout")}}
+            for i, label in enumerate(labels)]
+    return {"env": env, "rows": rows, "tau": taus}
+
+
+def plot(study: list[dict], path: Path) -> Path:
+    """One scatter panel per env: open-loop FDE (x) against the at-fault collision rate (y), labelled points."""
+    import cv2
+
+    width, height, left, bottom, top = 420, 380, 60, 50, 40
+    panels = []
+    for part in study:
+        image = np.full((height, width, 3), 255, np.uint8)
+        fde = np.array([r["fde"] for r in part["rows"]])
+        fault = np.array([r["collision_at_fault"] for r in part["rows"]])
+        x0, x1 = fde.min() * 0.95, fde.max() * 1.05
+        y1 = max(fault.max() * 1.15, 0.01)
+
+        def px(x: float, y: float, x0: float = x0, x1: float = x1, y1: float = y1) -> tuple[int, int]:
+            return (round(left + (x - x0) / (x1 - x0) * (width - left - 20)),
+                    round(height - bottom - y / y1 * (height - bottom - top)))
+
+        cv2.line(image, px(x0, 0), px(x1, 0), (0, 0, 0), 1)
+        cv2.line(image, px(x0, 0), px(x0, y1), (0, 0, 0), 1)
+        for frac in (0.0, 0.5, 1.0):
+            cv2.putText(image, f"{x0 + frac * (x1 - x0):.2f}", (px(x0 + frac * (x1 - x0), 0)[0] - 15,
+                        height - bottom + 18), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (0, 0, 0), 1)
+            cv2.putText(image, f"{frac * y1:.3f}", (5, px(x0, frac * y1)[1] + 4), cv2.FONT_HERSHEY_SIMPLEX, 0.4,
+                        (0, 0, 0), 1)
+        for row in part["rows"]:
+            point = px(row["fde"], row["collision_at_fault"])
+            cv2.circle(image, point, 5, (200, 80, 0), -1)
+            cv2.putText(image, row["predictor"], (point[0] + 6, point[1] - 4), cv2.FONT_HERSHEY_SIMPLEX, 0.35,
+                        (60, 60, 60), 1)
+        tau = part["tau"]["fault"]
+        cv2.putText(image, f"{part['env']}: tau {tau['tau']:+.2f} [{tau['low']:+.2f}, {tau['high']:+.2f}]",
+                    (left, 25), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 0), 1)
+        cv2.putText(image, "open-loop FDE [m]", (width // 2 - 50, height - 12), cv2.FONT_HERSHEY_SIMPLEX, 0.4,
+                    (0, 0, 0), 1)
+        panels.append(image)
+    figure = np.concatenate(panels, axis=1)
+    cv2.putText(figure, "at-fault collisions (y)", (5, 12), cv2.FONT_HERSHEY_SIMPLEX, 0.35, (0, 0, 0), 1)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    cv2.imwrite(str(path), figure)
+    return path
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--envs", nargs="+", default=list(ENVS), choices=list(ENVS), help="default: all three")
+    parser.add_argument("--predictors", nargs="+", default=list(PREDICTORS), choices=list(PREDICTORS),
+                        help="default: all eleven")
+    parser.add_argument("--episodes", type=int, default=300, help="closed-loop episodes per cell (default: 300)")
+    parser.add_argument("--out", default="runs/study", help="study folder (default: runs/study)")
+    add_grid_arguments(parser)
+    args = parser.parse_args()
+    out = Path(args.out).resolve()
+    os.environ["STCROWD_STUDY_RUNS"] = str(out)  # where study_models finds the few-shot checkpoints (workers inherit)
+    grid = {"executor": args.executor, "workers": args.workers, "address": args.ray_address}
+
+    scenes = [env for env in args.envs if env != "sim"]
+    if "fewshot" in args.predictors and scenes:
+        training = []
+        for scene in scenes:
+            cfg = TrainConfig(task="fewshot", scene=scene, out=str(out / "fewshot" / scene / "seed0"), progress=False)
+            training.append(Job(f"train/fewshot/{scene}", "predictor.train:train_job", asdict(cfg),
+                                str(Path(cfg.out) / TRAIN_SUMMARY)))
+        raise_on_failure(run_jobs(training, desc="train", **grid))
+    cells = {(env, label) for env in args.envs for label in args.predictors
+             if not (env == "sim" and label in PER_SCENE_ONLY)}
+    open_jobs = {cell: open_loop_of(*cell, out) for cell in cells}
+    closed_jobs = {}
+    for env, label in cells:
+        env_id, mode = ENVS[env]
+        run = NavRun(env_id, "mpc", PREDICTORS[label], args.episodes, 0, pedestrians=mode)
+        output = out / "closed" / f"{env}__{label}__{args.episodes}ep.json"
+        closed_jobs[env, label] = grid_job(f"closed/{env}/{label}", run, output)
+    jobs = [job for job, _ in open_jobs.values()] + list(closed_jobs.values())
+    raise_on_failure(run_jobs(jobs, desc="cells", **grid))
+
+    study = []
+    for env in args.envs:
+        labels = [label for label in args.predictors if (env, label) in cells]
+        open_results = {label: json.loads(open_jobs[env, label][1].read_text()) for label in labels}
+        closed_results = {label: json.loads(Path(closed_jobs[env, label].output).read_text()) for label in labels}
+        part = study_env(env, labels, open_results, closed_results)
+        study.append(part)
+        env_id, mode = ENVS[env]
+        print(f"\n### {env_id}{f', {mode} pedestrians' if mode else ''} (MPC, seeds 0..{args.episodes - 1})\n")
+        print("| predictor | open-loop ADE / FDE [m] | success | collision (any) | at fault | timeout |")
+        print("|---|---|---|---|---|---|")
+        for row in sorted(part["rows"], key=lambda r: r["fde"]):
+            print(f"| {row['predictor']} | {row['ade']:.3f} / {row['fde']:.3f} | {row['success']:.3f} | "
+                  f"{row['collision']:.3f} | {row['collision_at_fault']:.3f} | {row['timeout']:.3f} |")
+        for kind, text in (("fault", "at-fault collision rate"), ("failure", "failure rate (1 - success)")):
+            tau = part["tau"][kind]
+            print(f"\nKendall tau, FDE vs {text}: {tau['tau']:+.3f} (95 % bootstrap interval {tau['low']:+.3f} .. "
+                  f"{tau['high']:+.3f})")
+    write_text_atomic(out / "study.json", json.dumps({"episodes": args.episodes, "study": study}, indent=1))
+    print(f"\nwrote {out / 'study.json'} and {plot(study, out / 'study.png')}")
+
+
+if __name__ == "__main__":
+    main()
