@@ -112,11 +112,14 @@ def adapt_paths(paths_m: np.ndarray, scene: Scene, origin_m: np.ndarray | None =
     return adapted, moved
 
 
-def walkable_points(paths_m: np.ndarray, scene: Scene) -> tuple[np.ndarray, np.ndarray]:
-    """Move every point of ``paths_m`` (..., 2) world metres that is not on a walkable pixel of ``scene`` (on a wall,
-    or off the image) to the centre of its nearest walkable pixel; returns the points and which moved (...)."""
-    target_px, moved = _end_targets(scene.world_to_pixel(paths_m), scene, "pull")
-    return np.where(moved[..., None], scene.pixel_to_world(target_px), paths_m), moved
+def walkable_points(paths_m: np.ndarray, scene: Scene, tolerance_m: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """Move every point of ``paths_m`` (..., 2) world metres that lies more than ``tolerance_m`` from a walkable pixel
+    of ``scene`` (on a wall, or off the image) to the centre of its nearest walkable pixel; returns the points and
+    which moved (...). A small tolerance leaves alone the band along the walls where annotated people walk too."""
+    target_px, off_map = _end_targets(scene.world_to_pixel(paths_m), scene, "pull")
+    target_m = scene.pixel_to_world(target_px)
+    moved = off_map & (np.linalg.norm(target_m - paths_m, axis=-1) > tolerance_m)
+    return np.where(moved[..., None], target_m, paths_m), moved
 
 
 def adaptive_anchors(anchors: np.ndarray, frames: AgentFrame, space_of: list[SingularSpace],

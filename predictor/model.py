@@ -54,8 +54,10 @@ class ModelConfig:
     adapt_output: bool = True
     """bend the refined futures onto the map the same way at inference (end points on walkable pixels)"""
     output_on_map: bool = False
-    """at inference, after the bending, move every predicted point that is still off the walkable map onto its
-    nearest walkable pixel"""
+    """at inference, after the bending, move every predicted point that is still more than on_map_tolerance_m off
+    the walkable map onto its nearest walkable pixel"""
+    on_map_tolerance_m: float = 0.1
+    """predicted points this close to walkable ground stay where they are (annotated people walk there too) [m]"""
     dim: int = 256
     """width of the refiner's context transformer"""
     denoiser_dim: int = 128
@@ -216,7 +218,7 @@ class SingularTrajectory:
             futures, _ = adapt_paths(futures, scene, inputs.frames.origin_m, self.cfg.anchor_off_image,
                                      self.cfg.anchor_bend)
         if self.cfg.output_on_map and scene is not None:
-            futures, _ = walkable_points(futures, scene)
+            futures, _ = walkable_points(futures, scene, self.cfg.on_map_tolerance_m)
         standing = np.linalg.norm(obs[:, -1] - obs[:, -2], axis=-1) < self.cfg.standing_m
         futures[standing] = constant_velocity(obs[standing])[:, None]  # (n, 1, 12, 2) onto every sample
         futures = futures.astype(np.float32)
