@@ -4,7 +4,8 @@
 
 from __future__ import annotations
 
-import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from st_sim.sim import CrowdConfig
 from st_sim.sim import validation as scenarios
@@ -30,25 +31,34 @@ def test_rimea_7_walking_speeds_follow_the_configured_distribution() -> None:
     assert len(walked) == len(preferred) == 50
 
 
-@pytest.mark.parametrize("density", [1.0, 3.0], ids=["1_per_m2", "3_per_m2"])
-def test_fundamental_diagram_is_within_20_percent_of_weidmann(density: float) -> None:
-    flow = scenarios.fundamental_diagram(CFG, density, warmup_steps=30, steps=30)
+@settings(max_examples=4, deadline=None)
+@given(density=st.sampled_from([1.0, 3.0]), seed=st.integers(0, 2**32 - 1))
+def test_fundamental_diagram_is_within_20_percent_of_weidmann(density: float, seed: int) -> None:
+    flow = scenarios.fundamental_diagram(CFG, density, warmup_steps=30, steps=30, seed=seed)
     reference = float(weidmann_speed_mps(density))
     assert abs(flow.mean_speed_mps / reference - 1.0) <= 0.2, f"{flow.mean_speed_mps:.2f} m/s vs {reference:.2f}"
     assert flow.escapes == 0 and flow.max_overlap_m < 0.05
 
 
-def test_no_gridlock_just_below_jam_density() -> None:
-    assert scenarios.fundamental_diagram(CFG, 4.0, warmup_steps=30, steps=30).mean_speed_mps > 0.05
+@settings(max_examples=2, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1))
+def test_no_gridlock_just_below_jam_density(seed: int) -> None:
+    assert scenarios.fundamental_diagram(CFG, 4.0, warmup_steps=30, steps=30, seed=seed).mean_speed_mps > 0.05
 
 
-def test_counterflow_forms_lanes_and_keeps_walking() -> None:
-    flow = scenarios.counterflow(CFG, warmup_steps=20, steps=40)
+@settings(max_examples=2, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1))
+def test_counterflow_forms_lanes_and_keeps_walking(seed: int) -> None:
+    flow = scenarios.counterflow(CFG, warmup_steps=20, steps=40, seed=seed)
     assert flow.mean_speed_mps >= 0.7 and flow.lane_index > 0.5, flow
 
 
-def test_bottleneck_flow_grows_with_the_door() -> None:
-    narrow, _ = scenarios.bottleneck_flow(CFG, 1.0, n=80)
-    wide, last_out_s = scenarios.bottleneck_flow(CFG, 2.0, n=80)
-    assert narrow > 0.5 and wide * 2.0 > narrow * 1.0 * 1.3, f"{narrow:.2f} vs {wide:.2f} /(m s)"
-    assert last_out_s < 120.0
+@settings(max_examples=4, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1))
+def test_bottleneck_flow_grows_with_the_door(seed: int) -> None:
+    """Doors from 1.2 m let a crowd through at more than half the published specific flow, and a 2 m door lets
+    at least 1.3 times as many through per second as a 1.2 m one (doors under about 1 m can clog: RESULTS)."""
+    narrow, narrow_out_s = scenarios.bottleneck_flow(CFG, 1.2, n=60, seed=seed)
+    wide, wide_out_s = scenarios.bottleneck_flow(CFG, 2.0, n=60, seed=seed)
+    assert narrow > 0.8 and wide * 2.0 > narrow * 1.2 * 1.3, f"{narrow:.2f} vs {wide:.2f} /(m s)"
+    assert wide_out_s < narrow_out_s < 120.0
