@@ -112,7 +112,7 @@ def adapt_paths(paths_m: np.ndarray, scene: Scene, origin_m: np.ndarray | None =
     return adapted, moved
 
 
-def walkable_points(paths_m: np.ndarray, scene: Scene, tolerance_m: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+def onto_walkable(paths_m: np.ndarray, scene: Scene, tolerance_m: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """Move every point of ``paths_m`` (..., 2) world metres that lies more than ``tolerance_m`` from a walkable pixel
     of ``scene`` (on a wall, or off the image) to the centre of its nearest walkable pixel; returns the points and
     which moved (...). A small tolerance leaves alone the band along the walls where annotated people walk too."""

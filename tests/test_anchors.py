@@ -91,16 +91,16 @@ def test_prototype_anchors_are_seeded_and_ordered_by_cluster_size():
     np.testing.assert_allclose(prototype_anchors(data, 1), data.mean(0, keepdims=True))
 
 
-def test_walkable_points_moves_only_points_deeper_than_the_tolerance(toy_scene) -> None:
+def test_onto_walkable_moves_only_points_deeper_than_the_tolerance(toy_scene) -> None:
     """The toy scene's right half (x >= 5 m) is a wall: a point 1 m inside moves to the last walkable pixel, one
     7 cm from it stays with a 0.1 m tolerance, and points on walkable ground never move."""
-    from predictor.anchors import walkable_points
+    from predictor.anchors import onto_walkable
 
     points = np.array([[[2.0, 5.0], [6.0, 5.0], [4.97, 5.0], [25.0, 5.0]]])  # (1, 4, 2) metres; pixel 50 is wall
-    moved_points, moved = walkable_points(points, toy_scene, tolerance_m=0.1)
+    moved_points, moved = onto_walkable(points, toy_scene, tolerance_m=0.1)
     assert moved.tolist() == [[False, True, False, True]]
     assert np.allclose(moved_points[0, [0, 2]], points[0, [0, 2]])
     assert toy_scene.is_walkable(moved_points[0, [1, 3]]).all()
     assert np.all(moved_points[0, [1, 3], 0] < 5.0) and np.all(moved_points[0, [1, 3], 0] > 4.8)
-    strict, moved_strict = walkable_points(points, toy_scene)
+    strict, moved_strict = onto_walkable(points, toy_scene)
     assert moved_strict.tolist() == [[False, True, True, True]] and toy_scene.is_walkable(strict[0]).all()

@@ -84,6 +84,9 @@ def move_within(scene: Scene, xy_m: np.ndarray, velocity_mps: np.ndarray, dt_s: 
 def walkable_points(scene: Scene, bounds_m: tuple[float, float, float, float]) -> np.ndarray:
     """(M, 2) world metres of walkable map pixels (every ``CANDIDATE_STRIDE_PX``-th) inside ``bounds_m``.
 
+    Pixels on the image's edge whose round trip through the homography lands a hair outside the image
+    are left out, so every point returned passes ``on_image``.
+
     Args:
         bounds_m: (xmin, ymin, xmax, ymax) metres.
     """
@@ -92,7 +95,7 @@ def walkable_points(scene: Scene, bounds_m: tuple[float, float, float, float]) -
     xy_m = scene.pixel_to_world(uv_px.astype(np.float64))
     xmin, ymin, xmax, ymax = bounds_m
     inside = (xy_m[:, 0] >= xmin) & (xy_m[:, 0] <= xmax) & (xy_m[:, 1] >= ymin) & (xy_m[:, 1] <= ymax)
-    return xy_m[inside]
+    return xy_m[inside & on_image(scene, xy_m)]
 
 
 def spawn_start_goal(candidates_m: np.ndarray, peds_xy_m: np.ndarray, clearance_m: float,
