@@ -13,7 +13,7 @@ from dataclasses import dataclass, fields
 import numpy as np
 import torch
 
-from predictor.anchors import BEND_SHAPES, OFF_IMAGE_MODES, adapt_paths, adaptive_anchors, walkable_points
+from predictor.anchors import BEND_SHAPES, OFF_IMAGE_MODES, adapt_paths, adaptive_anchors, onto_walkable
 from predictor.baselines import constant_velocity
 from predictor.config_check import check_config
 from predictor.normalize import AgentFrame, agent_frames, rotate
@@ -218,7 +218,7 @@ class SingularTrajectory:
             futures, _ = adapt_paths(futures, scene, inputs.frames.origin_m, self.cfg.anchor_off_image,
                                      self.cfg.anchor_bend)
         if self.cfg.output_on_map and scene is not None:
-            futures, _ = walkable_points(futures, scene, self.cfg.on_map_tolerance_m)
+            futures, _ = onto_walkable(futures, scene, self.cfg.on_map_tolerance_m)
         standing = np.linalg.norm(obs[:, -1] - obs[:, -2], axis=-1) < self.cfg.standing_m
         futures[standing] = constant_velocity(obs[standing])[:, None]  # (n, 1, 12, 2) onto every sample
         futures = futures.astype(np.float32)
