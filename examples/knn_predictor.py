@@ -77,9 +77,10 @@ class KnnPredictor:
         return world.reshape(len(history), num_samples, -1, 2).astype(np.float32)
 
 
-def make(task: str, scene: str | None, train: Windows, val: Windows, data_root: Path) -> KnnPredictor:
-    """The plug-in factory (``examples.knn_predictor:make``): fit on ``train``; the other arguments are unused."""
-    return KnnPredictor(train)
+def make(task: str, scene: str | None, train: Windows, val: Windows, data_root: Path, seed: int = 0) -> KnnPredictor:
+    """The plug-in factory (``examples.knn_predictor:make``): fit on ``train``, ``seed`` choosing the subsample when
+    there are more than ``MAX_TRAIN_WINDOWS`` (``evaluate --seeds`` passes it); the other arguments are unused."""
+    return KnnPredictor(train, seed=seed)
 
 
 def main() -> None:

@@ -8,6 +8,8 @@ The factory is called with keyword arguments only, and returns an object with
 
     name(task="stochastic", scene="zara1", train=Windows, val=Windows, data_root=Path)
 
+and, if it has a parameter named ``seed``, with ``seed=k`` too: then ``evaluate --seeds 0 1 2`` builds it once
+per seed, as it trains SingularTrajectory once per seed (a factory without one gets a single row per scene).
 ``scene`` is a scene name or a domain pair (``"A2B"``), or None for a simulated env, whose ``train`` and
 ``val`` are then the windows of all five scenes (the data the universal checkpoint was trained on). Every
 failure (a spec that does not import, names nothing callable, a factory that raises or returns no ``predict``,
@@ -18,6 +20,7 @@ the spec.
 from __future__ import annotations
 
 import importlib
+import inspect
 import os
 import re
 from collections.abc import Callable
@@ -79,18 +82,30 @@ def resolve_factory(spec: str) -> Callable[..., Any]:
     return target
 
 
-def load_plugin(spec: str, task: str, scene: str | None, root: str | os.PathLike | None = None) -> PluginPredictor:
+def takes_seed(factory: Callable[..., Any]) -> bool:
+    """True if ``factory`` has a parameter named ``seed`` that can be passed by keyword."""
+    try:
+        parameter = inspect.signature(factory).parameters.get("seed")
+    except (TypeError, ValueError):  # a builtin or C callable without a signature
+        return False
+    return parameter is not None and parameter.kind in (parameter.POSITIONAL_OR_KEYWORD, parameter.KEYWORD_ONLY)
+
+
+def load_plugin(spec: str, task: str, scene: str | None, root: str | os.PathLike | None = None,
+                seed: int = 0) -> PluginPredictor:
     """The predictor that plug-in ``spec`` builds for ``task`` and ``scene`` (None: a simulated env).
 
     The factory gets ``task``, ``scene``, that task's ``train`` and ``val`` windows (``replays.Windows``;
-    all five scenes' for ``scene`` None) and the resolved ``data_root`` (``pathlib.Path``).
+    all five scenes' for ``scene`` None), the resolved ``data_root`` (``pathlib.Path``) and, if it has a ``seed``
+    parameter, ``seed``.
     """
     factory = resolve_factory(spec)
     windows_of = ALL_SCENES if scene is None else scene
     train, val = (load_windows(task, windows_of, split, root) for split in ("train", "val"))
     call = f"{spec.partition(':')[2]}(task={task!r}, scene={scene!r}, ...)"
+    extra = {"seed": seed} if takes_seed(factory) else {}
     try:
-        model = factory(task=task, scene=scene, train=train, val=val, data_root=data_root(root))
+        model = factory(task=task, scene=scene, train=train, val=val, data_root=data_root(root), **extra)
     except (Exception, SystemExit) as err:
         keywords = f" (it is called with keywords {', '.join(FACTORY_KEYWORDS)})" if isinstance(err, TypeError) else ""
         raise PluginError(f"predictor {spec!r}: {call} raised {_describe(err)}{keywords}") from err

@@ -58,8 +58,8 @@ def make_predictor(name: str, task: str, scene: str, root=None, runs_dir: str | 
     ``cvm-s`` fits its heading noise on that task's training split. ``singular`` uses the checkpoint that
     ``resolve_checkpoint`` names; if there is none, ``train_missing`` trains it (resuming an interrupted
     run), otherwise ``MissingCheckpointError`` says how. ``package.module:name`` is a plug-in (``predictor.plugins``:
-    the factory gets the task, scene, training and validation windows and data root). Any other value is a
-    checkpoint file, or a folder holding ``<task>/<scene>/seed<seed>/best.pt``.
+    the factory gets the task, scene, training and validation windows and data root, and ``seed`` if it takes
+    one). Any other value is a checkpoint file, or a folder holding ``<task>/<scene>/seed<seed>/best.pt``.
     """
     if name == "cvm":
         return ConstantVelocity()
@@ -86,7 +86,7 @@ def make_predictor(name: str, task: str, scene: str, root=None, runs_dir: str | 
                 "`python -m st_sim evaluate` train it (its default)")
         return load_checkpoint_spec(spec, task)
     if is_plugin_spec(name):
-        return load_plugin(name, task, scene, root)
+        return load_plugin(name, task, scene, root, seed)
     path = Path(name)
     if path.is_dir():
         path = run_dir(path, task, scene, seed) / "best.pt"

@@ -52,6 +52,14 @@ def write_plugin(folder: Path, source: str, attr: str = "make") -> str:
     return f"{name}:{attr}"
 
 
+def test_a_factory_without_a_seed_parameter_is_called_without_one(plugin_dir: Path) -> None:
+    spec = write_plugin(plugin_dir, "class P:\n    def predict(self, obs, group, scene, num_samples):\n"
+                        "        return np.repeat(obs[:, None, -1:], num_samples, 1).repeat(12, 2)\n"
+                        "def make(task, scene, train, val, data_root):\n    return P()\n")
+    assert load_plugin(spec, *LIGHT, seed=3).predict(np.zeros((1, 8, 2)), np.zeros(1, np.int64), None, 2).shape \
+        == (1, 2, 12, 2)
+
+
 @pytest.fixture
 def plugin_dir(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
     monkeypatch.syspath_prepend(str(tmp_path))
@@ -67,23 +75,32 @@ def best_of_s(pred: np.ndarray, fut: np.ndarray) -> tuple[float, float]:
 def test_example_plugin_through_evaluate_scores_what_numpy_scores(tmp_path: Path,
                                                                   monkeypatch: pytest.MonkeyPatch) -> None:
     out = tmp_path / "res.json"
-    done = run_cli("evaluate", "--task", "stochastic", "--scenes", "eth", "hotel", "--predictor", KNN,
-                   "--runs", str(tmp_path / "runs"), "--json", str(out), "--quiet")
+    """The factory takes ``seed``, so ``--seeds 0 1`` builds it twice: each seed's row is the independent figure."""
+    done = run_cli("evaluate", "--task", "stochastic", "--scenes", "eth", "hotel", "--predictor", KNN, "--seeds", "0",
+                   "1", "--runs", str(tmp_path / "runs"), "--json", str(out), "--quiet")
     assert done.returncode == 0, done.stderr
     assert f"predictor `{KNN}`" in done.stdout and "| eth | 181 |" in done.stdout
     result = json.loads(out.read_text())
     assert result["predictor"] == KNN
     monkeypatch.syspath_prepend(str(REPO))
-    from examples.knn_predictor import make
+    from examples.knn_predictor import MAX_TRAIN_WINDOWS, make
     for scene in ("eth", "hotel"):
         train, val = (load_windows("stochastic", scene, split) for split in ("train", "val"))
         test = load_windows("stochastic", scene, "test")
-        model = make(task="stochastic", scene=scene, train=train, val=val, data_root=None)
-        ade, fde = best_of_s(model.predict(test.obs, test.group, None, 20), test.fut)
         row = result["scenes"][scene]
         assert row["samples"] == len(test), scene
-        assert abs(row["ade"] - ade) < 1e-4 and abs(row["fde"] - fde) < 1e-4, (scene, row["ade"], ade, row["fde"], fde)
-        assert row["stream_checked"], f"{scene}: the replay through the env must agree with the windows"
+        assert len(train) > MAX_TRAIN_WINDOWS, f"{scene}: the seed must choose a subsample for this test to mean much"
+        per_seed = []
+        for seed in (0, 1):
+            model = make(task="stochastic", scene=scene, train=train, val=val, data_root=None, seed=seed)
+            ade, fde = best_of_s(model.predict(test.obs, test.group, None, 20), test.fut)
+            cell = row["seeds"][str(seed)]
+            assert abs(cell["ade"] - ade) < 1e-4 and abs(cell["fde"] - fde) < 1e-4, (scene, seed, cell, ade, fde)
+            assert cell["stream_samples"] is not None, f"{scene}: the env's replay must agree with the windows"
+            per_seed.append(fde)
+        assert per_seed[0] != per_seed[1], f"{scene}: two seeds, two subsamples, two figures"
+        assert row["stream_checked"], scene
+        assert abs(row["fde"] - sum(per_seed) / 2) < 1e-4, (scene, row["fde"], per_seed)
 
 
 def test_example_plugin_drives_the_mpc_through_navigate(tmp_path: Path) -> None:

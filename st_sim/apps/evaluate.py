@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from predictor.plugins import PluginError, is_plugin_spec
+from predictor.plugins import PluginError, is_plugin_spec, resolve_factory, takes_seed
 from predictor.protocol import Predictor
 from replays.atomic import write_text_atomic
 from replays.constants import DOMAIN_TASKS
@@ -94,7 +94,8 @@ class Plan:
     scenes: dict[str, tuple[str, ...]]
     """task -> scenes (or domain pairs)"""
     seeds: tuple[int, ...] = (0,)
-    """training seeds of singular models (one row per scene: mean and sd over these)"""
+    """training seeds of singular models and of plug-ins whose factory takes ``seed`` (one row per scene: mean and
+    sd over these)"""
     runs: str = "runs"
     """training folder: ``runs/<task>/<scene>/seed<k>``; evaluations are kept in ``runs/evaluations``"""
     root: str | None = None
@@ -118,8 +119,13 @@ class Plan:
             if getattr(self, name) is not None:
                 object.__setattr__(self, name, str(Path(getattr(self, name)).expanduser().resolve()))
 
+    @property
+    def seeded_plugin(self) -> bool:
+        """A plug-in whose factory takes ``seed`` (resolving the spec imports it: a bad spec fails here)."""
+        return self.plugin and takes_seed(resolve_factory(self.predictor))
+
     def cells(self) -> list[tuple[str, str, int]]:
-        seeds = self.seeds if self.trained or Path(self.predictor).is_dir() else (0,)
+        seeds = self.seeds if self.trained or Path(self.predictor).is_dir() or self.seeded_plugin else (0,)
         return [(task, scene, seed) for task in self.tasks for scene in self.scenes[task] for seed in seeds]
 
     def missing_models(self) -> list[tuple[str, str, int]]:
@@ -151,14 +157,15 @@ class Plan:
             source = self.source(task, scene, seed)
             flags = ("-from8" if self.momentary_from_8 and task == "momentary" else "") + ("" if self.stream else
                                                                                           "-offline")
-            label = source_label(source) + flags
+            label = source_label(source) + (f"-seed{seed}" if self.seeded_plugin else "") + flags
             output = Path(self.runs) / "evaluations" / task / scene / f"{label}.json"
             rerun = None
             if self.rerun is not None:
                 base = Path(self.rerun)
                 rerun = str(base.with_name(f"{base.stem}_{task}_{scene}_seed{seed}.rrd"))
             jobs.append(Job(f"evaluate/{task}/{scene}/seed{seed}", "st_sim.apps.evaluate:evaluate_job",
-                            {"source": source, "task": task, "scene": scene, "root": self.root, "stream": self.stream,
+                            {"source": source, "task": task, "scene": scene, "seed": seed, "root": self.root,
+                             "stream": self.stream,
                              "momentary_from_8": self.momentary_from_8, "rerun_path": rerun, "output": str(output)},
                             str(output)))
         return jobs
@@ -214,13 +221,13 @@ def file_label(source: str) -> str:
 
 
 def evaluate_job(source: str, task: str, scene: str, root: str | None, stream: bool, momentary_from_8: bool,
-                 rerun_path: str | None, output: str) -> None:
+                 rerun_path: str | None, output: str, seed: int = 0) -> None:
     """Grid entry point: score one cell and write its ``SceneResult`` as JSON to ``output`` (compact: it holds the
-    per-sample errors)."""
+    per-sample errors); ``seed`` reaches a plug-in factory that takes one."""
     from predictor.registry import PREDICTOR_NAMES, load_checkpoint_spec, make_predictor
 
     named = source in PREDICTOR_NAMES or is_plugin_spec(source)  # a baseline, singular or a plug-in: not a file
-    predictor = make_predictor(source, task, scene, root) if named else load_checkpoint_spec(source, task)
+    predictor = make_predictor(source, task, scene, root, seed=seed) if named else load_checkpoint_spec(source, task)
     result = evaluate_scene(predictor, task, scene, None, momentary_from_8, root, stream=stream,
                             rerun_path=rerun_path)
     result.checkpoint = None if named else source
