@@ -4,6 +4,7 @@
     env = gym.make("STCrowd-Zara1-v0")                      # ZARA1 replayed from the recording
     env = gym.make("STCrowd-SimCrossing-v1")                # pymunk crowd, no data needed
     env = gym.make("STCrowd-Zara1-v0", ego=False, task="deterministic", predictor="cvm-s")
+    vec = gym.make_vec("STCrowd-SimCrossing-v1", num_envs=16)   # native vector env: one forecast call per step
 
 Replay and real-scene simulated ids need the ETH/UCY data root ($STCROWD_DATA or the user cache).
 """
@@ -22,6 +23,7 @@ for _scene in REPLAY_SCENES:
     register(
         id=f"STCrowd-{_scene}-v0",
         entry_point="envs.replay_env:ReplayCrowdEnv",
+        vector_entry_point="envs.vector_env:replay_vector_env",
         kwargs={"scene": _scene.lower()},
         max_episode_steps=MAX_EPISODE_STEPS,
     )
@@ -31,6 +33,7 @@ for _layout in SIM_LAYOUTS + REPLAY_SCENES:
     register(
         id=f"STCrowd-Sim{_layout}-v{SIM_VERSION}",
         entry_point="envs.sim_env:SimCrowdEnv",
+        vector_entry_point="envs.vector_env:sim_vector_env",
         kwargs={"layout": _layout.lower()},
         max_episode_steps=MAX_EPISODE_STEPS,
     )

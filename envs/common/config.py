@@ -6,6 +6,7 @@ Both dataclasses check every field on construction: a wrong type or a value outs
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, fields
 from numbers import Real
 
@@ -65,6 +66,9 @@ class RewardWeights:
     """per step the ego stands on a non-walkable or off-image pixel"""
     time: float = -0.1
     """per step (0.4 s)"""
+    discomfort: float = 0.0
+    """per metre that the nearest pedestrian's body is inside ``EnvConfig.discomfort_m`` of the ego's body, per step
+    (CrowdNav's discomfort term; its setting, factor 10 over a 0.4 s step, is -4.0; 0: off)"""
 
     def __post_init__(self) -> None:
         check_fields(self, {f.name: Interval(-WEIGHT_LIMIT, WEIGHT_LIMIT) for f in fields(self)})
@@ -89,6 +93,12 @@ class EnvConfig:
     arena_margin_m: float = 1.0
     """replay arena = bounding box of the recorded positions grown by this margin, within the scene's image;
     the ego stays inside [m], [0, 100]"""
+    sensor_range_m: float = math.inf
+    """the ego senses pedestrians whose centre is within this distance of its own; the others' observation rows are
+    empty (masks False) and they are not forecast; inf: everyone (spectator envs always see everyone) [m], (0, inf]"""
+    discomfort_m: float = 0.25
+    """gap between the ego's body and a pedestrian's (a disc of ``pedestrian_radius_m``) below which the
+    ``discomfort`` reward part counts [m], [0, 5]"""
     reward: RewardWeights = field(default_factory=RewardWeights)
     """weights of the reward parts"""
 
@@ -98,7 +108,8 @@ class EnvConfig:
             "max_speed_mps": Interval(high=20.0, **positive), "ego_radius_m": Interval(high=5.0, **positive),
             "pedestrian_radius_m": Interval(high=5.0, **positive), "goal_radius_m": Interval(high=100.0, **positive),
             "spawn_clearance_m": Interval(0.0, 100.0), "goal_min_fraction": Interval(0.0, 1.0),
-            "arena_margin_m": Interval(0.0, 100.0),
+            "arena_margin_m": Interval(0.0, 100.0), "sensor_range_m": Interval(high=math.inf, **positive),
+            "discomfort_m": Interval(0.0, 5.0),
         })
         if not isinstance(self.reward, RewardWeights):
             raise ConfigError(f"EnvConfig.reward={self.reward!r}: expected a RewardWeights")

@@ -13,6 +13,10 @@ while it goes on. On a pedestrian collision ``info["at_fault"]`` says whether th
 The env never ends an episode for time: "timeout" is the ``TimeLimit`` wrapper's truncation (``truncated``
 with ``termination`` None), like the end of a replay's recording.
 
+``reset`` and ``step`` each come in two halves around the predictor call, ``begin_reset``/``end_reset`` and
+``begin_step``/``end_step`` with ``histories_to_predict`` in between, so that ``envs.vector_env`` can step many
+envs and forecast for all of them in one batched call; a single env runs the halves back to back.
+
 Input contract (both vectorisation modes of gymnasium): every check of an argument, option or action runs
 before anything changes, and raises the env's own ``envs.common.errors.EnvInputError`` (a ValueError) or
 ``NeedsResetError``. A sync vector env stays usable after such an error; gymnasium's async vector env
@@ -22,6 +26,7 @@ vector env must be closed and made again after an error.
 
 from __future__ import annotations
 
+import math
 import os
 from collections.abc import Mapping
 from pathlib import Path
@@ -42,7 +47,7 @@ from replays.constants import POSITION_LIMIT_M, STEP_S, T_PRED
 from replays.scenes import Scene
 
 EGO_FIELDS = ("x_m", "y_m", "vx_mps", "vy_mps", "goal_x_m", "goal_y_m")  # layout of obs["ego"]
-REWARD_PARTS = ("progress", "goal", "pedestrian_collision", "wall_collision", "off_map", "time")
+REWARD_PARTS = ("progress", "goal", "pedestrian_collision", "wall_collision", "off_map", "time", "discomfort")
 WEIGHT_OF: dict[str, str] = {"pedestrian_collision": "collision", "wall_collision": "collision"}
 """reward parts weighted by a ``RewardWeights`` field of another name (both collision kinds share its weight)"""
 TERMINATIONS: tuple[str, ...] = ("pedestrian_collision", "wall_collision", "goal")
@@ -92,6 +97,9 @@ class CrowdEnv(gym.Env):
         self.ego_max_accel_mps2 = float("inf")
         """how fast the ego's velocity can change [m/s^2]; inf: it moves at the commanded velocity at once"""
         self._obs: dict[str, np.ndarray] | None = None
+        self._history: tuple[np.ndarray, np.ndarray] | None = None  # TrackBuffer.history() of the newest frame
+        self._rows = np.zeros(0, np.int64)  # observation rows to forecast, chosen by the begin_* half
+        self._previous_xy_m = np.zeros(2)  # the ego before this step
         self._at_fault: bool | None = None  # on a pedestrian collision: was the robot at fault
         self._episode_over = False  # terminated, or the world ended: step needs a reset first
         self.anchors: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # (ids, prototype, adapted)
@@ -100,6 +108,15 @@ class CrowdEnv(gym.Env):
         """recordings this env has written (a step after ``close`` starts a new, numbered one)"""
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
+        self.begin_reset(seed=seed, options=options)
+        return self.end_reset(*self._predict(self.histories_to_predict()))
+
+    def step(self, action: np.ndarray):
+        self.begin_step(action)
+        return self.end_step(*self._predict(self.histories_to_predict()))
+
+    def begin_reset(self, *, seed: int | None = None, options: dict | None = None) -> None:
+        """First half of ``reset``: check the arguments, start the episode's world (no prediction yet)."""
         options = self._checked_options(options)
         if seed is not None and (isinstance(seed, bool | np.bool_) or not isinstance(seed, int | np.integer)
                                  or seed < 0):
@@ -114,12 +131,27 @@ class CrowdEnv(gym.Env):
             require_on_map(self.scene, self.ego_xy_m, "the ego's start", walkable=True)
             require_on_map(self.scene, self.goal_m, "the ego's goal", walkable=True)
             self.metrics.update_ego(False, self.ego_xy_m, self.tracks.now.xy_m)
-        self._obs = self._observe()
+        self._sense()
+
+    def end_reset(self, predicted: np.ndarray, anchors: tuple[np.ndarray, np.ndarray] | None
+                  ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+        """Second half of ``reset``: the first observation and info, given ``predict_futures``'s output for
+        ``histories_to_predict()``."""
+        self._obs = self._observe(predicted, anchors)
         info = self._info(dict.fromkeys(REWARD_PARTS, 0.0), None)
         self._log_rerun(info, 0.0)
         return self._obs, info
 
-    def step(self, action: np.ndarray):
+    def begin_step(self, action: np.ndarray) -> None:
+        """First half of ``step``: check the action, advance the world 0.4 s (no prediction yet)."""
+        velocity = self.check_step(action)
+        self._previous_xy_m = self.ego_xy_m.copy()
+        self.tracks.push(self._step_world(velocity))
+        self._sense()
+
+    def check_step(self, action: Any) -> np.ndarray | None:
+        """The ego velocity (2,) m/s that ``action`` commands (None in spectator mode), after every check that
+        ``step`` makes before anything changes; raises ``EnvInputError`` or ``NeedsResetError``."""
         if self._obs is None:
             raise NeedsResetError(f"{self.where}: call reset() before step()")
         if self._episode_over:
@@ -129,10 +161,13 @@ class CrowdEnv(gym.Env):
         if self.ego and not on_image(self.scene, self.ego_xy_m):
             raise EgoPlacementError(f"{self.where}: the ego is at {self.ego_xy_m.tolist()} m, off the scene's "
                                     "image; it can only be moved there by assigning ego_xy_m")
-        previous_xy_m = self.ego_xy_m.copy()
-        self.tracks.push(self._step_world(velocity if self.ego else None))
-        self._obs = self._observe()
-        parts = self._reward_parts(previous_xy_m) if self.ego else dict.fromkeys(REWARD_PARTS, 0.0)
+        return velocity if self.ego else None
+
+    def end_step(self, predicted: np.ndarray, anchors: tuple[np.ndarray, np.ndarray] | None):
+        """Second half of ``step``: observation, reward, terminated, truncated and info, given
+        ``predict_futures``'s output for ``histories_to_predict()``."""
+        self._obs = self._observe(predicted, anchors)
+        parts = self._reward_parts(self._previous_xy_m) if self.ego else dict.fromkeys(REWARD_PARTS, 0.0)
         reward = float(sum(getattr(self.cfg.reward, WEIGHT_OF.get(name, name)) * value
                            for name, value in parts.items()))
         termination = next((name for name in TERMINATIONS if parts[name]), None)
@@ -141,6 +176,24 @@ class CrowdEnv(gym.Env):
         info = self._info(parts, termination)
         self._log_rerun(info, reward)
         return self._obs, reward, terminated, truncated, info
+
+    def _sense(self) -> None:
+        """What the ego senses of the newest frame: the histories (pedestrians beyond ``sensor_range_m`` emptied)
+        and the rows to forecast (``_predicted_rows`` among the sensed)."""
+        history, mask = self.tracks.history()
+        rows = self._predicted_rows()
+        if self.ego and math.isfinite(self.cfg.sensor_range_m):
+            far = np.linalg.norm(history[:, -1] - self.ego_xy_m, axis=1) > self.cfg.sensor_range_m
+            history[far], mask[far] = 0.0, False
+            rows = rows[~far[rows]]
+        self._history, self._rows = (history, mask), rows
+
+    def histories_to_predict(self) -> np.ndarray:
+        """(P, T_obs, 2) float32 metres: the histories of the agents to forecast now (after a ``begin_*``)."""
+        return self._history[0][self._rows]
+
+    def _predict(self, histories_m: np.ndarray) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray] | None]:
+        return predict_futures(self.predictor, histories_m, self.scene, self.num_samples)
 
     def close(self) -> None:
         """Finish the Rerun recording, if any; a later step starts a new, numbered one."""
@@ -202,11 +255,11 @@ class CrowdEnv(gym.Env):
         self._check_options(options)
         return options
 
-    def _observe(self) -> dict[str, np.ndarray]:
-        """Observation of the newest frame; runs the predictor once for every agent with T_obs frames."""
-        history, history_mask = self.tracks.history()
-        rows = self._predicted_rows()
-        predicted, anchors = predict_futures(self.predictor, history[rows], self.scene, self.num_samples)
+    def _observe(self, predicted: np.ndarray, anchors: tuple[np.ndarray, np.ndarray] | None
+                 ) -> dict[str, np.ndarray]:
+        """Observation of the newest frame, with ``predicted`` (P, S, 12, 2) futures of the rows chosen by the
+        ``begin_*`` half (``_predicted_rows``: every agent with T_obs frames by default)."""
+        (history, history_mask), rows = self._history, self._rows
         self.anchors = None if anchors is None else (self.tracks.row_ids[rows], *anchors)
         self.metrics.update_predictions(self.tracks, self.tracks.row_ids[rows], predicted)
         futures = np.zeros((self.n_max, self.num_samples, T_PRED, 2), np.float32)
@@ -235,10 +288,13 @@ class CrowdEnv(gym.Env):
             hit = frame.xy_m[touching(self.ego_xy_m, frame.xy_m, reach)]
             self._at_fault = robot_at_fault(self.ego_xy_m, self.ego_velocity_mps, hit)
         walkable = bool(self.scene.is_walkable(self.ego_xy_m))
+        nearest_m = np.linalg.norm(frame.xy_m - self.ego_xy_m, axis=1).min() if len(frame.xy_m) else np.inf
+        gap_m = nearest_m - self.cfg.ego_radius_m - self.cfg.pedestrian_radius_m
         parts = {"progress": float(np.linalg.norm(self.goal_m - previous_xy_m)) - distance_m,
                  "goal": float(distance_m <= self.cfg.goal_radius_m),
                  "pedestrian_collision": float(pedestrian), "wall_collision": float(wall and not pedestrian),
-                 "off_map": float(not walkable), "time": 1.0}
+                 "off_map": float(not walkable), "time": 1.0,
+                 "discomfort": float(max(0.0, self.cfg.discomfort_m - gap_m))}
         self.metrics.update_ego(pedestrian or wall, self.ego_xy_m, frame.xy_m)
         return parts
 

@@ -86,12 +86,13 @@ def _load_singular(name: str) -> Any:
         ) from err
 
 
-def predict_futures(model: Any, history_m: np.ndarray, scene: Scene | None, num_samples: int
-                    ) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray] | None]:
-    """One batched call for all agents of one scene moment (they share one group id).
+def predict_futures(model: Any, history_m: np.ndarray, scene: Scene | None, num_samples: int,
+                    group: np.ndarray | None = None) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray] | None]:
+    """One batched call for all agents of one scene moment, or of several (a vector env's sub-envs).
 
     Args:
         history_m: (P, T_obs, 2) float32 metres, world frame.
+        group: (P,) int64 scene moment of each agent (agents interact only within one); None: all in one.
 
     Returns:
         futures: (P, S, 12, 2) float32 metres, clipped to +-POSITION_LIMIT_M.
@@ -104,7 +105,7 @@ def predict_futures(model: Any, history_m: np.ndarray, scene: Scene | None, num_
     """
     if len(history_m) == 0:
         return np.zeros((0, num_samples, T_PRED, 2), np.float32), None
-    group = np.zeros(len(history_m), np.int64)
+    group = np.zeros(len(history_m), np.int64) if group is None else np.asarray(group, np.int64)
     anchors = None
     if callable(getattr(model, "predict_detailed", None)):
         detail = model.predict_detailed(history_m, group, scene, num_samples)

@@ -1,0 +1,152 @@
+"""Native vector envs: N crowd envs stepped together, their forecasts made in one batched predictor call.
+
+    import gymnasium as gym, envs
+    vec = gym.make_vec("STCrowd-SimCrossing-v1", num_envs=16, vectorization_mode="vector_entry_point")
+    obs, info = vec.reset(seed=0)                      # sub-env i is reset with seed 0 + i
+    obs, reward, terminated, truncated, info = vec.step(vec.action_space.sample())
+
+Every STCrowd id has this vector entry point (``make_vec``'s default mode for them). The sub-envs are the id's own
+env class, built with the same arguments and sharing one predictor. A step checks every action first (a bad one
+raises before any sub-env moves), advances every sub-env's world 0.4 s, forecasts for the agents of all sub-envs in
+one call (each sub-env a group of its own, so agents of different sub-envs never interact in the predictor), then
+completes every sub-env's observation, reward and info. Results equal those of ``SyncVectorEnv`` over
+``gym.make(id)`` envs with the same seeds (the futures up to the rounding of a larger batch); the time limit
+truncates as ``TimeLimit`` does, infos are batched as gymnasium's vector envs batch them, and autoreset is gymnasium's
+default (``AutoresetMode.NEXT_STEP``: the step after an episode ended resets that sub-env, ignores its action and
+returns its first observation with reward 0).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from typing import Any, ClassVar
+
+import numpy as np
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space, concatenate, create_empty_array, iterate
+
+from envs.common.crowd_env import CrowdEnv
+from envs.common.errors import EnvInputError
+from envs.common.predictors import predict_futures
+
+
+class CrowdVectorEnv(VectorEnv):
+    """``num_envs`` STCrowd envs made by ``make_env(**kwargs)``, forecast together.
+
+    Args:
+        make_env: an env class (``ReplayCrowdEnv``, ``SimCrowdEnv``) or factory taking the id's keyword arguments.
+        num_envs: number of sub-envs, >= 1.
+        max_episode_steps: steps after which a sub-env's episode is truncated (None: never), as ``TimeLimit``.
+        kwargs: the env's arguments (``predictor``, ``task``, ``pedestrians`` ...), the same for every sub-env.
+    """
+
+    metadata: ClassVar[dict[str, Any]] = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": ["rgb_array"]}
+
+    def __init__(self, make_env: Callable[..., CrowdEnv], num_envs: int = 1, max_episode_steps: int | None = None,
+                 **kwargs: Any):
+        if isinstance(num_envs, bool) or not isinstance(num_envs, int | np.integer) or num_envs < 1:
+            raise EnvInputError(f"num_envs={num_envs!r}: expected an int >= 1")
+        if max_episode_steps is not None and (isinstance(max_episode_steps, bool) or
+                                              not isinstance(max_episode_steps, int) or max_episode_steps < 1):
+            raise EnvInputError(f"max_episode_steps={max_episode_steps!r}: expected None or an int >= 1")
+        if kwargs.get("rerun") is not None:
+            raise EnvInputError("rerun=: a vector env does not record; record one env made with gym.make(..., rerun=)")
+        first = make_env(**kwargs)
+        self.envs: list[CrowdEnv] = [first] + [make_env(**{**kwargs, "predictor": first.predictor})
+                                               for _ in range(num_envs - 1)]
+        self.num_envs, self.max_episode_steps = int(num_envs), max_episode_steps
+        self.predictor, self.scene, self.num_samples = first.predictor, first.scene, first.num_samples
+        self.render_mode = first.render_mode
+        self.single_observation_space, self.single_action_space = first.observation_space, first.action_space
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
+        self._elapsed = np.zeros(self.num_envs, np.int64)
+        self._autoreset = np.zeros(self.num_envs, bool)
+
+    def reset(self, *, seed: int | Sequence[int | None] | None = None, options: dict | None = None):
+        """Reset every sub-env: ``seed`` an int (sub-env i gets seed + i), a list of one per sub-env, or None."""
+        if seed is None or (isinstance(seed, int | np.integer) and not isinstance(seed, bool)):
+            seeds = [None if seed is None else int(seed) + i for i in range(self.num_envs)]
+        elif isinstance(seed, Sequence) and not isinstance(seed, str) and len(seed) == self.num_envs:
+            seeds = list(seed)
+        else:
+            raise EnvInputError(f"seed={seed!r}: expected None, an int or a list of {self.num_envs} seeds")
+        for env, env_seed in zip(self.envs, seeds, strict=True):
+            env.begin_reset(seed=env_seed, options=options)
+        outputs = [env.end_reset(*prediction) for env, prediction in zip(self.envs, self._predict_all(), strict=True)]
+        self._elapsed[:] = 0
+        self._autoreset[:] = False
+        infos: dict[str, Any] = {}
+        for i, (_, info) in enumerate(outputs):
+            infos = self._add_info(infos, info, i)
+        return self._batch([obs for obs, _ in outputs]), infos
+
+    def step(self, actions: Any):
+        """Step every sub-env (or reset those whose episode ended at the previous step) and forecast once."""
+        actions = np.asarray(actions)
+        if actions.shape != self.action_space.shape:
+            raise EnvInputError(f"actions must have shape {self.action_space.shape} (num_envs, 2), got {actions.shape}")
+        per_env = list(iterate(self.action_space, actions))
+        for i, env in enumerate(self.envs):  # every check before anything moves
+            if not self._autoreset[i]:
+                env.check_step(per_env[i])
+        for i, env in enumerate(self.envs):
+            if self._autoreset[i]:
+                env.begin_reset()
+            else:
+                env.begin_step(per_env[i])
+        observations, infos = [], {}
+        rewards = np.zeros(self.num_envs)
+        terminations = np.zeros(self.num_envs, bool)
+        truncations = np.zeros(self.num_envs, bool)
+        for i, (env, prediction) in enumerate(zip(self.envs, self._predict_all(), strict=True)):
+            if self._autoreset[i]:
+                obs, info = env.end_reset(*prediction)
+                self._elapsed[i] = 0
+            else:
+                obs, rewards[i], terminations[i], truncations[i], info = env.end_step(*prediction)
+                self._elapsed[i] += 1
+                if self.max_episode_steps is not None and self._elapsed[i] >= self.max_episode_steps:
+                    truncations[i] = True
+            observations.append(obs)
+            infos = self._add_info(infos, info, i)
+        self._autoreset = terminations | truncations
+        return self._batch(observations), rewards, terminations, truncations, infos
+
+    def render(self) -> tuple[np.ndarray | None, ...]:
+        """Every sub-env's ``render()`` (an RGB array each with ``render_mode="rgb_array"``)."""
+        return tuple(env.render() for env in self.envs)
+
+    def close_extras(self, **kwargs: Any) -> None:
+        for env in self.envs:
+            env.close()
+
+    def _predict_all(self) -> list[tuple[np.ndarray, tuple[np.ndarray, np.ndarray] | None]]:
+        """One predictor call for the agents every sub-env asked for; (futures, anchors) per sub-env."""
+        histories = [env.histories_to_predict() for env in self.envs]
+        sizes = [len(h) for h in histories]
+        group = np.repeat(np.arange(self.num_envs), sizes)
+        futures, anchors = predict_futures(self.predictor, np.concatenate(histories), self.scene, self.num_samples,
+                                           group)
+        cuts = np.cumsum(sizes)[:-1]
+        per_env_anchors = (list(zip(*(np.split(a, cuts) for a in anchors), strict=True)) if anchors is not None
+                           else [None] * self.num_envs)
+        return list(zip(np.split(futures, cuts), per_env_anchors, strict=True))
+
+    def _batch(self, observations: list[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
+        out = create_empty_array(self.single_observation_space, self.num_envs)
+        return concatenate(self.single_observation_space, observations, out)
+
+
+def replay_vector_env(num_envs: int = 1, max_episode_steps: int | None = None, **kwargs: Any) -> CrowdVectorEnv:
+    """Vector entry point of the replay ids (``STCrowd-<Scene>-v0``)."""
+    from envs.replay_env import ReplayCrowdEnv
+
+    return CrowdVectorEnv(ReplayCrowdEnv, num_envs, max_episode_steps, **kwargs)
+
+
+def sim_vector_env(num_envs: int = 1, max_episode_steps: int | None = None, **kwargs: Any) -> CrowdVectorEnv:
+    """Vector entry point of the simulated ids (``STCrowd-Sim<Layout>-v1``)."""
+    from envs.sim_env import SimCrowdEnv
+
+    return CrowdVectorEnv(SimCrowdEnv, num_envs, max_episode_steps, **kwargs)

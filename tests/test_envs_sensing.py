@@ -1,0 +1,69 @@
+"""The ego's sensor range (``EnvConfig.sensor_range_m``) and the discomfort reward part, as properties over seeds."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import envs  # noqa: F401  (registers the ids)
+from envs.common.config import ConfigError, EnvConfig, RewardWeights
+
+STEPS = 25
+
+
+@pytest.mark.parametrize("env_id", ["STCrowd-SimCrossing-v1", "STCrowd-Zara1-v0"])
+@settings(max_examples=4, deadline=None)
+@given(seed=st.integers(0, 10_000), range_m=st.floats(0.5, 8.0))
+def test_only_pedestrians_in_range_are_observed_and_forecast(env_id: str, seed: int, range_m: float) -> None:
+    near = gym.make(env_id, predictor="cvm", config=EnvConfig(sensor_range_m=range_m))
+    full = gym.make(env_id, predictor="cvm")
+    rng = np.random.default_rng(seed)
+    (obs, info), (obs_full, _) = near.reset(seed=seed), full.reset(seed=seed)
+    for t in range(STEPS):
+        ego = obs["ego"][:2]
+        distance = np.linalg.norm(obs_full["history"][:, -1] - ego, axis=1)
+        present = obs_full["history_mask"][:, -1]
+        sensed = present & (distance <= range_m)
+        assert np.array_equal(obs["history_mask"][:, -1], sensed), f"[step {t}] sensed rows"
+        assert not obs["history_mask"][~sensed].any() and not obs["history"][~sensed].any(), f"[step {t}] far rows"
+        assert np.array_equal(obs["futures_mask"], obs_full["futures_mask"] & sensed), f"[step {t}] forecast rows"
+        assert np.array_equal(obs["futures"][obs["futures_mask"]], obs_full["futures"][obs["futures_mask"]])
+        assert np.array_equal(info["predicted_ids"] >= 0, obs["futures_mask"])
+        action = rng.uniform(-1.5, 1.5, 2).astype(np.float32)
+        (obs, _, end, cut, info), (obs_full, *_rest) = near.step(action), full.step(action)
+        if end or cut:
+            break
+
+
+@settings(max_examples=4, deadline=None)
+@given(seed=st.integers(0, 10_000), weight=st.floats(-20.0, -0.1), discomfort_m=st.floats(0.0, 2.0))
+def test_discomfort_part_is_the_gap_shortfall_and_weighs_into_the_reward(seed: int, weight: float,
+                                                                         discomfort_m: float) -> None:
+    config = EnvConfig(discomfort_m=discomfort_m)
+    env = gym.make("STCrowd-Zara1-v0", predictor="cvm", config=config)
+    weighted = gym.make("STCrowd-Zara1-v0", predictor="cvm",
+                        config=EnvConfig(discomfort_m=discomfort_m, reward=RewardWeights(discomfort=weight)))
+    rng = np.random.default_rng(seed)
+    env.reset(seed=seed), weighted.reset(seed=seed)
+    reach = config.ego_radius_m + config.pedestrian_radius_m
+    for t in range(STEPS):
+        action = rng.uniform(-1.5, 1.5, 2).astype(np.float32)
+        obs, reward, end, cut, info = env.step(action)
+        _, reward_weighted, *_ = weighted.step(action)
+        people = obs["history"][obs["history_mask"][:, -1], -1]
+        gap = np.linalg.norm(people - obs["ego"][:2], axis=1).min() - reach if len(people) else np.inf
+        part = info["reward_parts"]["discomfort"]
+        assert part == pytest.approx(max(0.0, discomfort_m - gap), abs=1e-5), f"[step {t}]"
+        assert reward_weighted - reward == pytest.approx(weight * part, abs=1e-9), f"[step {t}]"
+        if end or cut:
+            break
+
+
+@pytest.mark.parametrize("field, value", [("sensor_range_m", 0.0), ("sensor_range_m", -1.0), ("discomfort_m", -0.1),
+                                          ("discomfort_m", float("nan"))])
+def test_sensing_fields_are_range_checked(field: str, value: float) -> None:
+    with pytest.raises(ConfigError, match=field):
+        EnvConfig(**{field: value})

@@ -1,0 +1,93 @@
+"""Native vector envs (``envs.vector_env``): the same episodes as gymnasium's ``SyncVectorEnv`` over single envs,
+step by step and through autoresets, with one batched forecast per step."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.envs.registration import registry
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import envs  # noqa: F401  (registers the ids)
+from envs import STCROWD_IDS
+from envs.common.errors import EnvInputError
+
+CASES = {  # id -> extra env arguments: SingularTrajectory in one (the batched call that matters), CVM-S elsewhere
+    "STCrowd-SimCrossing-v1": {},
+    "STCrowd-Zara1-v0": {"predictor": "cvm-s"},
+    "STCrowd-Univ-v0": {"pedestrians": "reactive", "predictor": "cvm-s"},
+}
+SHORT = 12  # steps per episode, so that every run goes through autoresets
+
+
+def make_pair(env_id: str, num_envs: int, **kwargs):
+    vec = gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point", max_episode_steps=SHORT,
+                       **kwargs)
+    sync = gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="sync", max_episode_steps=SHORT, **kwargs)
+    return vec, sync
+
+
+def assert_same_step(ours, theirs, where: str) -> None:
+    obs, obs_sync = ours[0], theirs[0]
+    for key in obs_sync:
+        if key == "futures":  # one larger predictor batch: float rounding only
+            np.testing.assert_allclose(obs[key], obs_sync[key], rtol=0, atol=1e-4, err_msg=f"{where} {key}")
+        else:
+            assert np.array_equal(obs[key], obs_sync[key]), f"{where}: {key}"
+    for index, name in ((1, "reward"), (2, "terminated"), (3, "truncated"))[:len(ours) - 2]:  # none after a reset
+        assert np.array_equal(ours[index], theirs[index]), f"{where}: {name} {ours[index]} vs {theirs[index]}"
+    info, info_sync = ours[-1], theirs[-1]
+    assert info.keys() == info_sync.keys(), where
+    for key in ("agent_ids", "predicted_ids", "termination", "at_fault", "frame"):
+        assert same(info[key], info_sync[key]), f"{where}: info[{key!r}] {info[key]} vs {info_sync[key]}"
+
+
+def same(a, b) -> bool:
+    """Equal values, element by element through object arrays (which hold None, text or arrays)."""
+    if isinstance(a, np.ndarray) and a.dtype == object:
+        return a.shape == b.shape and all(same(x, y) for x, y in zip(a.ravel(), b.ravel(), strict=True))
+    return bool(np.array_equal(a, b)) if isinstance(a, np.ndarray) or isinstance(b, np.ndarray) else a == b
+
+
+@pytest.mark.parametrize("env_id", CASES)
+@settings(max_examples=2, deadline=None)
+@given(seed=st.integers(0, 10_000), num_envs=st.integers(1, 4))
+def test_vector_env_equals_sync_vector_env_step_by_step(env_id: str, seed: int, num_envs: int) -> None:
+    vec, sync = make_pair(env_id, num_envs, **CASES[env_id])
+    rng = np.random.default_rng(seed)
+    ours, theirs = vec.reset(seed=seed), sync.reset(seed=seed)
+    assert_same_step((ours[0], ours[1]), (theirs[0], theirs[1]), "reset")
+    ends = 0
+    for t in range(2 * SHORT + 3):
+        actions = rng.uniform(-1.6, 1.6, (num_envs, 2)).astype(np.float32)
+        ours, theirs = vec.step(actions), sync.step(actions)
+        assert_same_step(ours, theirs, f"seed {seed}, step {t}")
+        ends += int((ours[2] | ours[3]).sum())
+    assert ends >= num_envs, "every sub-env ends an episode (the time limit) and is reset"
+    vec.close(), sync.close()
+
+
+def test_a_bad_action_in_one_sub_env_moves_none_of_them() -> None:
+    vec, sync = make_pair("STCrowd-SimCrossing-v1", 3)
+    vec.reset(seed=1), sync.reset(seed=1)
+    bad = np.zeros((3, 2), np.float32)
+    bad[2, 0] = np.nan
+    with pytest.raises(EnvInputError, match="finite"):
+        vec.step(bad)
+    with pytest.raises(EnvInputError, match="shape"):
+        vec.step(np.zeros((2, 2), np.float32))
+    good = np.full((3, 2), 0.5, np.float32)
+    assert_same_step(vec.step(good), sync.step(good), "after the refused actions")
+
+
+@pytest.mark.parametrize("env_id", STCROWD_IDS)
+def test_every_id_has_a_native_vector_entry_point(env_id: str) -> None:
+    assert registry[env_id].vector_entry_point is not None
+
+
+@pytest.mark.parametrize("kwargs, match", [({"num_envs": 0}, "num_envs"), ({"num_envs": 2, "rerun": "x.rrd"}, "rerun")])
+def test_vector_env_arguments_are_checked(kwargs: dict, match: str) -> None:
+    with pytest.raises(EnvInputError, match=match):
+        gym.make_vec("STCrowd-SimCrossing-v1", vectorization_mode="vector_entry_point", predictor="cvm", **kwargs)
