@@ -12,7 +12,7 @@ from functools import cache
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from replays.scenes import SCENE_NAMES
@@ -51,6 +51,17 @@ def test_no_overlap_or_wall_intrusion_beyond_the_bounds_at_any_step(layout: str,
         f"{where}: overlap {run.max_overlap_m:.4f} m at step {run.overlap_step}"
     assert run.max_wall_m <= WALL_BOUND_M, f"{where}: wall intrusion {run.max_wall_m:.4f} m at step {run.wall_step}"
     assert run.escapes == 0, f"{where}: {run.escapes} pedestrians left the walkable map"
+
+
+@settings(max_examples=4, deadline=None)
+@given(variant=st.sampled_from(VARIANTS), seed=st.integers(0, 2**32 - 1))
+@example(variant="ego", seed=23)  # found by benchmarks/contacts.py: a 17.7 cm overlap at the first step
+def test_a_jammed_ring_round_a_periodic_corridor_keeps_the_bounds(variant: str, seed: int) -> None:
+    """The densest crowd of the periodic corridor starts at rest and all walk one way: a queue with no leader,
+    whose jam outlasted the safety net's rounds until both bodies of every pair still closing stood still."""
+    run = measure(layout_named("periodic_corridor"), variant, 500, seed, steps=3)
+    assert run.max_overlap_m <= OVERLAP_BOUND_M, f"seed {seed}: overlap {run.max_overlap_m:.4f} m"
+    assert run.max_wall_m <= WALL_BOUND_M, f"seed {seed}: wall intrusion {run.max_wall_m:.4f} m"
 
 
 @settings(max_examples=60, deadline=None)

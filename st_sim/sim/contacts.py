@@ -7,8 +7,9 @@ that would overrun the gap. Overlapping pairs may not close further and open at 
 substep. The correction is split equally between two pedestrians, or taken wholly by a pedestrian at a
 wall; a few over-relaxed Jacobi sweeps settle bodies with several neighbours. Where they do not settle
 (a dense jam), the bodies still closing a gap first give up their own approach along the contact normal
-(they slide past each other), and those still closing after that stand still for the substep. pymunk
-resolves the rest.
+(they slide past each other), and those still closing after that stand still for the substep; where a queue
+has no leader (a ring round a periodic corridor) both bodies of every constraint still closing stand still.
+pymunk resolves the rest.
 """
 
 from __future__ import annotations
@@ -141,6 +142,15 @@ class Constraints:
             frozen = np.zeros(n + 1, bool)
             frozen[bodies.reshape(-1, 2)[stuck].ravel()[slot_gives[stuck][:, 1::2].ravel()]] = True
             v[np.concatenate([frozen, frozen])] = 0.0
+        else:  # a queue with no leader (a ring round a periodic corridor) outlasts the rounds: both bodies of
+            # every constraint still closing stand still, until none closes (each round freezes more bodies)
+            frozen = np.zeros(n + 1, bool)
+            while (stuck := (v[slots].reshape(-1, 4) * coef).sum(axis=1) > no_closer).any():
+                newly = bodies.reshape(-1, 2)[stuck].ravel()[slot_gives[stuck][:, ::2].ravel()]
+                if frozen[newly].all():
+                    break  # only bodies that may not be slowed (the ego) still close: outside the guarantee
+                frozen[newly] = True
+                v[np.concatenate([frozen, frozen])] = 0.0
         return np.stack([v[:n], v[n + 1: 2 * n + 1]], axis=-1)
 
 
