@@ -84,3 +84,13 @@ def test_a_simulated_env_has_no_pedestrian_mode() -> None:
     with pytest.raises(ValueError, match="only the replays"):
         run_navigation(NavRun("STCrowd-SimCorridor-v1", "straight", "none", episodes=1, pedestrians="reactive"),
                        progress=False)
+
+
+@pytest.mark.parametrize("predictor", ["linear", "cvm-s"])
+def test_navigate_takes_every_baseline_predictor(tmp_path: Path, predictor: str) -> None:
+    """The open/closed-loop study drives the MPC with the least-squares line too (it once was refused)."""
+    out = tmp_path / "nav.json"
+    assert main(["navigate", "--env", "STCrowd-Zara1-v0", "--policy", "mpc", "--predictor", predictor,
+                 "--pedestrians", "reactive", "--episodes", "1", "--quiet", "--json", str(out)]) == 0
+    run = json.loads(out.read_text())
+    assert run["predictor"] == predictor and len(run["episodes"]) == 1

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 import numpy as np
 
 from predictor.plugins import is_plugin_spec
-from st_sim.apps.navigation.predictors import PREDICTORS
+from st_sim.apps.navigation.predictors import NAMES
 
 if TYPE_CHECKING:
     from st_sim.apps.navigation.world import NavWorld
@@ -43,15 +43,15 @@ class Planner(Protocol):
 
 
 def make_planner(name: str, world: NavWorld, predictor: str = "singular", **options: Any) -> Planner:
-    """Build planner ``name`` for an env's ``world``; ``predictor`` is a name of ``PREDICTORS`` or a plug-in
+    """Build planner ``name`` for an env's ``world``; ``predictor`` is a name of ``NAMES`` or a plug-in
     ``package.module:name`` (the env runs it), and "none" means the futures are not used.
 
     ``options`` go to the planner's class (the MPC takes ``cfg=MpcConfig(...)``).
     """
     if name not in PLANNERS:
         raise ValueError(f"planner={name!r}: expected one of {', '.join(PLANNERS)}")
-    if predictor not in PREDICTORS and not is_plugin_spec(predictor):
-        raise ValueError(f"predictor={predictor!r}: expected one of {', '.join(PREDICTORS)} or a plug-in "
+    if predictor not in NAMES and not is_plugin_spec(predictor):
+        raise ValueError(f"predictor={predictor!r}: expected one of {', '.join(NAMES)} or a plug-in "
                          "package.module:name")
     module, cls = PLANNERS[name].split(":")
     return getattr(import_module(module), cls)(world, predictor != "none", **options)

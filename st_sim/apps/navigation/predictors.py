@@ -13,7 +13,9 @@ from replays.constants import T_PRED
 from replays.scenes import Scene
 
 PREDICTORS: tuple[str, ...] = ("none", "cvm", "cvm-s", "singular")
-"""predictor names of the navigation benchmark, no prediction first"""
+"""predictor names of the navigation benchmark's table, no prediction first"""
+NAMES: tuple[str, ...] = (*PREDICTORS, "linear")
+"""every predictor name a planner takes (the least-squares line too)"""
 
 
 class StaticPredictor:
@@ -29,7 +31,7 @@ class StaticPredictor:
 
 
 def env_predictor(name: str) -> Any:
-    """The env's ``predictor=`` argument for a benchmark predictor name (see ``PREDICTORS``) or a plug-in spec.
+    """The env's ``predictor=`` argument for a predictor name (see ``NAMES``) or a plug-in spec.
 
     A spec is checked here (it must import and name a callable: ``PluginError`` otherwise) and passed on as
     given: the env calls the factory with ``task``, its scene (None for a simulated layout) and that scene's
@@ -38,15 +40,15 @@ def env_predictor(name: str) -> Any:
     if is_plugin_spec(name):
         resolve_factory(name)
         return name
-    if name not in PREDICTORS:
-        raise ValueError(f"predictor={name!r}: expected one of {', '.join(PREDICTORS)} or a plug-in "
+    if name not in NAMES:
+        raise ValueError(f"predictor={name!r}: expected one of {', '.join(NAMES)} or a plug-in "
                          "package.module:name")
     return StaticPredictor() if name == "none" else name
 
 
 def predictor_argument(text: str) -> str:
-    """argparse type of ``--predictor``: a name of ``PREDICTORS`` or anything with ":" (a plug-in, checked later)."""
-    if text in PREDICTORS or ":" in text:
+    """argparse type of ``--predictor``: a name of ``NAMES`` or anything with ":" (a plug-in, checked later)."""
+    if text in NAMES or ":" in text:
         return text
-    raise argparse.ArgumentTypeError(f"{text!r}: expected one of {', '.join(PREDICTORS)} or a plug-in "
+    raise argparse.ArgumentTypeError(f"{text!r}: expected one of {', '.join(NAMES)} or a plug-in "
                                      "package.module:name")
