@@ -3,6 +3,7 @@
     export OMP_NUM_THREADS=1 STCROWD_DATA=$PWD/../shared/datasets/eth_ucy
     python benchmarks/open_closed_loop.py --episodes 300 --out runs/study          # the RESULTS figures
     python benchmarks/open_closed_loop.py --episodes 20 --envs zara1 --out runs/study-quick
+    python benchmarks/open_closed_loop.py --envs zara1 --plugin mine=mypackage.model:make --out runs/study  # + yours
 
 For each environment (ZARA1 and UNIV replays with reactive pedestrians, and the simulated crossing) and each
 predictor (CVM, CVM-S, the least-squares line, SingularTrajectory as the envs ship it, its stochastic, deterministic,
@@ -175,8 +176,16 @@ def main() -> None:
                         help="default: all eleven")
     parser.add_argument("--episodes", type=int, default=300, help="closed-loop episodes per cell (default: 300)")
     parser.add_argument("--out", default="runs/study", help="study folder (default: runs/study)")
+    parser.add_argument("--plugin", action="append", default=[], metavar="LABEL=SPEC",
+                        help="add a plug-in predictor package.module:name under LABEL (repeatable)")
     add_grid_arguments(parser)
     args = parser.parse_args()
+    for item in args.plugin:
+        label, _, spec = item.partition("=")
+        if not label or ":" not in spec or label in PREDICTORS:
+            parser.error(f"--plugin {item!r}: expected a new LABEL=package.module:name")
+        PREDICTORS[label] = spec  # jobs are made here, in the main process, with the spec itself
+        args.predictors.append(label)
     out = Path(args.out).resolve()
     os.environ["STCROWD_STUDY_RUNS"] = str(out)  # where study_models finds the few-shot checkpoints (workers inherit)
     grid = {"executor": args.executor, "workers": args.workers, "address": args.ray_address}
