@@ -48,10 +48,13 @@ class TimedPredictor:
         return futures
 
 
-def timed_run(env_id: str, kwargs: dict, steps: int, seed: int, inner) -> tuple[float, float, int]:
+def timed_run(env_id: str, kwargs: dict, steps: int, seed: int, inner, keep_forecasts: bool = True
+              ) -> tuple[float, float, int]:
     """(steps per second, share of time in predict, episodes) of one run of ``steps`` steps."""
     model = TimedPredictor(inner)
     env = gym.make(env_id, predictor=model, **kwargs)
+    if not keep_forecasts:
+        env.unwrapped.forecasts = None
     env.action_space.seed(seed)
     start = time.perf_counter()
     env.reset(seed=seed)
@@ -107,6 +110,8 @@ def main() -> None:
     parser.add_argument("--vector", type=int, default=0, metavar="N",
                         help="also compare one env with the native vector env of N sub-envs (default: 0, off)")
     parser.add_argument("--only-vector", action="store_true", help="skip the single-env table")
+    parser.add_argument("--no-forecast-cache", action="store_true",
+                        help="predict afresh on every frame of a log replay (envs keep forecasts by default)")
     args = parser.parse_args()
     torch.set_num_threads(1)
     print(f"OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS', 'unset')}, {args.steps} steps x "
@@ -114,7 +119,8 @@ def main() -> None:
     for name in [] if args.only_vector else args.predictors:
         for label, env_id, kwargs, checkpoint in CONFIGS:
             inner = ConstantVelocity() if name == "cvm" else predictor.load_pretrained(checkpoint)
-            runs = [timed_run(env_id, kwargs, args.steps, seed, inner) for seed in range(args.repeats)]
+            runs = [timed_run(env_id, kwargs, args.steps, seed, inner, not args.no_forecast_cache)
+                    for seed in range(args.repeats)]
             rates = np.array([r[0] for r in runs])
             share = np.mean([r[1] for r in runs])
             print(f"{name:8s} {label:26s} {rates.mean():8.0f} steps/s (runs: {', '.join(f'{r:.0f}' for r in rates)}),"

@@ -257,6 +257,10 @@ class ReplayCrowdEnv(CrowdEnv):
     def _world_ended(self) -> bool:
         return self.index >= len(self.replay.frames) - 1
 
+    def _forecast_moment(self) -> Any:
+        """In log mode the frame index: the recording shows the same histories whenever it reaches it."""
+        return self.index if self.reactive is None else None
+
     def _predicted_rows(self) -> np.ndarray:
         """In benchmark mode, only the agents forming a Social-GAN window that ends its observation now.
 

@@ -27,7 +27,7 @@ from gymnasium.vector.utils import batch_space, concatenate, create_empty_array,
 
 from envs.common.crowd_env import CrowdEnv
 from envs.common.errors import EnvInputError
-from envs.common.predictors import predict_futures
+from envs.common.predictors import Forecast, predict_futures
 
 
 class CrowdVectorEnv(VectorEnv):
@@ -56,6 +56,8 @@ class CrowdVectorEnv(VectorEnv):
                                                for _ in range(num_envs - 1)]
         self.num_envs, self.max_episode_steps = int(num_envs), max_episode_steps
         self.predictor, self.scene, self.num_samples = first.predictor, first.scene, first.num_samples
+        for env in self.envs[1:]:  # the same recording and predictor: forecasts kept by one serve all
+            env.forecasts = first.forecasts
         self.render_mode = first.render_mode
         self.single_observation_space, self.single_action_space = first.observation_space, first.action_space
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
@@ -121,17 +123,23 @@ class CrowdVectorEnv(VectorEnv):
         for env in self.envs:
             env.close()
 
-    def _predict_all(self) -> list[tuple[np.ndarray, tuple[np.ndarray, np.ndarray] | None]]:
-        """One predictor call for the agents every sub-env asked for; (futures, anchors) per sub-env."""
-        histories = [env.histories_to_predict() for env in self.envs]
+    def _predict_all(self) -> list[Forecast]:
+        """(futures, anchors) per sub-env: kept forecasts where a sub-env has one (``ForecastCache``), one predictor
+        call for the agents of all the others."""
+        forecasts: list[Forecast | None] = [env.cached_forecast() for env in self.envs]
+        missing = [i for i, forecast in enumerate(forecasts) if forecast is None]
+        histories = [self.envs[i].histories_to_predict() for i in missing]
         sizes = [len(h) for h in histories]
-        group = np.repeat(np.arange(self.num_envs), sizes)
-        futures, anchors = predict_futures(self.predictor, np.concatenate(histories), self.scene, self.num_samples,
-                                           group)
-        cuts = np.cumsum(sizes)[:-1]
-        per_env_anchors = (list(zip(*(np.split(a, cuts) for a in anchors), strict=True)) if anchors is not None
-                           else [None] * self.num_envs)
-        return list(zip(np.split(futures, cuts), per_env_anchors, strict=True))
+        if missing:
+            futures, anchors = predict_futures(self.predictor, np.concatenate(histories), self.scene,
+                                               self.num_samples, np.repeat(np.arange(len(missing)), sizes))
+            cuts = np.cumsum(sizes)[:-1]
+            per_env_anchors = (list(zip(*(np.split(a, cuts) for a in anchors), strict=True)) if anchors is not None
+                               else [None] * len(missing))
+            for i, forecast in zip(missing, zip(np.split(futures, cuts), per_env_anchors, strict=True), strict=True):
+                forecasts[i] = forecast
+                self.envs[i].remember_forecast(forecast)
+        return forecasts
 
     def _batch(self, observations: list[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
         out = create_empty_array(self.single_observation_space, self.num_envs)

@@ -1,4 +1,5 @@
-"""The ego's sensor range (``EnvConfig.sensor_range_m``) and the discomfort reward part, as properties over seeds."""
+"""The ego's sensor range (``EnvConfig.sensor_range_m``), the discomfort reward part and the forecasts a log replay
+keeps, as properties over seeds."""
 
 from __future__ import annotations
 
@@ -67,3 +68,31 @@ def test_discomfort_part_is_the_gap_shortfall_and_weighs_into_the_reward(seed: i
 def test_sensing_fields_are_range_checked(field: str, value: float) -> None:
     with pytest.raises(ConfigError, match=field):
         EnvConfig(**{field: value})
+
+
+@settings(max_examples=3, deadline=None)
+@given(seed=st.integers(0, 10_000))
+def test_kept_forecasts_of_a_log_replay_equal_fresh_ones(seed: int) -> None:
+    """Episodes that revisit frames reuse their forecasts (``ForecastCache``), which equal those computed afresh."""
+    kept, fresh = (gym.make("STCrowd-Zara1-v0", predictor="singular") for _ in range(2))
+    fresh.unwrapped.forecasts = None
+    rng = np.random.default_rng(seed)
+    for episode in range(3):  # the same start each time: every later episode revisits the first one's frames
+        obs, _ = kept.reset(seed=seed, options={"start_index": 100})
+        obs_fresh, _ = fresh.reset(seed=seed, options={"start_index": 100})
+        for t in range(8):
+            action = rng.uniform(-1.5, 1.5, 2).astype(np.float32)
+            for key in obs:
+                np.testing.assert_allclose(obs[key], obs_fresh[key], rtol=0, atol=1e-5, err_msg=f"{episode} {t} {key}")
+            (obs, *_, end, cut, _), (obs_fresh, *_) = kept.step(action), fresh.step(action)
+            if end or cut:
+                break
+    assert kept.unwrapped.forecasts.hits > 0, "later episodes must reuse the kept forecasts"
+
+
+def test_reactive_replays_keep_no_forecasts() -> None:
+    env = gym.make("STCrowd-Zara1-v0", predictor="cvm", pedestrians="reactive")
+    env.reset(seed=0)
+    for _ in range(5):
+        env.step(np.zeros(2))
+    assert env.unwrapped.forecasts.hits == env.unwrapped.forecasts.misses == 0

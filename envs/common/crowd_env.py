@@ -40,7 +40,7 @@ from envs.common.config import EnvConfig
 from envs.common.ego import action_to_velocity, checked_action, on_image, require_on_map
 from envs.common.errors import ConfigError, EgoPlacementError, EnvInputError, NeedsResetError, ResetOptionsError
 from envs.common.fault import robot_at_fault, touching
-from envs.common.predictors import predict_futures, resolve_predictor, task_sizes
+from envs.common.predictors import Forecast, ForecastCache, predict_futures, resolve_predictor, task_sizes
 from envs.common.running_metrics import RunningMetrics
 from envs.common.tracks import Frame, TrackBuffer
 from replays.constants import POSITION_LIMIT_M, STEP_S, T_PRED
@@ -97,6 +97,8 @@ class CrowdEnv(gym.Env):
         self.ego_max_accel_mps2 = float("inf")
         """how fast the ego's velocity can change [m/s^2]; inf: it moves at the commanded velocity at once"""
         self._obs: dict[str, np.ndarray] | None = None
+        self.forecasts: ForecastCache | None = ForecastCache()
+        """forecasts kept for moments that recur (``_forecast_moment``); None: always predict afresh"""
         self._history: tuple[np.ndarray, np.ndarray] | None = None  # TrackBuffer.history() of the newest frame
         self._rows = np.zeros(0, np.int64)  # observation rows to forecast, chosen by the begin_* half
         self._previous_xy_m = np.zeros(2)  # the ego before this step
@@ -192,8 +194,25 @@ class CrowdEnv(gym.Env):
         """(P, T_obs, 2) float32 metres: the histories of the agents to forecast now (after a ``begin_*``)."""
         return self._history[0][self._rows]
 
-    def _predict(self, histories_m: np.ndarray) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray] | None]:
-        return predict_futures(self.predictor, histories_m, self.scene, self.num_samples)
+    def _predict(self, histories_m: np.ndarray) -> Forecast:
+        forecast = self.cached_forecast()
+        if forecast is None:
+            forecast = predict_futures(self.predictor, histories_m, self.scene, self.num_samples)
+            self.remember_forecast(forecast)
+        return forecast
+
+    def cached_forecast(self) -> Forecast | None:
+        """The forecast of ``histories_to_predict()`` kept from an earlier visit of this moment, if any."""
+        moment = self._forecast_moment()
+        if moment is None or self.forecasts is None:
+            return None
+        return self.forecasts.get(moment, self.tracks.row_ids[self._rows])
+
+    def remember_forecast(self, forecast: Forecast) -> None:
+        """Keep the forecast of ``histories_to_predict()`` for later visits of this moment (if it can recur)."""
+        moment = self._forecast_moment()
+        if moment is not None and self.forecasts is not None:
+            self.forecasts.put(moment, self.tracks.row_ids[self._rows], forecast)
 
     def close(self) -> None:
         """Finish the Rerun recording, if any; a later step starts a new, numbered one."""
@@ -234,6 +253,11 @@ class CrowdEnv(gym.Env):
     def _world_ended(self) -> bool:
         """No further step possible (a recording's last frame)."""
         return False
+
+    def _forecast_moment(self) -> Any:
+        """A hashable name of the scene moment now if its histories recur exactly on every visit (a log-mode
+        replay's frame), so that its forecasts can be kept (``forecasts``); None (default): they cannot."""
+        return None
 
     def _predicted_rows(self) -> np.ndarray:
         """Observation rows that get predictions this step (default: every agent with T_obs frames)."""

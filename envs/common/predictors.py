@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import os
+from collections import OrderedDict
+from collections.abc import Hashable
 from typing import Any
 
 import numpy as np
@@ -114,3 +116,52 @@ def predict_futures(model: Any, history_m: np.ndarray, scene: Scene | None, num_
         futures = model.predict(history_m, group, scene, num_samples)
     futures = check_futures(futures, len(history_m), num_samples, getattr(model, "name", type(model).__name__))
     return np.clip(futures, -POSITION_LIMIT_M, POSITION_LIMIT_M), anchors
+
+
+Forecast = tuple[np.ndarray, tuple[np.ndarray, np.ndarray] | None]
+"""(futures (P, S, 12, 2), anchors (prototype, adapted) or None), as ``predict_futures`` returns them"""
+
+
+class ForecastCache:
+    """Forecasts of recorded scene moments, kept for reuse: (moment, agent ids) -> each agent's futures (and anchors).
+
+    A log-mode replay shows the same agents with the same histories whenever it reaches the same frame, so their
+    forecasts need computing once. Entries are stored by agent id, so a later visit that lists the same agents in
+    other observation rows gets them in its own order. Least recently used entries go beyond ``budget_bytes``.
+    """
+
+    def __init__(self, budget_bytes: int = 256 * 2**20):
+        self.budget_bytes, self.used_bytes = budget_bytes, 0
+        self._entries: OrderedDict[tuple, tuple[np.ndarray, Forecast]] = OrderedDict()
+        self.hits = self.misses = 0
+
+    def get(self, moment: Hashable, ids: np.ndarray) -> Forecast | None:
+        """The forecast of agents ``ids`` (P,) at ``moment`` in the order of ``ids``, or None if not kept."""
+        entry = self._entries.get((moment, *sorted(ids.tolist())))
+        if entry is None:
+            self.misses += 1
+            return None
+        self.hits += 1
+        self._entries.move_to_end((moment, *sorted(ids.tolist())))
+        stored_ids, (futures, anchors) = entry
+        order = np.searchsorted(stored_ids, ids)
+        return futures[order], None if anchors is None else (anchors[0][order], anchors[1][order])
+
+    def put(self, moment: Hashable, ids: np.ndarray, forecast: Forecast) -> None:
+        """Keep the forecast of agents ``ids`` (P,) at ``moment``."""
+        order = np.argsort(ids)
+        futures, anchors = forecast
+        kept = (futures[order], None if anchors is None else (anchors[0][order], anchors[1][order]))
+        key = (moment, *ids[order].tolist())
+        if key in self._entries:
+            return
+        self._entries[key] = (ids[order], kept)
+        self.used_bytes += _nbytes(kept)
+        while self.used_bytes > self.budget_bytes and len(self._entries) > 1:
+            _, (_, dropped) = self._entries.popitem(last=False)
+            self.used_bytes -= _nbytes(dropped)
+
+
+def _nbytes(forecast: Forecast) -> int:
+    futures, anchors = forecast
+    return futures.nbytes + (0 if anchors is None else anchors[0].nbytes + anchors[1].nbytes)
