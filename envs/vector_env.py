@@ -88,15 +88,14 @@ class CrowdVectorEnv(VectorEnv):
         actions = np.asarray(actions)
         if actions.shape != self.action_space.shape:
             raise EnvInputError(f"actions must have shape {self.action_space.shape} (num_envs, 2), got {actions.shape}")
-        per_env = list(iterate(self.action_space, actions))
-        for i, env in enumerate(self.envs):  # every check before anything moves
-            if not self._autoreset[i]:
-                env.check_step(per_env[i])
+        velocities = [None if self._autoreset[i] else env.check_step(action)  # every check before anything moves
+                      for i, (env, action) in enumerate(zip(self.envs, iterate(self.action_space, actions),
+                                                            strict=True))]
         for i, env in enumerate(self.envs):
             if self._autoreset[i]:
                 env.begin_reset()
             else:
-                env.begin_step(per_env[i])
+                env.advance(velocities[i])
         observations, infos = [], {}
         rewards = np.zeros(self.num_envs)
         terminations = np.zeros(self.num_envs, bool)

@@ -146,9 +146,12 @@ class CrowdEnv(gym.Env):
 
     def begin_step(self, action: np.ndarray) -> None:
         """First half of ``step``: check the action, advance the world 0.4 s (no prediction yet)."""
-        velocity = self.check_step(action)
+        self.advance(self.check_step(action))
+
+    def advance(self, velocity_mps: np.ndarray | None) -> None:
+        """``begin_step`` after its checks: move the world 0.4 s with the ego at ``check_step``'s velocity."""
         self._previous_xy_m = self.ego_xy_m.copy()
-        self.tracks.push(self._step_world(velocity))
+        self.tracks.push(self._step_world(velocity_mps))
         self._sense()
 
     def check_step(self, action: Any) -> np.ndarray | None:

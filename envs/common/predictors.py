@@ -137,12 +137,13 @@ class ForecastCache:
 
     def get(self, moment: Hashable, ids: np.ndarray) -> Forecast | None:
         """The forecast of agents ``ids`` (P,) at ``moment`` in the order of ``ids``, or None if not kept."""
-        entry = self._entries.get((moment, *sorted(ids.tolist())))
+        key = (moment, *sorted(ids.tolist()))
+        entry = self._entries.get(key)
         if entry is None:
             self.misses += 1
             return None
         self.hits += 1
-        self._entries.move_to_end((moment, *sorted(ids.tolist())))
+        self._entries.move_to_end(key)
         stored_ids, (futures, anchors) = entry
         order = np.searchsorted(stored_ids, ids)
         return futures[order], None if anchors is None else (anchors[0][order], anchors[1][order])
@@ -150,11 +151,11 @@ class ForecastCache:
     def put(self, moment: Hashable, ids: np.ndarray, forecast: Forecast) -> None:
         """Keep the forecast of agents ``ids`` (P,) at ``moment``."""
         order = np.argsort(ids)
-        futures, anchors = forecast
-        kept = (futures[order], None if anchors is None else (anchors[0][order], anchors[1][order]))
         key = (moment, *ids[order].tolist())
         if key in self._entries:
             return
+        futures, anchors = forecast
+        kept = (futures[order], None if anchors is None else (anchors[0][order], anchors[1][order]))
         self._entries[key] = (ids[order], kept)
         self.used_bytes += _nbytes(kept)
         while self.used_bytes > self.budget_bytes and len(self._entries) > 1:

@@ -16,6 +16,7 @@ import re
 import statistics
 import time
 from dataclasses import asdict, dataclass
+from functools import cached_property
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -119,7 +120,7 @@ class Plan:
             if getattr(self, name) is not None:
                 object.__setattr__(self, name, str(Path(getattr(self, name)).expanduser().resolve()))
 
-    @property
+    @cached_property
     def seeded_plugin(self) -> bool:
         """A plug-in whose factory takes ``seed`` (resolving the spec imports it: a bad spec fails here)."""
         return self.plugin and takes_seed(resolve_factory(self.predictor))

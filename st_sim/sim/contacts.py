@@ -115,10 +115,15 @@ class Constraints:
         push = -np.stack([self.share_i, self.share_i, self.share_j, self.share_j], axis=1) * coef \
             * self.relax[:, None]  # i back, j ahead
         bodies = np.stack([i, j], axis=1).ravel()
+
+        def closing() -> np.ndarray:
+            """(C,) closing speed of every constraint at the current velocities v [m/s]."""
+            return (v[slots].reshape(-1, 4) * coef).sum(axis=1)
+
         for _ in range(SWEEPS):
             load = np.maximum(np.bincount(bodies, np.repeat(excess > 0, 2), minlength=n + 1), 1.0)
             v += np.bincount(slots, (push * excess[:, None]).ravel(), minlength=size) / np.concatenate([load, load])
-            excess = np.maximum((v[slots].reshape(-1, 4) * coef).sum(axis=1) - allowed, 0.0)
+            excess = np.maximum(closing() - allowed, 0.0)
             if not excess.any():
                 break
         # safety net where the sweeps did not settle (dense jams): first every body of a constraint still closing
@@ -130,7 +135,7 @@ class Constraints:
         gives_at = np.concatenate([gives[i] | (j == n), gives[j]])  # ... except by the walls
         slot_gives = np.stack([gives_at[: len(i)]] * 2 + [gives_at[len(i):]] * 2, axis=1)  # (C, 4)
         for round_ in range(FREEZE_PASSES):
-            stuck = (v[slots].reshape(-1, 4) * coef).sum(axis=1) > no_closer
+            stuck = closing() > no_closer
             if not stuck.any():
                 break
             if round_ < SLIDE_PASSES:
@@ -145,7 +150,7 @@ class Constraints:
         else:  # a queue with no leader (a ring round a periodic corridor) outlasts the rounds: both bodies of
             # every constraint still closing stand still, until none closes (each round freezes more bodies)
             frozen = np.zeros(n + 1, bool)
-            while (stuck := (v[slots].reshape(-1, 4) * coef).sum(axis=1) > no_closer).any():
+            while (stuck := closing() > no_closer).any():
                 newly = bodies.reshape(-1, 2)[stuck].ravel()[slot_gives[stuck][:, ::2].ravel()]
                 if frozen[newly].all():
                     break  # only bodies that may not be slowed (the ego) still close: outside the guarantee
