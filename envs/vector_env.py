@@ -10,10 +10,13 @@ env class, built with the same arguments and sharing one predictor. A step check
 raises before any sub-env moves), advances every sub-env's world 0.4 s, forecasts for the agents of all sub-envs in
 one call (each sub-env a group of its own, so agents of different sub-envs never interact in the predictor), then
 completes every sub-env's observation, reward and info. Results equal those of ``SyncVectorEnv`` over
-``gym.make(id)`` envs with the same seeds (the futures up to the rounding of a larger batch); the time limit
-truncates as ``TimeLimit`` does, infos are batched as gymnasium's vector envs batch them, and autoreset is gymnasium's
-default (``AutoresetMode.NEXT_STEP``: the step after an episode ended resets that sub-env, ignores its action and
-returns its first observation with reward 0).
+``gym.make(id)`` envs with the same seeds and autoreset mode (the futures up to the rounding of a larger batch); the
+time limit truncates as ``TimeLimit`` does and infos are batched as gymnasium's vector envs batch them. Autoreset is
+gymnasium's default, ``AutoresetMode.NEXT_STEP`` (the step after an episode ended resets that sub-env, ignores its
+action and returns its first observation with reward 0), or ``autoreset_mode=AutoresetMode.SAME_STEP`` (the ending
+step resets the sub-env at once and returns its first observation, the last one in ``info["final_obs"]`` and the
+last info in ``info["final_info"]``; the reset sub-envs are forecast in a second batched call), the convention of
+stable-baselines3 and CleanRL-style loops.
 """
 
 from __future__ import annotations
@@ -37,18 +40,24 @@ class CrowdVectorEnv(VectorEnv):
         make_env: an env class (``ReplayCrowdEnv``, ``SimCrowdEnv``) or factory taking the id's keyword arguments.
         num_envs: number of sub-envs, >= 1.
         max_episode_steps: steps after which a sub-env's episode is truncated (None: never), as ``TimeLimit``.
+        autoreset_mode: ``AutoresetMode.NEXT_STEP`` (default) or ``SAME_STEP`` (or their string values).
         kwargs: the env's arguments (``predictor``, ``task``, ``pedestrians`` ...), the same for every sub-env.
     """
 
     metadata: ClassVar[dict[str, Any]] = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": ["rgb_array"]}
 
     def __init__(self, make_env: Callable[..., CrowdEnv], num_envs: int = 1, max_episode_steps: int | None = None,
-                 **kwargs: Any):
+                 autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP, **kwargs: Any):
         if isinstance(num_envs, bool) or not isinstance(num_envs, int | np.integer) or num_envs < 1:
             raise EnvInputError(f"num_envs={num_envs!r}: expected an int >= 1")
         if max_episode_steps is not None and (isinstance(max_episode_steps, bool) or
                                               not isinstance(max_episode_steps, int) or max_episode_steps < 1):
             raise EnvInputError(f"max_episode_steps={max_episode_steps!r}: expected None or an int >= 1")
+        modes = (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP)
+        if autoreset_mode not in modes and autoreset_mode not in [mode.value for mode in modes]:
+            raise EnvInputError(f"autoreset_mode={autoreset_mode!r}: expected one of {[m.value for m in modes]}")
+        self.autoreset_mode = AutoresetMode(autoreset_mode)
+        self.metadata = {**self.metadata, "autoreset_mode": self.autoreset_mode}
         if kwargs.get("rerun") is not None:
             raise EnvInputError("rerun=: a vector env does not record; record one env made with gym.make(..., rerun=)")
         first = make_env(**kwargs)
@@ -96,7 +105,7 @@ class CrowdVectorEnv(VectorEnv):
                 env.begin_reset()
             else:
                 env.advance(velocities[i])
-        observations, infos = [], {}
+        observations, step_infos = [], []
         rewards = np.zeros(self.num_envs)
         terminations = np.zeros(self.num_envs, bool)
         truncations = np.zeros(self.num_envs, bool)
@@ -110,8 +119,24 @@ class CrowdVectorEnv(VectorEnv):
                 if self.max_episode_steps is not None and self._elapsed[i] >= self.max_episode_steps:
                     truncations[i] = True
             observations.append(obs)
+            step_infos.append(info)
+        ended = terminations | truncations
+        finals: dict[int, dict[str, Any]] = {}
+        if self.autoreset_mode == AutoresetMode.SAME_STEP:  # reset the ended sub-envs now, one forecast for them
+            ended_ids = np.flatnonzero(ended)
+            for i in ended_ids:
+                finals[i] = {"final_obs": observations[i], "final_info": step_infos[i]}
+                self.envs[i].begin_reset()
+            for i, prediction in zip(ended_ids, self._predict_all(ended_ids), strict=True):
+                observations[i], step_infos[i] = self.envs[i].end_reset(*prediction)
+                self._elapsed[i] = 0
+        else:
+            self._autoreset = ended
+        infos: dict[str, Any] = {}
+        for i, info in enumerate(step_infos):  # in SyncVectorEnv's order: the final entries, then the info
+            if i in finals:
+                infos = self._add_info(infos, finals[i], i)
             infos = self._add_info(infos, info, i)
-        self._autoreset = terminations | truncations
         return self._batch(observations), rewards, terminations, truncations, infos
 
     def render(self) -> tuple[np.ndarray | None, ...]:
@@ -122,11 +147,12 @@ class CrowdVectorEnv(VectorEnv):
         for env in self.envs:
             env.close()
 
-    def _predict_all(self) -> list[Forecast]:
-        """(futures, anchors) per sub-env: kept forecasts where a sub-env has one (``ForecastCache``), one predictor
-        call for the agents of all the others."""
-        forecasts: list[Forecast | None] = [env.cached_forecast() for env in self.envs]
-        missing = [i for i, forecast in enumerate(forecasts) if forecast is None]
+    def _predict_all(self, which: Sequence[int] | None = None) -> list[Forecast]:
+        """(futures, anchors) of the sub-envs ``which`` (None: all), in that order: kept forecasts where a sub-env
+        has one (``ForecastCache``), one predictor call for the agents of all the others."""
+        which = range(self.num_envs) if which is None else which
+        forecasts: dict[int, Forecast | None] = {i: self.envs[i].cached_forecast() for i in which}
+        missing = [i for i, forecast in forecasts.items() if forecast is None]
         histories = [self.envs[i].histories_to_predict() for i in missing]
         sizes = [len(h) for h in histories]
         if missing:
@@ -138,7 +164,7 @@ class CrowdVectorEnv(VectorEnv):
             for i, forecast in zip(missing, zip(np.split(futures, cuts), per_env_anchors, strict=True), strict=True):
                 forecasts[i] = forecast
                 self.envs[i].remember_forecast(forecast)
-        return forecasts
+        return [forecasts[i] for i in which]
 
     def _batch(self, observations: list[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
         out = create_empty_array(self.single_observation_space, self.num_envs)

@@ -80,8 +80,16 @@ class Refiner(nn.Module):
     def context(self, history: torch.Tensor, anchors: torch.Tensor, group: torch.Tensor) -> torch.Tensor:
         """Per-agent condition (B, dim) from history (B, F), anchors (B, S, K) and window ids (B,)."""
         tokens = self.encode_history(torch.cat([history, anchors.flatten(1)], dim=1))
-        apart = group[:, None] != group[None, :]  # (B, B) True = may not attend
-        return self.interact(tokens[None], mask=apart)[0]
+        # one padded row per window (W, longest, dim): attention within each window, not over a masked (B, B)
+        _, window, sizes = torch.unique(group, return_inverse=True, return_counts=True)
+        order = torch.argsort(window, stable=True)
+        slot = torch.arange(len(group)) - torch.repeat_interleave(torch.cumsum(sizes, 0) - sizes, sizes)
+        rows = tokens.new_zeros(len(sizes), int(sizes.max()), tokens.shape[1])
+        rows = rows.index_put((window[order], slot), tokens[order])
+        padding = torch.arange(rows.shape[1]) >= sizes[:, None]  # (W, longest) True = no agent
+        out = torch.empty_like(tokens)
+        out[order] = self.interact(rows, src_key_padding_mask=padding)[window[order], slot]
+        return out
 
     def predict_x0(self, x_m: torch.Tensor, m: torch.Tensor, anchors: torch.Tensor, ctx: torch.Tensor) -> torch.Tensor:
         """Clean residual (B, S, K) from noisy residual x_m (B, S, K) at steps m (B,)."""

@@ -80,8 +80,9 @@ def test_train_ppo_writes_a_loadable_policy_curve_and_record(tmp_path: Path, dem
     from st_sim.apps.navigation.ppo import load_policy
     from st_sim.apps.navigation.train_ppo import main, parse_args
 
-    cfg = parse_args(["--no-predictions", "--timesteps", "256", "--num-envs", "1", "--demo-steps", str(demo_steps),
-                      "--demos", str(tmp_path / "demos.npz"), "--out", str(tmp_path / "run"), "--quiet"])
+    cfg = parse_args(["--no-predictions", "--timesteps", "256", "--num-envs", "2", "--demo-steps", str(demo_steps),
+                      "--demos", str(tmp_path / "demos.npz"), "--out", str(tmp_path / "run"), "--quiet",
+                      *(["--sensor-range", "inf"] if demo_steps else [])])
     policy_path = main(cfg)
     policy, features = load_policy(policy_path)
     assert not features.use_predictions and policy.observation_space.shape == (features.size,)
@@ -93,7 +94,8 @@ def test_train_ppo_writes_a_loadable_policy_curve_and_record(tmp_path: Path, dem
 
 
 @pytest.mark.parametrize(("flag", "value"), [("--timesteps", "0"), ("--num-envs", "0"), ("--demo-steps", "-1"),
-                                             ("--timesteps", "many")])
+                                             ("--timesteps", "many"), ("--sensor-range", "nan"), ("--minutes", "0"),
+                                             ("--demo-steps", "100")])
 def test_train_ppo_refuses_bad_budgets_by_flag(flag: str, value: str, capsys: pytest.CaptureFixture) -> None:
     from st_sim.apps.navigation.train_ppo import parse_args
 
@@ -113,7 +115,7 @@ def test_a_stopped_training_continues_from_its_saved_state(tmp_path: Path) -> No
     """A finished 256-step run, started again with a 512-step budget, continues at 256; other settings refuse."""
     from st_sim.apps.navigation.train_ppo import main, parse_args
 
-    args = ["--no-predictions", "--num-envs", "1", "--demo-steps", "0", "--save-every", "1", "--out",
+    args = ["--no-predictions", "--num-envs", "2", "--demo-steps", "0", "--save-every", "1", "--out",
             str(tmp_path / "run"), "--quiet"]
     main(parse_args([*args, "--timesteps", "256"]))
     first = json.loads((tmp_path / "run" / "curve.json").read_text())

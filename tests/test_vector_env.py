@@ -7,6 +7,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 from gymnasium.envs.registration import registry
+from gymnasium.vector import AutoresetMode
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -22,10 +23,12 @@ CASES = {  # id -> extra env arguments: SingularTrajectory in one (the batched c
 SHORT = 12  # steps per episode, so that every run goes through autoresets
 
 
-def make_pair(env_id: str, num_envs: int, **kwargs):
+def make_pair(env_id: str, num_envs: int, autoreset_mode: AutoresetMode = AutoresetMode.NEXT_STEP, **kwargs):
     vec = gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point", max_episode_steps=SHORT,
-                       **kwargs)
-    sync = gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="sync", max_episode_steps=SHORT, **kwargs)
+                       autoreset_mode=autoreset_mode, **kwargs)
+    sync = gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="sync", max_episode_steps=SHORT,
+                        vector_kwargs={"autoreset_mode": autoreset_mode}, **kwargs)
+    assert vec.metadata["autoreset_mode"] == sync.metadata["autoreset_mode"] == autoreset_mode
     return vec, sync
 
 
@@ -40,22 +43,41 @@ def assert_same_step(ours, theirs, where: str) -> None:
         assert np.array_equal(ours[index], theirs[index]), f"{where}: {name} {ours[index]} vs {theirs[index]}"
     info, info_sync = ours[-1], theirs[-1]
     assert info.keys() == info_sync.keys(), where
-    for key in ("agent_ids", "predicted_ids", "termination", "at_fault", "frame"):
+    for key in {"agent_ids", "predicted_ids", "termination", "at_fault", "frame"} & info_sync.keys():
         assert same(info[key], info_sync[key]), f"{where}: info[{key!r}] {info[key]} vs {info_sync[key]}"
+    if "final_obs" in info_sync:  # SAME_STEP: the last observation and info of the episodes that ended
+        assert_same_nested(info["final_obs"], info_sync["final_obs"], f"{where}, final_obs")
+        assert_same_nested(info["final_info"], info_sync["final_info"], f"{where}, final_info")
+
+
+def assert_same_nested(ours, theirs, where: str) -> None:
+    """Batched infos (dicts of arrays, nested) equal, predicted futures up to float rounding."""
+    if isinstance(theirs, dict):
+        assert ours.keys() == theirs.keys(), where
+        for key in theirs:
+            assert_same_nested(ours[key], theirs[key], f"{where}[{key!r}]")
+    elif where.endswith("['futures']"):
+        np.testing.assert_allclose(ours, theirs, rtol=0, atol=1e-4, err_msg=where)
+    else:
+        assert same(ours, theirs), where
 
 
 def same(a, b) -> bool:
     """Equal values, element by element through object arrays (which hold None, text or arrays)."""
     if isinstance(a, np.ndarray) and a.dtype == object:
         return a.shape == b.shape and all(same(x, y) for x, y in zip(a.ravel(), b.ravel(), strict=True))
+    if isinstance(a, dict):
+        return isinstance(b, dict) and a.keys() == b.keys() and all(same(a[k], b[k]) for k in a)
     return bool(np.array_equal(a, b)) if isinstance(a, np.ndarray) or isinstance(b, np.ndarray) else a == b
 
 
+@pytest.mark.parametrize("autoreset_mode", [AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP])
 @pytest.mark.parametrize("env_id", CASES)
 @settings(max_examples=2, deadline=None)
 @given(seed=st.integers(0, 10_000), num_envs=st.integers(1, 4))
-def test_vector_env_equals_sync_vector_env_step_by_step(env_id: str, seed: int, num_envs: int) -> None:
-    vec, sync = make_pair(env_id, num_envs, **CASES[env_id])
+def test_vector_env_equals_sync_vector_env_step_by_step(env_id: str, autoreset_mode: AutoresetMode, seed: int,
+                                                        num_envs: int) -> None:
+    vec, sync = make_pair(env_id, num_envs, autoreset_mode, **CASES[env_id])
     rng = np.random.default_rng(seed)
     ours, theirs = vec.reset(seed=seed), sync.reset(seed=seed)
     assert_same_step((ours[0], ours[1]), (theirs[0], theirs[1]), "reset")
@@ -87,7 +109,8 @@ def test_every_id_has_a_native_vector_entry_point(env_id: str) -> None:
     assert registry[env_id].vector_entry_point is not None
 
 
-@pytest.mark.parametrize("kwargs, match", [({"num_envs": 0}, "num_envs"), ({"num_envs": 2, "rerun": "x.rrd"}, "rerun")])
+@pytest.mark.parametrize("kwargs, match", [({"num_envs": 0}, "num_envs"), ({"num_envs": 2, "rerun": "x.rrd"}, "rerun"),
+                                           ({"num_envs": 2, "autoreset_mode": "Disabled"}, "autoreset_mode")])
 def test_vector_env_arguments_are_checked(kwargs: dict, match: str) -> None:
     with pytest.raises(EnvInputError, match=match):
         gym.make_vec("STCrowd-SimCrossing-v1", vectorization_mode="vector_entry_point", predictor="cvm", **kwargs)

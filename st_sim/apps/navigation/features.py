@@ -4,8 +4,8 @@ The frame's x axis points along the shortest walkable path to the goal (``Terrai
 left. Features, all scaled to about [-1, 1]:
 - ego (3): distance to the goal / 10 m (at most 2), velocity along x and y / speed limit;
 - walls (16): free distance along 16 rays from the ego's centre until its body would touch a wall, / 3 m;
-- pedestrians (6 nearest, by distance; absent slots all zero): present flag, position / 5 m and velocity /
-  speed limit relative to the ego (5 each); with predictions also the mean predicted position over the
+- pedestrians (6 nearest within the sensor range, by distance; absent slots all zero): present flag, position / 5 m
+  and velocity / speed limit relative to the ego (5 each); with predictions also the mean predicted position over the
   samples 0.8, 1.6 and 3.2 s ahead / 5 m (6) and the samples' spread (root mean square distance from that
   mean) 1.6 and 3.2 s ahead / 2 m (2).
 The action (2,) in [-1, 1] is the velocity along x and y in speed limits.
@@ -13,6 +13,7 @@ The action (2,) in [-1, 1] is the velocity along x and y in speed limits.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import gymnasium as gym
@@ -39,6 +40,9 @@ class FeatureConfig:
 
     use_predictions: bool = True
     """include the predicted futures (False: positions and velocities only)"""
+    sensor_range_m: float = math.inf
+    """pedestrians whose centre is farther from the ego's are left out [m] (train in an env with the same
+    ``EnvConfig.sensor_range_m``, which then forecasts only the ones the policy sees)"""
 
     @property
     def size(self) -> int:
@@ -70,7 +74,9 @@ def encode(obs: dict[str, np.ndarray], world: NavWorld, cfg: FeatureConfig) -> n
     peds = pedestrians_of(obs, max(PREDICTED_STEPS), cfg.use_predictions)
     per_pedestrian = (cfg.size - 3 - RAY_COUNT) // NEAREST
     slots = np.zeros((NEAREST, per_pedestrian))
-    nearest = np.argsort(np.linalg.norm(peds.xy_m - ego_xy, axis=1))[:NEAREST]
+    distance_m = np.linalg.norm(peds.xy_m - ego_xy, axis=1)
+    nearest = np.argsort(distance_m)[:NEAREST]
+    nearest = nearest[distance_m[nearest] <= cfg.sensor_range_m]
     for slot, p in enumerate(nearest):
         row = [1.0, *(frame @ (peds.xy_m[p] - ego_xy) / POSITION_SCALE_M),
                *(frame @ (peds.velocity_mps[p] - ego_v) / world.max_speed_mps)]

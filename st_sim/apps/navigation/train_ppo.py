@@ -1,11 +1,14 @@
 """Train the PPO navigation policy (stable-baselines3) on vectorised STCrowd envs, with or without predictions.
 
-    python -m st_sim.apps.navigation.train_ppo --timesteps 100000 --out runs/nav/ppo-predictions
-    python -m st_sim.apps.navigation.train_ppo --no-predictions --timesteps 100000 --out runs/nav/ppo-no-predictions
+    python -m st_sim.apps.navigation.train_ppo --timesteps 1000000 --out runs/nav/ppo-predictions
+    python -m st_sim.apps.navigation.train_ppo --no-predictions --timesteps 1000000 --out runs/nav/ppo-no-predictions
 
-By default both variants start from the same teacher: ``--demo-steps`` steps of the sampling MPC with
-SingularTrajectory are collected once into ``--demos`` (reused by the other variant) and cloned into the
-actor-critic before PPO (``demonstrations``); ``--demo-steps 0`` starts PPO from scratch.
+The ``--num-envs`` sub-envs run as one native vector env (``training_envs.FeatureVecEnv``: one batched
+SingularTrajectory call per step for all of them, only for the pedestrians within ``--sensor-range`` of the
+robot). PPO starts from scratch; ``--demo-steps N`` instead starts from a teacher: N steps of the sampling MPC
+with SingularTrajectory are collected once into ``--demos`` (reused by the other variant) and cloned into the
+actor-critic (``demonstrations``; its features see every pedestrian, so it needs ``--sensor-range inf``).
+``--minutes`` stops the run after that much wall time (then writes everything as at the end of the budget).
 
 Writes into --out: ``policy.pt`` (loadable with ``ppo.load_policy``), ``curve.png`` and ``curve.json`` (the
 learning curve: success, collision and return over the last 100 training episodes against env steps) and
@@ -28,24 +31,23 @@ import sys
 import time
 from collections import deque
 from dataclasses import asdict, dataclass, field
-from functools import partial
 from importlib import resources
 from pathlib import Path
 from typing import Any
 
-import gymnasium as gym
 import numpy as np
 from tqdm import tqdm
 
+from envs.common.config import EnvConfig, RewardWeights
 from replays.atomic import atomic_path, write_text_atomic
 from st_sim.apps.navigation.demonstrations import DemoSpec, behaviour_clone, load_or_collect
-from st_sim.apps.navigation.features import FeatureConfig, NavFeatures
+from st_sim.apps.navigation.features import FeatureConfig
 from st_sim.apps.navigation.ppo import PRETRAINED_DIR, build_policy, save_policy
-from st_sim.apps.navigation.predictors import env_predictor
 
 CURVE_WINDOW = 100  # training episodes averaged per learning-curve point [-]
-RESUMABLE = ("use_predictions", "env_id", "num_envs", "seed", "n_steps", "batch_size", "n_epochs", "learning_rate",
-             "gamma", "net_arch", "log_std_init", "initial_forward", "demo_steps", "demos", "bc_epochs")
+RESUMABLE = ("use_predictions", "env_id", "num_envs", "sensor_range_m", "reward", "seed", "n_steps", "batch_size",
+             "n_epochs", "learning_rate", "gamma", "net_arch", "log_std_init", "initial_forward", "demo_steps",
+             "demos", "bc_epochs")
 """settings a run must share with the saved state to continue it (the budget and output options may differ)"""
 
 
@@ -59,32 +61,38 @@ class TrainConfig:
     """training env"""
     timesteps: int = 100_000
     """env steps over all envs (the training budget)"""
-    num_envs: int = 4
-    """parallel envs (subprocesses)"""
+    num_envs: int = 16
+    """sub-envs of the native vector env (one process)"""
+    sensor_range_m: float = 5.0
+    """the robot senses, and the env forecasts, the pedestrians within this distance [m] (CrowdNav++'s 5 m)"""
+    reward: RewardWeights = field(default_factory=lambda: RewardWeights(collision=-20.0, discomfort=-4.0))
+    """reward weights of the training env (CrowdNav++'s collision penalty and discomfort factor)"""
     seed: int = 0
     """seed of PPO and of the envs (env i resets with seed + i first)"""
-    n_steps: int = 256
+    n_steps: int = 128
     """steps per env per rollout"""
     batch_size: int = 256
     """minibatch size"""
     n_epochs: int = 10
     """passes over each rollout"""
-    learning_rate: float = 1e-4
+    learning_rate: float = 3e-4
     """Adam learning rate"""
     gamma: float = 0.99
     """discount per 0.4 s step"""
     net_arch: tuple[int, ...] = (128, 128)
     """hidden layers of the actor and of the critic"""
-    log_std_init: float = -1.0
-    """initial log standard deviation of the Gaussian actions (std 0.37 of the speed limit)"""
+    log_std_init: float = -0.5
+    """initial log standard deviation of the Gaussian actions (std 0.61 of the speed limit)"""
     initial_forward: float = 0.7
     """without demonstrations: initial mean action along the path to the goal, in speed limits"""
-    demo_steps: int = 16_000
+    demo_steps: int = 0
     """teacher steps cloned before PPO (0: none; they count towards the budget's wall time, not its env steps)"""
     demos: str = "runs/nav/demos.npz"
     """demonstrations file, shared by both variants (collected when missing or collected with other settings)"""
     bc_epochs: int = 30
     """passes of behaviour cloning over the demonstrations"""
+    minutes: float = float("inf")
+    """wall-time budget: learning stops after this long, and the run is written as if the budget was reached"""
     save_every: int = 10
     """rollouts between two saves of the resumable state (``resume.zip``)"""
     out: str = "runs/nav/ppo"
@@ -98,14 +106,6 @@ class TrainConfig:
     """derived from use_predictions"""
 
 
-def make_env(env_id: str, use_predictions: bool) -> gym.Env:
-    """One training env: the STCrowd env (SingularTrajectory or no predictor) seen through the features."""
-    import envs  # noqa: F401  (registers the ids in the subprocess)
-
-    env = gym.make(env_id, predictor=env_predictor("singular" if use_predictions else "none"))
-    return NavFeatures(env, FeatureConfig(use_predictions))
-
-
 def outcome(info: dict) -> str:
     """goal / collision / timeout of a finished training episode (from the env's ``info["termination"]``)."""
     termination = info["termination"]
@@ -114,14 +114,15 @@ def outcome(info: dict) -> str:
 
 def curve_callback(cfg: TrainConfig, curve: list[dict]) -> Any:
     """A stable-baselines3 callback: progress bar, a curve point every rollout, the resumable state every
-    ``cfg.save_every`` rollouts."""
+    ``cfg.save_every`` rollouts, a stop once ``cfg.minutes`` of wall time have passed."""
     from stable_baselines3.common.callbacks import BaseCallback
 
     class Curve(BaseCallback):
         def _on_training_start(self) -> None:
             self.bar = tqdm(total=cfg.timesteps, initial=self.model.num_timesteps, unit="step",
                             disable=not cfg.progress, desc="ppo")
-            self.rollouts = 0
+            self.rollouts, self.started = 0, time.monotonic()
+            self.deadline = self.started + 60 * cfg.minutes
             self.recent: deque[tuple[str, float]] = deque(maxlen=CURVE_WINDOW)
 
         def _on_step(self) -> bool:
@@ -129,12 +130,13 @@ def curve_callback(cfg: TrainConfig, curve: list[dict]) -> Any:
             for done, info in zip(self.locals["dones"], self.locals["infos"], strict=True):
                 if done:
                     self.recent.append((outcome(info), float(info["episode"]["r"])))
-            return True
+            return time.monotonic() < self.deadline
 
         def _on_rollout_end(self) -> None:
             if self.recent:
                 kinds = [kind for kind, _ in self.recent]
-                curve.append({"timesteps": int(self.num_timesteps), "episodes": len(kinds),
+                curve.append({"timesteps": int(self.num_timesteps), "wall_s": round(time.monotonic() - self.started, 1),
+                              "episodes": len(kinds),
                               "success": kinds.count("goal") / len(kinds),
                               "collision": kinds.count("collision") / len(kinds),
                               "return": float(np.mean([r for _, r in self.recent]))})
@@ -207,7 +209,9 @@ def main(cfg: TrainConfig) -> Path:
     """Train, write the policy, the curve and the run record; returns the policy path."""
     import torch
     from stable_baselines3 import PPO
-    from stable_baselines3.common.vec_env import SubprocVecEnv, VecMonitor
+    from stable_baselines3.common.vec_env import VecMonitor
+
+    from st_sim.apps.navigation.training_envs import FeatureVecEnv
 
     # seeding: torch, numpy, envs (PPO's own generators through seed=)
     torch.set_num_threads(1)
@@ -216,8 +220,8 @@ def main(cfg: TrainConfig) -> Path:
     run_name = f"{cfg.env_id}__ppo-{'predictions' if cfg.use_predictions else 'no-predictions'}__seed{cfg.seed}"
     print(f"{run_name}: {json.dumps(asdict(cfg), default=str)}")
 
-    # envs: num_envs subprocesses, each an STCrowd env seen through the features
-    vec = VecMonitor(SubprocVecEnv([partial(make_env, cfg.env_id, cfg.use_predictions)] * cfg.num_envs))
+    # envs: one native vector env of num_envs sub-envs (one batched forecast per step), seen through the features
+    vec = VecMonitor(FeatureVecEnv(cfg.env_id, cfg.num_envs, cfg.features, EnvConfig(reward=cfg.reward)))
     vec.seed(cfg.seed)
 
     # model: PPO with a tanh MLP actor-critic (same network for both variants)
@@ -292,6 +296,11 @@ def parse_args(argv: list[str] | None = None) -> TrainConfig:
     parser.add_argument("--env-id", default=d.env_id, help=f"training env (default: {d.env_id})")
     parser.add_argument("--timesteps", type=int, default=d.timesteps, help=f"env steps (default: {d.timesteps})")
     parser.add_argument("--num-envs", type=int, default=d.num_envs, help=f"parallel envs (default: {d.num_envs})")
+    parser.add_argument("--sensor-range", type=float, default=d.sensor_range_m,
+                        help=f"pedestrians sensed and forecast within this distance [m], inf: all (default: "
+                        f"{d.sensor_range_m})")
+    parser.add_argument("--minutes", type=float, default=d.minutes,
+                        help="wall-time budget in minutes; learning stops there (default: none)")
     parser.add_argument("--seed", type=int, default=d.seed, help=f"seed (default: {d.seed})")
     parser.add_argument("--demo-steps", type=int, default=d.demo_steps,
                         help=f"teacher steps cloned before PPO, 0 for none (default: {d.demo_steps})")
@@ -307,11 +316,18 @@ def parse_args(argv: list[str] | None = None) -> TrainConfig:
                                ("--demo-steps", args.demo_steps, 0), ("--save-every", args.save_every, 1)):
         if value < least:
             parser.error(f"{flag}={value}: expected an integer >= {least}")
+    if not args.sensor_range > 0:  # also refuses NaN
+        parser.error(f"--sensor-range={args.sensor_range}: expected a distance > 0 (or inf)")
+    if not args.minutes > 0:
+        parser.error(f"--minutes={args.minutes}: expected a duration > 0")
+    if args.demo_steps > 0 and args.sensor_range != float("inf"):
+        parser.error("--demo-steps: the teacher's demonstrations see every pedestrian; add --sensor-range inf")
     use_predictions = not args.no_predictions
     return TrainConfig(use_predictions=use_predictions, env_id=args.env_id, timesteps=args.timesteps,
-                       num_envs=args.num_envs, seed=args.seed, demo_steps=args.demo_steps, demos=args.demos,
-                       save_every=args.save_every, out=args.out, ship_as=args.ship,
-                       progress=not args.quiet, features=FeatureConfig(use_predictions))
+                       num_envs=args.num_envs, sensor_range_m=args.sensor_range, seed=args.seed,
+                       demo_steps=args.demo_steps, demos=args.demos, minutes=args.minutes,
+                       save_every=args.save_every, out=args.out, ship_as=args.ship, progress=not args.quiet,
+                       features=FeatureConfig(use_predictions, sensor_range_m=args.sensor_range))
 
 
 if __name__ == "__main__":
