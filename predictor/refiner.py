@@ -80,8 +80,10 @@ class Refiner(nn.Module):
     def context(self, history: torch.Tensor, anchors: torch.Tensor, group: torch.Tensor) -> torch.Tensor:
         """Per-agent condition (B, dim) from history (B, F), anchors (B, S, K) and window ids (B,)."""
         tokens = self.encode_history(torch.cat([history, anchors.flatten(1)], dim=1))
-        # one padded row per window (W, longest, dim): attention within each window, not over a masked (B, B)
         _, window, sizes = torch.unique(group, return_inverse=True, return_counts=True)
+        if len(sizes) <= 1:  # one window: everyone attends to everyone
+            return self.interact(tokens[None])[0]
+        # one padded row per window (W, longest, dim): attention within each window, not over a masked (B, B)
         order = torch.argsort(window, stable=True)
         slot = torch.arange(len(group)) - torch.repeat_interleave(torch.cumsum(sizes, 0) - sizes, sizes)
         rows = tokens.new_zeros(len(sizes), int(sizes.max()), tokens.shape[1])

@@ -7,6 +7,8 @@ import itertools
 import numpy as np
 import pytest
 import torch
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from predictor.baselines import ConstantVelocity
 from predictor.model import SINGLE_SAMPLE_STAND_SPEED_M
@@ -26,6 +28,22 @@ def reference_ddim(refiner: Refiner, anchors: torch.Tensor, ctx: torch.Tensor, n
         eps = (x - a.sqrt() * x0) / (1 - a).sqrt()
         x = a_next.sqrt() * x0 + (1 - a_next).sqrt() * eps if m_next > 0 else x0
     return x
+
+
+@settings(max_examples=25, deadline=None)
+@given(windows=st.lists(st.integers(0, 6), min_size=1, max_size=40), seed=st.integers(0, 2**31 - 1),
+       train=st.booleans())
+def test_context_attends_within_each_window_only(windows: list[int], seed: int, train: bool) -> None:
+    """The padded per-window attention equals attention over all agents with the other windows masked out, for
+    window ids in any order and of any sizes (one agent, one window, ids with gaps), in training and eval mode."""
+    torch.manual_seed(seed)
+    cfg = RefinerConfig(history_dim=6, num_samples=3, k=4, dim=16, denoiser_dim=16, heads=2, steps=4)
+    refiner = Refiner(cfg).train(train)
+    group = torch.tensor(windows) * 3  # gaps between the ids
+    history, anchors = torch.randn(len(group), 6), torch.randn(len(group), 3, 4)
+    tokens = refiner.encode_history(torch.cat([history, anchors.flatten(1)], dim=1))
+    masked = refiner.interact(tokens[None], mask=group[:, None] != group[None, :])[0]
+    torch.testing.assert_close(refiner.context(history, anchors, group), masked, rtol=0, atol=1e-5)
 
 
 @pytest.mark.parametrize("denoiser_dim", [32, 64])

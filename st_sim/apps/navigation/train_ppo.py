@@ -179,29 +179,39 @@ def resumable_state(cfg: TrainConfig) -> tuple[Path, list[dict]] | None:
     return out / "resume.zip", json.loads(curve_path.read_text()) if curve_path.exists() else []
 
 
-def plot_curve(curve: list[dict], path: Path, title: str) -> Path:
-    """Learning-curve PNG (OpenCV): success and collision rates against env steps."""
+def plot_curve(curves: dict[str, list[dict]], path: Path, title: str) -> Path:
+    """Learning-curve PNG (OpenCV) of one or more runs: success rate (top) and mean return (bottom) of the last
+    ``CURVE_WINDOW`` training episodes against env steps; one colour per run, named in the legend."""
     import cv2
 
-    width, height, margin = 640, 400, 50
+    width, panel, margin, left = 720, 240, 40, 70
+    height = 2 * panel + 3 * margin
     image = np.full((height, width, 3), 255, np.uint8)
-    cv2.rectangle(image, (margin, margin), (width - margin, height - margin), (0, 0, 0), 1)
-    last = max((p["timesteps"] for p in curve), default=1)
-    for frac in (0.0, 0.5, 1.0):
-        y = int(height - margin - frac * (height - 2 * margin))
-        cv2.putText(image, f"{frac:.1f}", (8, y + 4), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (0, 0, 0), 1)
-    cv2.putText(image, f"env steps (0 .. {last})", (width // 2 - 80, height - 15), cv2.FONT_HERSHEY_SIMPLEX,
-                0.45, (0, 0, 0), 1)
-    cv2.putText(image, title, (margin, 30), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (0, 0, 0), 1)
-    for key, colour, row in (("success", (0, 150, 0), 0), ("collision", (0, 0, 200), 1)):
-        points = np.array([[margin + p["timesteps"] / last * (width - 2 * margin),
-                            height - margin - p[key] * (height - 2 * margin)] for p in curve], np.int32)
-        if len(points) > 1:
-            cv2.polylines(image, [points], False, colour, 2, cv2.LINE_AA)
-        cv2.putText(image, key, (width - margin - 90, margin + 20 + 18 * row), cv2.FONT_HERSHEY_SIMPLEX, 0.45,
-                    colour, 1)
+    font, black = cv2.FONT_HERSHEY_SIMPLEX, (0, 0, 0)
+    colours = [(0, 120, 0), (200, 80, 0), (0, 0, 200), (120, 0, 120)]
+    last = max((p["timesteps"] for curve in curves.values() for p in curve), default=1)
+    returns = [p["return"] for curve in curves.values() for p in curve] or [0.0]
+    panels = (("success", 0.0, 1.0), ("return", min(returns), max(max(returns), min(returns) + 1e-6)))
+    cv2.putText(image, title, (left, 25), font, 0.5, black, 1)
+    for row, (key, low, high) in enumerate(panels):
+        top = margin + row * (panel + margin)
+        cv2.rectangle(image, (left, top), (width - margin, top + panel), black, 1)
+        for frac in (0.0, 0.5, 1.0):
+            y = int(top + panel - frac * panel)
+            cv2.putText(image, f"{low + frac * (high - low):.2f}", (5, y + 4), font, 0.4, black, 1)
+        cv2.putText(image, key, (left + 5, top + 15), font, 0.45, black, 1)
+        for curve, colour in zip(curves.values(), colours, strict=False):
+            points = np.array([[left + p["timesteps"] / last * (width - margin - left),
+                                top + panel - (p[key] - low) / (high - low) * panel] for p in curve], np.int32)
+            if len(points) > 1:
+                cv2.polylines(image, [points], False, colour, 2, cv2.LINE_AA)
+    top_legend = margin + 15  # inside the success panel's top right corner
+    for index, (label, colour) in enumerate(zip(curves, colours, strict=False)):
+        cv2.putText(image, label, (width - margin - 230, top_legend + 13 * index), font, 0.4, colour, 1)
+    cv2.putText(image, f"env steps (0 .. {last})", (width // 2 - 60, height - 8), font, 0.45, black, 1)
     path.parent.mkdir(parents=True, exist_ok=True)
-    cv2.imwrite(str(path), image)
+    with atomic_path(path) as tmp:
+        cv2.imwrite(str(tmp), image)
     return path
 
 
@@ -260,7 +270,7 @@ def main(cfg: TrainConfig) -> Path:
     policy.load_state_dict(model.policy.state_dict())
     sha256 = save_policy(policy, cfg.features, net_arch, out / "policy.pt")
     write_text_atomic(out / "curve.json", json.dumps(curve, indent=1))
-    plot_curve(curve, out / "curve.png", run_name)
+    plot_curve({run_name: curve}, out / "curve.png", run_name)
     record = {"run": run_name, "config": asdict(cfg), "wall_time_s": wall_time_s, "cloning": cloning,
               "resumed_from": resumed_from, "sha256": sha256,
               "final": curve[-1] if curve else None, "command": "python -m st_sim.apps.navigation.train_ppo "

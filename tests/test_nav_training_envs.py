@@ -1,0 +1,71 @@
+"""The PPO trainer's vector env (``training_envs.FeatureVecEnv``): the same transitions as stable-baselines3's own
+``DummyVecEnv`` over single envs seen through ``NavFeatures``, through episode ends and resets."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from stable_baselines3.common.vec_env import DummyVecEnv
+
+import envs  # noqa: F401  (registers the ids)
+from envs.common.config import EnvConfig
+from st_sim.apps.navigation.features import FeatureConfig, NavFeatures, encode
+from st_sim.apps.navigation.predictors import env_predictor
+from st_sim.apps.navigation.training_envs import FeatureVecEnv, sub_env_info
+from st_sim.apps.navigation.world import world_of
+
+ENV_ID = "STCrowd-SimCrossing-v1"
+
+
+@settings(max_examples=3, deadline=None)
+@given(seed=st.integers(0, 10_000), num_envs=st.integers(1, 3), sensor_range_m=st.sampled_from([3.0, np.inf]))
+def test_feature_vec_env_equals_dummy_vec_env_over_single_envs(seed: int, num_envs: int, sensor_range_m: float
+                                                                ) -> None:
+    features = FeatureConfig(use_predictions=False, sensor_range_m=sensor_range_m)
+    ours = FeatureVecEnv(ENV_ID, num_envs, features)
+    config = EnvConfig(sensor_range_m=sensor_range_m)
+    theirs = DummyVecEnv([lambda: NavFeatures(gym.make(ENV_ID, predictor=env_predictor("none"), config=config),
+                                              features)] * num_envs)
+    ours.seed(seed), theirs.seed(seed)
+    np.testing.assert_array_equal(ours.reset(), theirs.reset())
+    rng, ended = np.random.default_rng(seed), 0
+    for t in range(60):
+        actions = rng.uniform(-1.0, 1.0, (num_envs, 2)).astype(np.float32)
+        actions[:, 0] = np.abs(actions[:, 0])  # mostly on towards the goal: episodes end by goal and collision too
+        ours.step_async(actions), theirs.step_async(actions)
+        (obs, rewards, dones, infos), (obs_t, rewards_t, dones_t, infos_t) = ours.step_wait(), theirs.step_wait()
+        np.testing.assert_array_equal(obs, obs_t, err_msg=f"step {t}")
+        np.testing.assert_array_equal(rewards, rewards_t, err_msg=f"step {t}")
+        np.testing.assert_array_equal(dones, dones_t, err_msg=f"step {t}")
+        for i in np.flatnonzero(dones):
+            ended += 1
+            np.testing.assert_array_equal(infos[i]["terminal_observation"], infos_t[i]["terminal_observation"])
+            assert infos[i]["TimeLimit.truncated"] == infos_t[i]["TimeLimit.truncated"]
+            assert infos[i]["termination"] == infos_t[i]["termination"]
+    assert ended > 0, "some episode ended within 60 steps, so resets were compared"
+    ours.close(), theirs.close()
+
+
+def test_features_leave_out_pedestrians_beyond_the_sensor_range() -> None:
+    env = gym.make(ENV_ID, predictor="cvm")
+    obs, _ = env.reset(seed=3)
+    for _ in range(10):
+        obs, *_ = env.step(np.zeros(2, np.float32))
+    world = world_of(env)
+    present = obs["history_mask"][:, -1]
+    distance_m = np.linalg.norm(obs["history"][present, -1] - obs["ego"][:2], axis=1)
+    for range_m in (0.5, 2.0, 4.0, np.inf):
+        slots = encode(obs, world, FeatureConfig(True, sensor_range_m=range_m))[19:].reshape(6, -1)
+        assert slots[:, 0].sum() == min(6, int((distance_m <= range_m).sum())), range_m
+
+
+@pytest.mark.parametrize("batched, i, expected", [
+    ({"a": np.array([1, 2]), "_a": np.array([True, False])}, 0, {"a": 1}),
+    ({"a": np.array([1, 2]), "_a": np.array([True, False])}, 1, {}),
+    ({"f": {"b": np.array([3, 4]), "_b": np.array([True, True])}, "_f": np.array([False, True])}, 1, {"f": {"b": 4}}),
+])
+def test_sub_env_info_keeps_what_the_sub_env_set(batched: dict, i: int, expected: dict) -> None:
+    assert sub_env_info(batched, i) == expected
