@@ -63,10 +63,7 @@ def test_straight_planner_walks_into_the_crosser(open_world: NavWorld) -> None:
     assert closest < open_world.contact_m, f"the scenario should make the straight planner collide ({closest:.2f} m)"
 
 
-NO_AVOIDANCE = pytest.mark.xfail(strict=True, reason="the shipped PPO policy without predictions (1 h budget, "
-                                 "RESULTS.md 'PPO') walks into the crosser; retrain it and drop this mark")
-AVOIDERS = [("orca", "none"), ("mpc", "cvm"), ("mpc", "singular"), ("ppo", "singular"),
-            pytest.param("ppo", "none", marks=NO_AVOIDANCE)]
+AVOIDERS = [("orca", "none"), ("mpc", "cvm"), ("mpc", "singular"), ("ppo", "singular"), ("ppo", "none")]
 
 
 @pytest.mark.parametrize(("planner", "predictor"), AVOIDERS,
