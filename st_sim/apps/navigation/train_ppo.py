@@ -59,7 +59,7 @@ class TrainConfig:
     """features hold the predicted futures (the env runs SingularTrajectory); False: positions only"""
     env_id: str = "STCrowd-SimCrossing-v1"
     """training env"""
-    timesteps: int = 100_000
+    timesteps: int = 1_000_000
     """env steps over all envs (the training budget)"""
     num_envs: int = 16
     """sub-envs of the native vector env (one process)"""
