@@ -94,3 +94,14 @@ def test_navigate_takes_every_baseline_predictor(tmp_path: Path, predictor: str)
                  "--pedestrians", "reactive", "--episodes", "1", "--quiet", "--json", str(out)]) == 0
     run = json.loads(out.read_text())
     assert run["predictor"] == predictor and len(run["episodes"]) == 1
+
+
+def test_a_sensor_range_reaches_the_env_and_bad_ranges_are_refused(capsys: pytest.CaptureFixture) -> None:
+    from st_sim.apps.navigation.episodes import make_nav_env
+
+    env = make_nav_env(NavRun("STCrowd-SimCrossing-v1", "ppo", "singular", sensor_range_m=5.0))
+    assert env.unwrapped.cfg.sensor_range_m == 5.0
+    assert make_nav_env(NavRun("STCrowd-SimCrossing-v1", "ppo", "none")).unwrapped.cfg.sensor_range_m == np.inf
+    for bad in ("0", "-1", "nan"):
+        with pytest.raises(SystemExit, match="--sensor-range"):
+            main(["navigate", "--policy", "straight", "--predictor", "none", "--sensor-range", bad, "--quiet"])

@@ -36,6 +36,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
     nav.add_argument("--pedestrians", choices=["log", "reactive"], default=None,
                      help="replays: log = the recording exactly, reactive = recorded pedestrians step round the "
                           "robot (default: log)")
+    nav.add_argument("--sensor-range", type=float, default=None,
+                     help="the robot senses, and the env forecasts, only the pedestrians within this many metres "
+                          "(default: inf, everyone)")
     nav.add_argument("--json", default=None, help="write settings, per-episode figures and the summary here")
     nav.add_argument("--rerun", default=None, help="write one Rerun recording per episode into this folder")
     nav.add_argument("--data-root", default=None, help="ETH/UCY folder (default: $STCROWD_DATA or the cache)")
@@ -50,9 +53,11 @@ def run(args: argparse.Namespace) -> int:
 
     if args.episodes < 1:
         raise SystemExit("--episodes must be at least 1")
+    if args.sensor_range is not None and not args.sensor_range > 0:  # also refuses NaN
+        raise SystemExit(f"--sensor-range={args.sensor_range}: expected a distance in metres > 0 (or inf)")
     nav_run = NavRun(env_id=args.env, policy=args.policy, predictor=args.predictor, episodes=args.episodes,
                      seed=args.seed, pedestrians_see_ego=SEE_EGO_CHOICES[args.pedestrians_see_ego],
-                     pedestrians=args.pedestrians,
+                     pedestrians=args.pedestrians, sensor_range_m=args.sensor_range,
                      rerun_dir=args.rerun, data_root=args.data_root)
     result = run_navigation(nav_run, progress=not args.quiet)
     print(summary_text(result))

@@ -18,6 +18,7 @@ import numpy as np
 from tqdm import tqdm
 
 import envs  # noqa: F401  (registers the ids)
+from envs.common.config import EnvConfig
 from replays.atomic import write_text_atomic
 from st_sim.apps.grid import Job
 from st_sim.apps.navigation.metrics import EpisodeTrace, episode_metrics, outcome_of, summarize
@@ -48,6 +49,9 @@ class NavRun:
     """pass this to envs that accept the keyword; None = the env's default"""
     pedestrians: str | None = None
     """replays: "log" (the recording) or "reactive" (pedestrians step round the robot); None = the env's default"""
+    sensor_range_m: float | None = None
+    """the robot senses, and the env forecasts, only the pedestrians this close (``EnvConfig.sensor_range_m``) [m];
+    None = everyone"""
     rerun_dir: str | None = None
     """write one Rerun recording per episode into this folder"""
     data_root: str | None = None
@@ -76,6 +80,8 @@ def make_nav_env(run: NavRun, rerun_path: str | None = None) -> gym.Env:
         kwargs[PEDESTRIANS_KWARG] = run.pedestrians
     if run.data_root is not None:
         kwargs["root"] = run.data_root
+    if run.sensor_range_m is not None:
+        kwargs["config"] = EnvConfig(sensor_range_m=run.sensor_range_m)
     if rerun_path is not None:
         kwargs["rerun"] = rerun_path
     return gym.make(run.env_id, **kwargs)
