@@ -3,6 +3,8 @@ step by step and through autoresets, with one batched forecast per step."""
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -51,13 +53,20 @@ def assert_same_step(ours, theirs, where: str) -> None:
 
 
 def assert_same_nested(ours, theirs, where: str) -> None:
-    """Batched infos (dicts of arrays, nested) equal, predicted futures up to float rounding."""
-    if isinstance(theirs, dict):
+    """Batched infos (dicts of arrays, nested) equal; predicted futures, and the prediction metrics computed from them,
+    up to float rounding."""
+    if isinstance(theirs, Mapping):
         assert ours.keys() == theirs.keys(), where
         for key in theirs:
             assert_same_nested(ours[key], theirs[key], f"{where}[{key!r}]")
+    elif isinstance(theirs, np.ndarray) and theirs.dtype == object:  # e.g. one observation dict per sub-env
+        assert ours.shape == theirs.shape, where
+        for i, (mine, other) in enumerate(zip(ours.ravel(), theirs.ravel(), strict=True)):
+            assert_same_nested(mine, other, f"{where}[{i}]")
     elif where.endswith("['futures']"):
         np.testing.assert_allclose(ours, theirs, rtol=0, atol=1e-4, err_msg=where)
+    elif "['metrics']" in where and isinstance(theirs, float):
+        assert ours == pytest.approx(theirs, abs=1e-4), where
     else:
         assert same(ours, theirs), where
 
