@@ -59,9 +59,11 @@ def path_frame(obs: dict[str, np.ndarray], world: NavWorld) -> np.ndarray:
     return np.stack([x_axis, [-x_axis[1], x_axis[0]]])
 
 
-def encode(obs: dict[str, np.ndarray], world: NavWorld, cfg: FeatureConfig) -> np.ndarray:
-    """(cfg.size,) float32 features of an STCrowd observation (see the module docstring)."""
-    frame = path_frame(obs, world)
+def encode(obs: dict[str, np.ndarray], world: NavWorld, cfg: FeatureConfig, frame: np.ndarray | None = None
+           ) -> np.ndarray:
+    """(cfg.size,) float32 features of an STCrowd observation (see the module docstring); ``frame``: its
+    ``path_frame`` if already computed."""
+    frame = path_frame(obs, world) if frame is None else frame
     ego_xy, ego_v, goal = (obs["ego"][i:i + 2].astype(np.float64) for i in (0, 2, 4))
     ego = [min(np.linalg.norm(goal - ego_xy) / GOAL_SCALE_M, 2.0), *(frame @ ego_v / world.max_speed_mps)]
 
@@ -98,9 +100,12 @@ def drop_predictions(features: np.ndarray) -> np.ndarray:
     return np.concatenate([features[..., :3 + RAY_COUNT], slots.reshape(*features.shape[:-1], -1)], axis=-1)
 
 
-def to_velocity(action: np.ndarray, obs: dict[str, np.ndarray], world: NavWorld) -> np.ndarray:
-    """(2,) float32 world-frame velocity [m/s] of a policy action (2,) in [-1, 1] (path frame, speed limits)."""
-    return (np.clip(action, -1.0, 1.0) @ path_frame(obs, world) * world.max_speed_mps).astype(np.float32)
+def to_velocity(action: np.ndarray, obs: dict[str, np.ndarray], world: NavWorld, frame: np.ndarray | None = None
+                ) -> np.ndarray:
+    """(2,) float32 world-frame velocity [m/s] of a policy action (2,) in [-1, 1] (path frame, speed limits);
+    ``frame``: the observation's ``path_frame`` if already computed."""
+    frame = path_frame(obs, world) if frame is None else frame
+    return (np.clip(action, -1.0, 1.0) @ frame * world.max_speed_mps).astype(np.float32)
 
 
 class NavFeatures(gym.Wrapper):
@@ -112,11 +117,17 @@ class NavFeatures(gym.Wrapper):
         self.observation_space = spaces.Box(-np.inf, np.inf, (cfg.size,), np.float32)
         self.action_space = spaces.Box(-1.0, 1.0, (2,), np.float32)
         self._obs: dict[str, np.ndarray] | None = None
+        self._frame: np.ndarray | None = None  # path_frame of _obs, for the next action
 
     def reset(self, **kwargs):
         self._obs, info = self.env.reset(**kwargs)
-        return encode(self._obs, self.world, self.cfg), info
+        return self._encode(), info
 
     def step(self, action: np.ndarray):
-        self._obs, reward, terminated, truncated, info = self.env.step(to_velocity(action, self._obs, self.world))
-        return encode(self._obs, self.world, self.cfg), reward, terminated, truncated, info
+        velocity = to_velocity(action, self._obs, self.world, self._frame)
+        self._obs, reward, terminated, truncated, info = self.env.step(velocity)
+        return self._encode(), reward, terminated, truncated, info
+
+    def _encode(self) -> np.ndarray:
+        self._frame = path_frame(self._obs, self.world)
+        return encode(self._obs, self.world, self.cfg, self._frame)

@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from st_sim.apps.navigation.features import FeatureConfig, encode, to_velocity
+from st_sim.apps.navigation.features import FeatureConfig, encode, path_frame, to_velocity
 from st_sim.apps.navigation.world import NavWorld
 
 FORMAT = "stcrowd-nav-ppo/1"
@@ -109,5 +109,6 @@ class PpoPlanner:
 
     def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
         """(2,) velocity command [m/s], world frame."""
-        action, _ = self.policy.predict(encode(obs, self.world, self.features), deterministic=True)
-        return to_velocity(action, obs, self.world)
+        frame = path_frame(obs, self.world)
+        action, _ = self.policy.predict(encode(obs, self.world, self.features, frame), deterministic=True)
+        return to_velocity(action, obs, self.world, frame)

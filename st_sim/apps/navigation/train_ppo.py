@@ -101,9 +101,11 @@ class TrainConfig:
     """also copy the policy into pretrained/ under this name"""
     progress: bool = True
     """show a progress bar"""
-    # to be filled in runtime
-    features: FeatureConfig = field(default_factory=FeatureConfig)
-    """derived from use_predictions"""
+
+    @property
+    def features(self) -> FeatureConfig:
+        """What the policy sees: derived from ``use_predictions`` and ``sensor_range_m``."""
+        return FeatureConfig(self.use_predictions, self.sensor_range_m)
 
 
 def outcome(info: dict) -> str:
@@ -209,8 +211,7 @@ def plot_curve(curves: dict[str, list[dict]], path: Path, title: str) -> Path:
     for index, (label, colour) in enumerate(zip(curves, colours, strict=False)):
         cv2.putText(image, label, (width - margin - 230, top_legend + 13 * index), font, 0.4, colour, 1)
     cv2.putText(image, f"env steps (0 .. {last})", (width // 2 - 60, height - 8), font, 0.45, black, 1)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with atomic_path(path) as tmp:
+    with atomic_path(path) as tmp:  # makes the folder too
         cv2.imwrite(str(tmp), image)
     return path
 
@@ -336,8 +337,7 @@ def parse_args(argv: list[str] | None = None) -> TrainConfig:
     return TrainConfig(use_predictions=use_predictions, env_id=args.env_id, timesteps=args.timesteps,
                        num_envs=args.num_envs, sensor_range_m=args.sensor_range, seed=args.seed,
                        demo_steps=args.demo_steps, demos=args.demos, minutes=args.minutes,
-                       save_every=args.save_every, out=args.out, ship_as=args.ship, progress=not args.quiet,
-                       features=FeatureConfig(use_predictions, sensor_range_m=args.sensor_range))
+                       save_every=args.save_every, out=args.out, ship_as=args.ship, progress=not args.quiet)
 
 
 if __name__ == "__main__":

@@ -26,7 +26,7 @@ from gymnasium.vector.utils import iterate
 from stable_baselines3.common.vec_env import VecEnv
 
 from envs.common.config import EnvConfig
-from st_sim.apps.navigation.features import FeatureConfig, encode, to_velocity
+from st_sim.apps.navigation.features import FeatureConfig, encode, path_frame, to_velocity
 from st_sim.apps.navigation.predictors import env_predictor
 from st_sim.apps.navigation.world import world_of
 
@@ -56,6 +56,7 @@ class FeatureVecEnv(VecEnv):
         self.features = features
         self.worlds = [world_of(env) for env in self.vector.envs]
         self._obs: list[dict[str, np.ndarray]] = []
+        self._frames: list[np.ndarray] = []  # path_frame of each sub-env's observation, for its next action
         self._velocities = np.zeros((num_envs, 2), np.float32)
         super().__init__(num_envs, spaces.Box(-np.inf, np.inf, (features.size,), np.float32),
                          spaces.Box(-1.0, 1.0, (2,), np.float32))
@@ -69,8 +70,8 @@ class FeatureVecEnv(VecEnv):
 
     def step_async(self, actions: np.ndarray) -> None:
         actions = np.asarray(actions, np.float32).reshape(self.num_envs, 2)
-        self._velocities = np.stack([to_velocity(action, obs, world)
-                                     for action, obs, world in zip(actions, self._obs, self.worlds, strict=True)])
+        self._velocities = np.stack([to_velocity(action, obs, world, frame) for action, obs, world, frame
+                                     in zip(actions, self._obs, self.worlds, self._frames, strict=True)])
 
     def step_wait(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[dict]]:
         obs, rewards, terminations, truncations, batched = self.vector.step(self._velocities)
@@ -101,7 +102,9 @@ class FeatureVecEnv(VecEnv):
 
     def _encode_all(self, obs: dict[str, np.ndarray]) -> np.ndarray:
         self._obs = list(iterate(self.vector.single_observation_space, obs))
-        return np.stack([encode(o, world, self.features) for o, world in zip(self._obs, self.worlds, strict=True)])
+        self._frames = [path_frame(o, world) for o, world in zip(self._obs, self.worlds, strict=True)]
+        return np.stack([encode(o, world, self.features, frame)
+                         for o, world, frame in zip(self._obs, self.worlds, self._frames, strict=True)])
 
     def _get_indices(self, indices: Any) -> Sequence[int]:
         return range(self.num_envs) if indices is None else [indices] if isinstance(indices, int) else indices
