@@ -57,7 +57,8 @@ class ModelConfig:
     """at inference, after the bending, move every predicted point that is still more than on_map_tolerance_m off
     the walkable map onto its nearest walkable pixel"""
     on_map_tolerance_m: float = 0.1
-    """predicted points this close to walkable ground stay where they are (annotated people walk there too) [m]"""
+    """predicted points this close to walkable ground stay where they are (annotated people walk there too) [m],
+    [0, 10]"""
     dim: int = 256
     """width of the refiner's context transformer"""
     denoiser_dim: int = 128
@@ -80,7 +81,8 @@ class ModelConfig:
         check_config(self, {"obs_len": (2, 64), "num_samples": (1, 1000), "k": (1, 24), "slow_speed_m": (0.0, 10.0),
                             "stand_speed_m": (0.0, 10.0),
                             "slow_scale_floor_m": (0.0, 10.0), "dim": (4, 4096), "denoiser_dim": (4, 4096),
-                            "heads": (1, 64), "layers": (1, 16), "steps": (1, 1000), "init_noise": (0.0, 100.0)},
+                            "heads": (1, 64), "layers": (1, 16), "steps": (1, 1000), "init_noise": (0.0, 100.0),
+                            "on_map_tolerance_m": (0.0, 10.0)},
                      choices={"task": tuple(TASKS), "anchor_off_image": OFF_IMAGE_MODES, "anchor_bend": BEND_SHAPES})
         if self.dim % self.heads:
             raise ValueError(f"ModelConfig.dim={self.dim}: must be a multiple of heads={self.heads}")
