@@ -87,6 +87,9 @@ class TrainConfig:
     slow_scale_floor_m: float | None = None
     """0: slow agents unscaled; > 0: scaled by max(speed, this) [m per step]; None: 0.05 for single-sample
     tasks and 0 otherwise"""
+    mirror_paths: bool = False
+    """fit the Singular spaces and prototype anchors on the training futures and their left/right mirror images
+    (a laterally symmetric basis; the mean anchor of single-sample tasks then has no sideways drift)"""
     world_features: bool = True
     """world-frame inputs (centroid offset, velocity); False = orientation-invariant inputs"""
     zero_start: bool = True
@@ -160,8 +163,11 @@ def fit_model(cfg: TrainConfig, train: Windows) -> SingularTrajectory:
     futures = frames.to_agent(train.fut.astype(np.float64))
     spaces, anchors, coef_scale, residual_scale = [], [], [], []
     for population in (~frames.slow, frames.slow):  # 0 = moving, 1 = slow
-        space = fit_singular_space(futures[population], cfg.k)
-        coefs = space.project(futures[population])
+        paths = futures[population]  # (n, 12, 2) agent frame: x ahead, y to the left
+        if cfg.mirror_paths:
+            paths = np.concatenate([paths, paths * np.array([1.0, -1.0])])
+        space = fit_singular_space(paths, cfg.k)
+        coefs = space.project(paths)
         protos = prototype_anchors(coefs, model_cfg.num_samples, cfg.seed)
         nearest = np.linalg.norm(coefs[:, None] - protos[None], axis=-1).min(axis=1)
         spaces.append(space)
