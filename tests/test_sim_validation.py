@@ -4,6 +4,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -53,12 +54,17 @@ def test_counterflow_forms_lanes_and_keeps_walking(seed: int) -> None:
     assert flow.mean_speed_mps >= 0.7 and flow.lane_index > 0.5, flow
 
 
-@settings(max_examples=4, deadline=None)
-@given(seed=st.integers(0, 2**32 - 1))
+@settings(max_examples=2, deadline=None)
+@given(seed=st.integers(0, 2**32 - 8))
 def test_bottleneck_flow_grows_with_the_door(seed: int) -> None:
-    """Doors from 1.2 m let a crowd through at more than half the published specific flow, and a 2 m door lets
-    at least 1.3 times as many through per second as a 1.2 m one (doors under about 1 m can clog: RESULTS)."""
-    narrow, narrow_out_s = scenarios.bottleneck_flow(CFG, 1.2, n=60, seed=seed)
-    wide, wide_out_s = scenarios.bottleneck_flow(CFG, 2.0, n=60, seed=seed)
+    """Over 8 seeds, a 1.2 m door lets a crowd through at a median of more than half the published specific flow
+    and empties the room within 120 s, and a 2 m door lets at least 1.3 times as many through per second on the
+    median and never clogs. A 1.2 m door clogs on about 1 seed in 75 (arches of 0.4 m discs), so single seeds
+    promise nothing (``benchmarks/door_clogging.py``, RESULTS)."""
+    runs = [(scenarios.bottleneck_flow(CFG, 1.2, n=60, seed=s), scenarios.bottleneck_flow(CFG, 2.0, n=60, seed=s))
+            for s in range(seed, seed + 8)]
+    narrow, narrow_out_s = np.median([r[0] for r in runs], axis=0)
+    wide, wide_out_s = np.median([r[1] for r in runs], axis=0)
     assert narrow > 0.8 and wide * 2.0 > narrow * 1.2 * 1.3, f"{narrow:.2f} vs {wide:.2f} /(m s)"
     assert wide_out_s < narrow_out_s < 120.0
+    assert all(w > 0.8 and out_s < 120.0 for _, (w, out_s) in runs), runs
