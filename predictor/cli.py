@@ -74,6 +74,12 @@ def build_parser() -> argparse.ArgumentParser:
                        help=f"anchor bending shape (default: {defaults.anchor_bend})")
     train.add_argument("--no-adapt-output", dest="adapt_output", action="store_const", const=False,
                        help="do not bend the refined futures onto the map at inference (default: bend them)")
+    train.add_argument("--no-output-on-map", dest="output_on_map", action="store_const", const=False,
+                       help="leave predicted points inside walls where the refiner put them (default: move those "
+                            "deeper than 0.1 m onto the nearest walkable pixel)")
+    train.add_argument("--mirror-paths", dest="mirror_paths", action="store_const", const=True,
+                       help="fit the Singular spaces and anchors on the training futures and their left/right "
+                            "mirror images (default: as recorded)")
     train.add_argument("--init-noise", type=float,
                        help=f"scale of the sampler's starting noise, 0 = a deterministic chain "
                             f"(default: {defaults.init_noise})")

@@ -53,9 +53,10 @@ class ModelConfig:
     """how a path is bent onto its target end point: "ramp" (linear offset) or "scale" (per image axis)"""
     adapt_output: bool = True
     """bend the refined futures onto the map the same way at inference (end points on walkable pixels)"""
-    output_on_map: bool = False
+    output_on_map: bool = True
     """at inference, after the bending, move every predicted point that is still more than on_map_tolerance_m off
-    the walkable map onto its nearest walkable pixel"""
+    the walkable map onto its nearest walkable pixel (the bending moves whole paths by their end points; the
+    refiner's residual can leave single points in a wall)"""
     on_map_tolerance_m: float = 0.1
     """predicted points this close to walkable ground stay where they are (annotated people walk there too) [m],
     [0, 10]"""

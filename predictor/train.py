@@ -82,6 +82,8 @@ class TrainConfig:
     """anchor bending shape: "ramp" (linear offset over time) or "scale" (about the last observed point)"""
     adapt_output: bool = True
     """at inference, bend the refined futures onto the map as the anchors are (training is unaffected)"""
+    output_on_map: bool = True
+    """at inference, move predicted points still off the walkable map onto it (see ModelConfig.output_on_map)"""
     slow_speed_m: float | None = None
     """slow-population threshold [m per 0.4 s step]; None: 0.1 for single-sample tasks, 0.3 otherwise"""
     slow_scale_floor_m: float | None = None

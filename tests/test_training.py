@@ -148,6 +148,42 @@ def test_predicted_end_points_are_pulled_onto_walkable_pixels(trained):
     assert not eth.is_walkable(raw_ends).all()  # without the output adaptation some leave the walkway
 
 
+def test_predicted_points_are_kept_on_walkable_ground(trained):
+    """By default no predicted point lies deeper than on_map_tolerance_m inside a wall or off the image: moving
+    the points onto the map again moves none of them; without it, HOTEL's forecasts leave the map."""
+    from dataclasses import replace
+
+    from predictor.anchors import onto_walkable
+
+    model = load(f"{trained.out}/best.pt")
+    test = load_windows("stochastic", "hotel", "test")
+    hotel = load_scene("hotel")
+    tolerance_m = model.cfg.on_map_tolerance_m + 1e-3  # float32 outputs
+    futures = model.predict(test.obs, test.group, hotel, 20).astype(np.float64)
+    assert model.cfg.output_on_map and not onto_walkable(futures, hotel, tolerance_m)[1].any()
+    model.cfg = replace(model.cfg, output_on_map=False)
+    raw = model.predict(test.obs, test.group, hotel, 20).astype(np.float64)
+    assert onto_walkable(raw, hotel, tolerance_m)[1].any()
+
+
+@pytest.mark.parametrize("task", ["deterministic", "stochastic"])
+def test_mirrored_paths_give_a_laterally_symmetric_space(task):
+    """mirror_paths: the span of each Singular space is closed under y -> -y in the agent frame, and the single
+    anchor of a one-sample task (the mean path) walks straight ahead."""
+    from predictor.train import fit_model
+
+    cfg = TrainConfig(task=task, scene="zara1", mirror_paths=True, progress=False)
+    model = fit_model(cfg, load_windows(task, "zara1", "train").subset(np.arange(3000)))
+    mirror = np.array([1.0, -1.0])
+    paths = np.random.default_rng(0).normal(size=(50, 12, 2))
+    for space in model.spaces:
+        round_trip = space.reconstruct(space.project(paths * mirror))
+        np.testing.assert_allclose(round_trip, space.reconstruct(space.project(paths)) * mirror, atol=1e-6)
+    if task == "deterministic":
+        for space, anchor in zip(model.spaces, model.anchors, strict=True):
+            np.testing.assert_allclose(space.reconstruct(anchor)[..., 1], 0.0, atol=1e-9)
+
+
 def test_averaged_weights_are_kept_and_a_stopped_run_continues_with_its_average(tmp_path, monkeypatch):
     """ema_decay > 0: best.pt holds the moving average of the weights (not the last ones), and a run killed during
     its second epoch and started again ends with the same checkpoint as one that ran through."""
