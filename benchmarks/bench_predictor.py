@@ -3,7 +3,8 @@
     OMP_NUM_THREADS=1 STCROWD_DATA=../shared/datasets/eth_ucy python benchmarks/bench_predictor.py [--train univ zara1]
 
 Inference: 50 agents x 20 samples x 12 steps on one core (target <= 10 ms), split into input preparation
-(agent frames, Singular-space projection, map-adaptive anchors) and the 10-step refiner; the constant-velocity
+(agent frames, Singular-space projection, map-adaptive anchors) and the 10-step refiner, with the on-map step
+of the output (part of the total) timed alone; the constant-velocity
 baseline is timed in the same run for a ratio. Training: one stochastic model per named scene with the
 default configuration, then its test ADE/FDE beside the paper's (target: within 0.005 m in <= 10 min).
 """
@@ -18,6 +19,7 @@ import time
 import numpy as np
 import torch
 
+from predictor.anchors import onto_walkable
 from predictor.baselines import ConstantVelocity
 from replays import load_scene, load_windows
 
@@ -45,11 +47,14 @@ def inference(model, repeats: int) -> None:
     full = timed(lambda: model.predict(obs, group, scene, 20), repeats)
     prep = timed(lambda: model.prepare(obs, group, [scene], np.zeros(len(obs), np.int64)), repeats)
     cvm = timed(lambda: ConstantVelocity().predict(obs, group, scene, 20), repeats)
+    futures = model.predict(obs, group, scene, 20).astype(np.float64)
+    on_map = timed(lambda: onto_walkable(futures, scene, model.cfg.on_map_tolerance_m), repeats)
     med = statistics.median
     print(f"inference, {N_AGENTS} agents x 20 samples x 12 steps, 1 thread, {repeats} repeats (median ms):")
     print(f"  SingularTrajectory total   {med(full):7.2f} ms  (p90 {np.percentile(full, 90):.2f})")
     print(f"    input prep + anchors     {med(prep):7.2f} ms")
     print(f"    refiner ({model.cfg.steps} DDIM steps) {med(full) - med(prep):7.2f} ms")
+    print(f"    on-map step (in total)   {med(on_map):7.2f} ms")
     print(f"  constant velocity          {med(cvm):7.2f} ms   ratio {med(full) / med(cvm):.0f}x")
 
 
