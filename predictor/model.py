@@ -68,6 +68,8 @@ class ModelConfig:
     """attention heads"""
     layers: int = 1
     """interaction transformer layers"""
+    dropout: float = 0.0
+    """dropout in the interaction layers while training, [0, 0.9]"""
     steps: int = 10
     """M, DDIM steps"""
     init_noise: float = 1.0
@@ -82,7 +84,8 @@ class ModelConfig:
         check_config(self, {"obs_len": (2, 64), "num_samples": (1, 1000), "k": (1, 24), "slow_speed_m": (0.0, 10.0),
                             "stand_speed_m": (0.0, 10.0),
                             "slow_scale_floor_m": (0.0, 10.0), "dim": (4, 4096), "denoiser_dim": (4, 4096),
-                            "heads": (1, 64), "layers": (1, 16), "steps": (1, 1000), "init_noise": (0.0, 100.0),
+                            "heads": (1, 64), "layers": (1, 16), "dropout": (0.0, 0.9), "steps": (1, 1000),
+                            "init_noise": (0.0, 100.0),
                             "on_map_tolerance_m": (0.0, 10.0)},
                      choices={"task": tuple(TASKS), "anchor_off_image": OFF_IMAGE_MODES, "anchor_bend": BEND_SHAPES})
         if self.dim % self.heads:

@@ -34,6 +34,8 @@ class RefinerConfig:
     """attention heads of the interaction layer"""
     layers: int = 1
     """interaction transformer layers"""
+    dropout: float = 0.0
+    """dropout in the interaction layers while training"""
     steps: int = 10
     """M, DDIM denoising steps"""
     zero_start: bool = True
@@ -63,7 +65,7 @@ class Refiner(nn.Module):
         self.cfg = cfg
         d, h, sk = cfg.dim, cfg.denoiser_dim, cfg.num_samples * cfg.k
         self.encode_history = nn.Sequential(nn.Linear(cfg.history_dim + sk, d), nn.SiLU(), nn.Linear(d, d))
-        layer = nn.TransformerEncoderLayer(d, cfg.heads, dim_feedforward=2 * d, dropout=0.0, batch_first=True,
+        layer = nn.TransformerEncoderLayer(d, cfg.heads, dim_feedforward=2 * d, dropout=cfg.dropout, batch_first=True,
                                            norm_first=True)
         self.interact = nn.TransformerEncoder(layer, cfg.layers, enable_nested_tensor=False)
         self.embed_context = nn.Linear(d, h, bias=False)

@@ -72,6 +72,10 @@ class TrainConfig:
     """width of the refiner's context transformer"""
     denoiser_dim: int = 128
     """width of the refiner's denoiser MLP"""
+    layers: int = 1
+    """interaction transformer layers of the refiner"""
+    dropout: float = 0.0
+    """dropout in the refiner's interaction layers while training"""
     steps: int = 10
     """M, DDIM steps"""
     adapt_anchors: bool = True
@@ -123,7 +127,8 @@ class TrainConfig:
             "epochs": (1, 10_000), "min_steps": (0, 10**7), "batch_agents": (2, 10**6), "lr": (1e-8, 1.0),
             "weight_decay": (0.0, 1.0), "warmup_epochs": (0.0, 10_000.0), "clip_grad": (1e-6, 1e6),
             "fde_weight": (0.0, 100.0), "k": (1, 24), "dim": (4, 4096), "denoiser_dim": (4, 4096),
-            "steps": (1, 1000), "init_noise": (0.0, 100.0), "seed": (0, 2**31 - 1), "threads": (1, 256),
+            "steps": (1, 1000), "layers": (1, 16), "dropout": (0.0, 0.9),
+            "init_noise": (0.0, 100.0), "seed": (0, 2**31 - 1), "threads": (1, 256),
             "select_tolerance_m": (0.0, 10.0), "max_train_windows": (1, 10**9), "ema_decay": (0.0, 0.99999),
             "slow_speed_m": (0.0, 10.0), "slow_scale_floor_m": (0.0, 10.0), "stand_speed_m": (0.0, 10.0),
         }, choices={"task": tuple(TASKS), "objective": ("e2e", "eps"), "anchor_off_image": OFF_IMAGE_MODES,
