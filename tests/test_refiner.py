@@ -10,6 +10,7 @@ import torch
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from predictor.anchors import onto_walkable
 from predictor.baselines import ConstantVelocity
 from predictor.model import SINGLE_SAMPLE_STAND_SPEED_M
 from predictor.refiner import Refiner, RefinerConfig
@@ -80,12 +81,15 @@ def test_untrained_refiner_returns_the_adapted_anchors() -> None:
     model = fit_model(TrainConfig(dim=32), train.subset(train.group < 100))
     test = load_windows("stochastic", "zara1", "test")
     keep = test.group < 20
-    detail = model.predict_detailed(test.obs[keep], test.group[keep], load_scene("zara1"), 20)
+    zara1 = load_scene("zara1")
+    detail = model.predict_detailed(test.obs[keep], test.group[keep], zara1, 20)
     bent = np.abs(detail.adapted_anchors - detail.prototype_anchors).max(axis=(2, 3)) > 1e-6  # (N, S)
     assert 0 < bent.mean() < 0.5
-    np.testing.assert_allclose(detail.futures[~bent], detail.adapted_anchors[~bent], atol=1e-4)
+    # then points deeper than the tolerance in a wall move onto the map (output_on_map)
+    anchors_on_map, _ = onto_walkable(detail.adapted_anchors.astype(np.float64), zara1, model.cfg.on_map_tolerance_m)
+    np.testing.assert_allclose(detail.futures[~bent], anchors_on_map[~bent], atol=1e-4)
     # a bent anchor is re-projected onto the K = 4 basis, which keeps it up to a small shape error
-    assert np.abs(detail.futures[bent] - detail.adapted_anchors[bent]).max() < 0.5
+    assert np.abs(detail.futures[bent] - anchors_on_map[bent]).max() < 0.5
     assert not np.allclose(detail.futures[:, 0], detail.futures[:, 1])  # the 20 anchors differ
 
 
