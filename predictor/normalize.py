@@ -57,7 +57,8 @@ def agent_frames(obs_m: np.ndarray, scale: bool = True, slow_speed_m: float = SL
     """Frames for observed paths (N, T_obs, 2) metres.
 
     Heading: last minus third-last point (last minus second-last when T_obs = 2). Scale: mean step
-    length over that span, for agents at or above ``slow_speed_m`` per step when ``scale`` is set.
+    length over that span, for agents at or above ``slow_speed_m`` per step when ``scale`` is set. Agents
+    under MIN_HEADING_M per step are slow at any threshold.
     With ``slow_scale_floor_m`` > 0, slow agents are scaled too, by max(speed, floor) [m per step].
     """
     obs_m = np.asarray(obs_m, dtype=np.float64)
@@ -65,7 +66,7 @@ def agent_frames(obs_m: np.ndarray, scale: bool = True, slow_speed_m: float = SL
     step = (obs_m[:, -1] - obs_m[:, -1 - back]) / back  # (N, 2) metres per step
     speed = np.linalg.norm(step, axis=-1)
     angle = np.where(speed > MIN_HEADING_M, np.arctan2(step[:, 1], step[:, 0]), 0.0)
-    slow = speed < slow_speed_m
+    slow = speed < max(slow_speed_m, MIN_HEADING_M)  # without a heading there is no speed to scale by either
     scale_m = np.where(slow | (not scale), 1.0, speed)
     if scale and slow_scale_floor_m > 0:
         scale_m = np.where(slow, np.maximum(speed, slow_scale_floor_m), scale_m)

@@ -14,7 +14,14 @@ from predictor.anchors import onto_walkable
 from predictor.baselines import ConstantVelocity
 from predictor.model import SINGLE_SAMPLE_STAND_SPEED_M
 from predictor.refiner import Refiner, RefinerConfig
-from predictor.train import SINGLE_SAMPLE_SLOW_SPEED_M, TrainConfig, fit_model
+from predictor.train import (
+    DETERMINISTIC_STATIC_M,
+    SINGLE_SAMPLE_SCALE_FLOOR_M,
+    SINGLE_SAMPLE_SLOW_SPEED_M,
+    TrainConfig,
+    TrainingError,
+    fit_model,
+)
 from replays import load_scene, load_windows
 from replays.constants import TASKS
 
@@ -68,12 +75,25 @@ def test_denoiser_width_sets_the_mlp_not_the_context() -> None:
     assert narrow.denoise[-1].in_features == 32 and narrow.interact.layers[0].linear1.in_features == 64
 
 
-@pytest.mark.parametrize("task, expected_m", [("deterministic", SINGLE_SAMPLE_SLOW_SPEED_M), ("stochastic", 0.3)])
-def test_single_sample_models_default_to_a_lower_slow_threshold(task: str, expected_m: float) -> None:
-    train = load_windows(task, "zara1", "train")
+@pytest.mark.parametrize("task, scene, expected_m, floor_m", [
+    ("deterministic", "zara1", DETERMINISTIC_STATIC_M["zara1"], 0.0),
+    ("deterministic", "univ", DETERMINISTIC_STATIC_M["univ"], 0.0),
+    ("domain", "A2B", SINGLE_SAMPLE_SLOW_SPEED_M, SINGLE_SAMPLE_SCALE_FLOOR_M),
+    ("stochastic", "zara1", 0.3, 0.0)])
+def test_single_sample_models_default_to_a_lower_slow_threshold(task: str, scene: str, expected_m: float,
+                                                                floor_m: float) -> None:
+    train = load_windows(task, scene, "train")
     train = train.subset(train.group < 100)
-    assert fit_model(TrainConfig(task=task, dim=32), train).cfg.slow_speed_m == expected_m
-    assert fit_model(TrainConfig(task=task, dim=32, slow_speed_m=0.2), train).cfg.slow_speed_m == 0.2
+    model = fit_model(TrainConfig(task=task, scene=scene, dim=32), train)
+    assert model.cfg.slow_speed_m == expected_m and model.cfg.slow_scale_floor_m == floor_m
+    assert fit_model(TrainConfig(task=task, scene=scene, dim=32, slow_speed_m=0.2), train).cfg.slow_speed_m == 0.2
+
+
+def test_a_population_too_small_to_fit_is_named() -> None:
+    train = load_windows("deterministic", "zara1", "train")
+    walking = np.linalg.norm(train.obs[:, -1] - train.obs[:, -3], axis=-1) > 0.1  # nobody without a heading
+    with pytest.raises(TrainingError, match=r"only 0 training agents are slower than slow_speed_m=0.0"):
+        fit_model(TrainConfig(task="deterministic", dim=32, slow_speed_m=0.0), train.subset(walking))
 
 
 def test_untrained_refiner_returns_the_adapted_anchors() -> None:
