@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -46,3 +48,11 @@ def test_world_of_hands_the_envs_checkpoint_prior_to_the_planners(env_id: str, n
     assert np.array_equal(world.sample_prior, sample_prior(f"shipped:{name}", 20))
     for other in ("cvm-s", StaticPredictor()):
         assert world_of(gym.make(env_id, predictor=other)).sample_prior is None, f"{other}: samples are unordered"
+
+
+def test_the_table_command_weighs_every_multi_sample_checkpoint_and_skips_single_sample_ones(tmp_path) -> None:
+    out = tmp_path / "prior.json"
+    assert prior_module.main(["--max-windows", "3", "--out", str(out)]) == 0
+    table = json.loads(out.read_text())["checkpoints"]
+    assert sorted(table) == SHIPPED  # deterministic models (S = 1) have nothing to weigh
+    assert all(len(entry["weights"]) == 20 and entry["windows"] == 3 for entry in table.values())

@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from replays.atomic import write_text_atomic
+from replays.constants import TASKS
 
 PRIOR_FILE = "sample_prior.json"  # in the package's pretrained/ folder
 HORIZON_STEPS = 8  # ADE over the MPC's 3.2 s horizon picks each window's best sample [steps of 0.4 s]
@@ -84,7 +85,7 @@ def sample_prior(source: str | None, num_samples: int) -> np.ndarray | None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Estimate the prior of every shipped checkpoint and write the table; exit code 0."""
+    """Estimate the prior of every shipped checkpoint with S > 1 and write the table; exit code 0."""
     from predictor.checkpoint import pretrained_manifest
 
     parser = argparse.ArgumentParser(prog="python -m st_sim.apps.navigation.sample_prior", description=__doc__,
@@ -94,7 +95,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", default=None, help="table path (default: the package's pretrained/ folder)")
     args = parser.parse_args(argv)
     table = {"horizon_steps": HORIZON_STEPS, "pseudo_count": PSEUDO_COUNT, "checkpoints": {}}
-    for name in pretrained_manifest()["checkpoints"]:
+    for name, entry in pretrained_manifest()["checkpoints"].items():
+        if TASKS[entry["train_config"]["task"]]["num_samples"] == 1:
+            continue  # a single-sample model has nothing to weigh
         table["checkpoints"][name] = prior = estimate_prior(name, args.max_windows)
         top = np.cumsum(prior["weights"])
         print(f"{name}: {prior['agents']} agents in {prior['windows']} windows; sample 0 {prior['weights'][0]:.3f}, "
