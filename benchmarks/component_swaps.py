@@ -8,10 +8,10 @@ seeds each.
 Swaps (``TrainConfig`` fields): the authors' loss (best-of-S ADE alone, ``fde_weight`` 0), their left/right
 mirroring of the training paths before the Singular spaces and anchors are fitted (``mirror_paths``), their
 gradient clip (10), no world-frame inputs (their context has no world velocity), their larger refiner (2 layers,
-dropout 0.1), and for S = 1 their per-scene static thresholds with unscaled static agents (the default since
-7664fa6, ``train.DETERMINISTIC_STATIC_M``) against the one threshold before it. Prints per variant the test
-ADE / FDE of each seed, their mean, the mean validation FDE that selected the checkpoints, and the mean share of
-predicted points off the walkable map. Resumable (``ablations.py``).
+dropout 0.1) alone and trained 4x longer, and for S = 1 their per-scene static thresholds with unscaled static
+agents (the default since 7664fa6, ``train.DETERMINISTIC_STATIC_M``) against the one threshold before it. Prints
+per variant the test ADE / FDE of each seed, their mean, the mean validation FDE that selected the checkpoints,
+and the mean share of predicted points off the walkable map. Resumable (``ablations.py``).
 """
 
 from __future__ import annotations
@@ -32,6 +32,9 @@ SWAPS = {  # name -> (task, scenes, overrides of TrainConfig)
     "clip 10": ("stochastic", ("zara2",), {"clip_grad": 10.0}),
     "no world inputs": ("stochastic", ("zara2",), {"world_features": False}),
     "2-layer refiner, dropout 0.1": ("stochastic", ("zara2", "zara1"), {"layers": 2, "dropout": 0.1}),
+    "24 epochs": ("stochastic", ("zara2", "zara1"), {"epochs": 24}),
+    "2-layer refiner, dropout 0.1, 24 epochs": ("stochastic", ("zara2", "zara1"),
+                                                {"layers": 2, "dropout": 0.1, "epochs": 24}),
     "one threshold (S = 1, before)": ("deterministic", ALL_SCENES, RULE_BEFORE),
     "authors' static thresholds (S = 1, now the default)": ("deterministic", ALL_SCENES, {}),
     "mirror (S = 1)": ("deterministic", ("univ", "hotel"), {**RULE_BEFORE, "mirror_paths": True}),
