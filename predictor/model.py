@@ -89,7 +89,8 @@ class ModelConfig:
                             "on_map_tolerance_m": (0.0, 10.0)},
                      choices={"task": tuple(TASKS), "anchor_off_image": OFF_IMAGE_MODES, "anchor_bend": BEND_SHAPES})
         if self.dim % self.heads:
-            raise ValueError(f"ModelConfig.dim={self.dim}: must be a multiple of heads={self.heads}")
+            raise ValueError(f"ModelConfig.dim={self.dim}, ModelConfig.heads={self.heads}: dim must be a multiple "
+                             "of heads")
 
     def refiner_config(self) -> RefinerConfig:
         """The refiner's architecture for this model."""

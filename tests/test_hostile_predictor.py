@@ -36,6 +36,13 @@ def test_any_config_value_works_or_names_the_field(config, data):
         cfg.refiner_config()  # an accepted configuration builds
 
 
+def test_a_width_that_the_heads_do_not_divide_names_both_fields():
+    """Found by the property test above: heads=3 was refused naming only dim."""
+    for kwargs in ({"heads": 3}, {"dim": 30}):
+        with pytest.raises(ValueError, match=r"ModelConfig\.dim=\d+, ModelConfig\.heads=\d+"):
+            ModelConfig(**kwargs)
+
+
 @pytest.fixture(scope="module")
 def shipped_bytes() -> bytes:
     from predictor.checkpoint import pretrained_manifest
