@@ -21,9 +21,10 @@ from pathlib import Path
 
 from ablations import Model, add_arguments, grid_options, train_and_score
 
+from replays.scenes import SCENE_NAMES
+
 SEEDS = (0, 1, 2)
 RULE_BEFORE = {"slow_speed_m": 0.1, "slow_scale_floor_m": 0.05}  # S = 1 before 7664fa6: one threshold, slow scaled
-ALL_SCENES = ("eth", "hotel", "univ", "zara1", "zara2")
 SWAPS = {  # name -> (task, scenes, overrides of TrainConfig)
     "ours": ("stochastic", ("zara2", "zara1"), {}),
     "ADE-only loss": ("stochastic", ("zara2", "zara1"), {"fde_weight": 0.0}),
@@ -35,8 +36,8 @@ SWAPS = {  # name -> (task, scenes, overrides of TrainConfig)
     "24 epochs": ("stochastic", ("zara2", "zara1"), {"epochs": 24}),
     "2-layer refiner, dropout 0.1, 24 epochs": ("stochastic", ("zara2", "zara1"),
                                                 {"layers": 2, "dropout": 0.1, "epochs": 24}),
-    "one threshold (S = 1, before)": ("deterministic", ALL_SCENES, RULE_BEFORE),
-    "authors' static thresholds (S = 1, now the default)": ("deterministic", ALL_SCENES, {}),
+    "one threshold (S = 1, before)": ("deterministic", SCENE_NAMES, RULE_BEFORE),
+    "authors' static thresholds (S = 1, now the default)": ("deterministic", SCENE_NAMES, {}),
     "mirror (S = 1)": ("deterministic", ("univ", "hotel"), {**RULE_BEFORE, "mirror_paths": True}),
     "clip 10 (S = 1)": ("deterministic", ("univ", "hotel"), {**RULE_BEFORE, "clip_grad": 10.0}),
 }

@@ -168,22 +168,20 @@ def fit_model(cfg: TrainConfig, train: Windows) -> SingularTrajectory:
         floor_m = SINGLE_SAMPLE_SCALE_FLOOR_M if single and per_scene is None else 0.0
     slow_speed_m = cfg.slow_speed_m
     if slow_speed_m is None:
-        slow_speed_m = SINGLE_SAMPLE_SLOW_SPEED_M if single else SLOW_SPEED_M
-        slow_speed_m = slow_speed_m if per_scene is None else per_scene
+        slow_speed_m = per_scene if per_scene is not None else SINGLE_SAMPLE_SLOW_SPEED_M if single else SLOW_SPEED_M
     shared = {f.name: getattr(cfg, f.name) for f in fields(ModelConfig) if hasattr(cfg, f.name)}  # same-named
     model_cfg = ModelConfig(**{**shared, "obs_len": task["obs_len"], "num_samples": task["num_samples"],
                                "slow_speed_m": slow_speed_m, "slow_scale_floor_m": floor_m})
     frames = agent_frames(train.obs, model_cfg.scale_by_speed, model_cfg.slow_speed_m, model_cfg.slow_scale_floor_m)
     futures = frames.to_agent(train.fut.astype(np.float64))
     spaces, anchors, coef_scale, residual_scale = [], [], [], []
-    for population in (~frames.slow, frames.slow):  # 0 = moving, 1 = slow
+    needed = max(cfg.k, model_cfg.num_samples)  # paths to fit a K-dimensional space and S anchors
+    for side, population in (("not slower", ~frames.slow), ("slower", frames.slow)):  # 0 = moving, 1 = slow
         paths = futures[population]  # (n, 12, 2) agent frame: x ahead, y to the left
-        if len(paths) < max(cfg.k, model_cfg.num_samples):
-            side = "slower" if population is frames.slow else "not slower"
+        if len(paths) < needed:
             raise TrainingError(f"{cfg.task}/{cfg.scene}: only {len(paths)} training agents are {side} than "
-                                f"slow_speed_m={slow_speed_m} m per step, at least {max(cfg.k, model_cfg.num_samples)} "
-                                "are needed to fit their Singular space and anchors: change slow_speed_m or train "
-                                "on more windows")
+                                f"slow_speed_m={slow_speed_m} m per step, at least {needed} are needed to fit their "
+                                "Singular space and anchors: change slow_speed_m or train on more windows")
         if cfg.mirror_paths:
             paths = np.concatenate([paths, paths * np.array([1.0, -1.0])])
         space = fit_singular_space(paths, cfg.k)
