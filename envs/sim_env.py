@@ -15,7 +15,7 @@ from envs.common.tracks import Frame
 from replays.scenes import SCENES
 from st_sim.sim import CrowdConfig, CrowdSim, EgoConfig, Layout, PopulationConfig
 from st_sim.sim import population_cap as sim_population_cap
-from st_sim.sim.physics import EGO_TYPE, PED_TYPE
+from st_sim.sim.sweep import Contact
 
 
 def population_cap(crowd: CrowdConfig, layout: Layout) -> int:
@@ -98,15 +98,12 @@ class SimCrowdEnv(CrowdEnv):
                          root=root)
         self.ego_max_accel_mps2 = EgoConfig().max_accel_mps2
         self.sim: CrowdSim | None = None
-        self._touched_pedestrian = False  # set by the pymunk contact callback during a step
 
     def _reset_world(self, options: dict) -> list[Frame]:
         ego_cfg = EgoConfig(radius_m=self.cfg.ego_radius_m, max_speed_mps=self.cfg.max_speed_mps,
                             max_accel_mps2=self.ego_max_accel_mps2,
                             pedestrians_see_ego=self.pedestrians_see_ego) if self.ego else None
         self.sim = CrowdSim(self.layout, self.crowd_cfg, self.np_random, ego=ego_cfg)
-        if self.ego:  # the simulator reports any ego contact; this pair handler tells pedestrians from walls
-            self.sim.space.on_collision(EGO_TYPE, PED_TYPE, pre_solve=self._on_pedestrian_contact)
         frames = [self._sim_frame()]
         for _ in range(self.t_obs - 1):  # warm-up: the ego stands still while the crowd gets going
             self.sim.step(None)
@@ -115,20 +112,16 @@ class SimCrowdEnv(CrowdEnv):
         return frames
 
     def _step_world(self, ego_velocity_mps: np.ndarray | None) -> Frame:
-        self._touched_pedestrian = False
         self.sim.step(ego_velocity_mps)
         return self._sim_frame()
 
-    def _ego_contacts(self, frame: Frame) -> tuple[bool, bool]:
-        """(touched a pedestrian, touched anything else: a wall) during the last step."""
-        return self._touched_pedestrian, bool(self.sim.ego_collided) and not self._touched_pedestrian
+    def _ego_contact(self) -> tuple[Contact | None, bool, float]:
+        """The simulator's record of the last step: first pedestrian contact within its substeps, wall touched,
+        least ego-pedestrian distance."""
+        return self.sim.ego_contact, self.sim.ego_touched_wall, self.sim.ego_nearest_m
 
     def _info(self, reward_parts: dict[str, float], termination: str | None) -> dict[str, Any]:
         return {**super()._info(reward_parts, termination), "pedestrians_see_ego": self.pedestrians_see_ego}
-
-    def _on_pedestrian_contact(self, arbiter: Any, space: Any, data: Any) -> None:
-        """pymunk pre-solve callback of an (ego, pedestrian) contact; the simulator's own callback still runs."""
-        self._touched_pedestrian = True
 
     def _sim_frame(self) -> Frame:
         """The simulator's pedestrians now; also refreshes the ego state."""

@@ -15,7 +15,6 @@ from hypothesis import strategies as st
 import envs  # noqa: F401  (registers the ids)
 from envs import REPLAY_SCENES
 from envs.common.errors import EnvInputError
-from envs.common.fault import STOPPED_MPS, robot_at_fault
 from envs.common.reactive import ReactiveCrowd
 from st_sim.sim.walls import WallGrid
 
@@ -157,14 +156,3 @@ def test_reactive_pedestrians_rejoin_their_logs_after_a_standing_robot(seed: int
 def test_two_pedestrians_detouring_round_a_standing_robot_from_both_sides_rejoin_their_logs() -> None:
     _, crowd, _, _ = _walk_past_a_standing_robot(9, 9, 1.1)
     assert not crowd.state.off_log.any(), f"{crowd.state.off_log.sum()} pedestrians never rejoined their logs"
-
-
-def test_the_at_fault_rule_on_hand_made_contacts() -> None:
-    pedestrian = np.array([[0.5, 0.0]])  # just east of the robot at the origin
-    assert robot_at_fault(np.zeros(2), np.array([1.0, 0.0]), pedestrian), "driving into a pedestrian ahead"
-    assert robot_at_fault(np.zeros(2), np.array([0.3, 0.5]), pedestrian), "a pedestrian beside, ahead of its line"
-    assert not robot_at_fault(np.zeros(2), np.zeros(2), pedestrian), "a stopped robot is walked into"
-    assert not robot_at_fault(np.zeros(2), np.array([STOPPED_MPS / 2, 0.0]), pedestrian), "nearly stopped"
-    assert not robot_at_fault(np.zeros(2), np.array([-1.0, 0.0]), pedestrian), "hit from behind"
-    assert robot_at_fault(np.zeros(2), np.array([-1.0, 0.0]), np.array([[0.5, 0.0], [-0.5, 0.1]])), \
-        "of two pedestrians touched, one was ahead"

@@ -1,15 +1,17 @@
 """What the replay and simulated crowd environments share: spaces, observation, predictions, reward, info.
 
 A subclass provides the crowd (and moves the ego) through four hooks: ``_reset_world`` (frames up to
-now, drawn from ``self.np_random``), ``_step_world`` (one 0.4 s step), ``_ego_contacts`` (pedestrian and
-wall contact) and ``_world_ended``. It keeps ``ego_xy_m``, ``ego_velocity_mps`` and ``goal_m`` up to date
-(and ``ego_max_accel_mps2`` if its ego has inertia), lists the ``reset`` options it reads in
-``RESET_OPTIONS`` and checks their values in ``_check_options``.
+now, drawn from ``self.np_random``), ``_step_world`` (one 0.4 s step), ``_ego_contact`` (the step's first
+pedestrian contact, wall contact, closest approach) and ``_world_ended``. It keeps ``ego_xy_m``,
+``ego_velocity_mps`` and ``goal_m`` up to date (and ``ego_max_accel_mps2`` if its ego has inertia), lists the
+``reset`` options it reads in ``RESET_OPTIONS`` and checks their values in ``_check_options``.
 
 How an episode ends is in ``info["termination"]``: "goal", "pedestrian_collision", "wall_collision" (the
 step that terminated the episode; a collision outranks the goal, a pedestrian outranks a wall) or None
-while it goes on. On a pedestrian collision ``info["at_fault"]`` says whether the robot was at fault
-(``envs.common.fault``: unless it was nearly stopped or the pedestrian came from behind); None otherwise.
+while it goes on. Contacts are found along the step, not only at its end (``st_sim.sim.sweep``): on a pedestrian
+collision ``info["contact_time_s"]`` is the moment of impact (seconds into the step) and ``info["at_fault"]`` says
+whether the robot was at fault then (``envs.common.fault``: unless it was nearly stopped or every pedestrian it
+touched was behind it); both None otherwise.
 The env never ends an episode for time: "timeout" is the ``TimeLimit`` wrapper's truncation (``truncated``
 with ``termination`` None), like the end of a replay's recording.
 
@@ -39,12 +41,13 @@ from gymnasium import spaces
 from envs.common.config import EnvConfig
 from envs.common.ego import action_to_velocity, checked_action, on_image, require_on_map
 from envs.common.errors import ConfigError, EgoPlacementError, EnvInputError, NeedsResetError, ResetOptionsError
-from envs.common.fault import robot_at_fault, touching
+from envs.common.fault import robot_at_fault
 from envs.common.predictors import Forecast, ForecastCache, predict_futures, resolve_predictor, task_sizes
 from envs.common.running_metrics import RunningMetrics
-from envs.common.tracks import Frame, TrackBuffer
+from envs.common.tracks import Frame, TrackBuffer, lookup
 from replays.constants import POSITION_LIMIT_M, STEP_S, T_PRED
 from replays.scenes import Scene
+from st_sim.sim.sweep import Contact, closest_approach, first_contact
 
 EGO_FIELDS = ("x_m", "y_m", "vx_mps", "vy_mps", "goal_x_m", "goal_y_m")  # layout of obs["ego"]
 REWARD_PARTS = ("progress", "goal", "pedestrian_collision", "wall_collision", "off_map", "time", "discomfort")
@@ -102,7 +105,7 @@ class CrowdEnv(gym.Env):
         self._history: tuple[np.ndarray, np.ndarray] | None = None  # TrackBuffer.history() of the newest frame
         self._rows = np.zeros(0, np.int64)  # observation rows to forecast, chosen by the begin_* half
         self._previous_xy_m = np.zeros(2)  # the ego before this step
-        self._at_fault: bool | None = None  # on a pedestrian collision: was the robot at fault
+        self._contact: Contact | None = None  # the step's first pedestrian contact, if any
         self._episode_over = False  # terminated, or the world ended: step needs a reset first
         self.anchors: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # (ids, prototype, adapted)
         self.rerun_target, self._rerun, self._rerun_step = rerun, None, 0
@@ -132,7 +135,7 @@ class CrowdEnv(gym.Env):
         if self.ego:
             require_on_map(self.scene, self.ego_xy_m, "the ego's start", walkable=True)
             require_on_map(self.scene, self.goal_m, "the ego's goal", walkable=True)
-            self.metrics.update_ego(False, self.ego_xy_m, self.tracks.now.xy_m)
+            self.metrics.update_ego(False, self._nearest_now_m())
         self._sense()
 
     def end_reset(self, predicted: np.ndarray, anchors: tuple[np.ndarray, np.ndarray] | None
@@ -245,13 +248,31 @@ class CrowdEnv(gym.Env):
         """Advance 0.4 s with the ego moving at ``ego_velocity_mps`` (None in spectator mode)."""
         raise NotImplementedError
 
-    def _ego_contacts(self, frame: Frame) -> tuple[bool, bool]:
-        """(touched a pedestrian, touched a wall) this step (default: centre distance below the two radii;
-        no walls)."""
-        if len(frame.xy_m) == 0:
-            return False, False
-        reach = self.cfg.ego_radius_m + self.cfg.pedestrian_radius_m
-        return bool(np.min(np.linalg.norm(frame.xy_m - self.ego_xy_m, axis=1)) < reach), False
+    def _ego_contact(self) -> tuple[Contact | None, bool, float]:
+        """(the first pedestrian contact of this step or None, whether the ego touched a wall, the least centre
+        distance between the ego and a pedestrian during the step [m]).
+
+        Default (replays): no walls; the ego and every pedestrian present in both frames move in a straight line
+        between them, and they touch when their centres come closer than ``ego_radius_m + pedestrian_radius_m``;
+        a pedestrian who appears this frame is tested where it appears, at the end of the step.
+        """
+        before, now = self.tracks.frames[-2], self.tracks.now
+        if len(now.ids) == 0:
+            return None, False, np.inf
+        reach_m = self.cfg.ego_radius_m + self.cfg.pedestrian_radius_m
+        row = lookup(before.ids, now.ids)
+        stayed = row >= 0
+        start = before.xy_m[row[stayed]]
+        nearest, _ = closest_approach(start - self._previous_xy_m, now.xy_m[stayed] - self.ego_xy_m)
+        nearest_m = float(np.min(nearest, initial=self._nearest_now_m()))
+        contact = first_contact(self._previous_xy_m, self.ego_xy_m, start, now.xy_m[stayed], now.ids[stayed],
+                                reach_m, STEP_S)
+        if contact is None:  # newcomers, where they appear
+            new = ~stayed & (np.linalg.norm(now.xy_m - self.ego_xy_m, axis=1) < reach_m)
+            if new.any():
+                contact = Contact(STEP_S, self.ego_xy_m.copy(), self.ego_velocity_mps.copy(), now.ids[new],
+                                  now.xy_m[new])
+        return contact, False, nearest_m
 
     def _world_ended(self) -> bool:
         """No further step possible (a recording's last frame)."""
@@ -306,24 +327,23 @@ class CrowdEnv(gym.Env):
         The collision kinds exclude each other (a step that touched both counts as a pedestrian collision),
         so a step costs the collision weight at most once.
         """
-        frame = self.tracks.now
         distance_m = float(np.linalg.norm(self.goal_m - self.ego_xy_m))
-        pedestrian, wall = self._ego_contacts(frame)
-        self._at_fault = None
-        if pedestrian:
-            reach = self.cfg.ego_radius_m + self.cfg.pedestrian_radius_m
-            hit = frame.xy_m[touching(self.ego_xy_m, frame.xy_m, reach)]
-            self._at_fault = robot_at_fault(self.ego_xy_m, self.ego_velocity_mps, hit)
+        self._contact, wall, closest_m = self._ego_contact()
+        pedestrian = self._contact is not None
         walkable = bool(self.scene.is_walkable(self.ego_xy_m))
-        nearest_m = np.linalg.norm(frame.xy_m - self.ego_xy_m, axis=1).min() if len(frame.xy_m) else np.inf
-        gap_m = nearest_m - self.cfg.ego_radius_m - self.cfg.pedestrian_radius_m
+        gap_m = self._nearest_now_m() - self.cfg.ego_radius_m - self.cfg.pedestrian_radius_m
         parts = {"progress": float(np.linalg.norm(self.goal_m - previous_xy_m)) - distance_m,
                  "goal": float(distance_m <= self.cfg.goal_radius_m),
                  "pedestrian_collision": float(pedestrian), "wall_collision": float(wall and not pedestrian),
                  "off_map": float(not walkable), "time": 1.0,
                  "discomfort": float(max(0.0, self.cfg.discomfort_m - gap_m))}
-        self.metrics.update_ego(pedestrian or wall, self.ego_xy_m, frame.xy_m)
+        self.metrics.update_ego(pedestrian or wall, closest_m)
         return parts
+
+    def _nearest_now_m(self) -> float:
+        """Centre distance from the ego to the nearest pedestrian of the newest frame [m] (inf: nobody)."""
+        xy_m = self.tracks.now.xy_m
+        return float(np.linalg.norm(xy_m - self.ego_xy_m, axis=1).min()) if len(xy_m) else np.inf
 
     def _log_rerun(self, info: dict[str, Any], reward: float) -> None:
         """Append this step to the Rerun recording (``rerun=`` path or "spawn"); one recording per env."""
@@ -353,15 +373,18 @@ class CrowdEnv(gym.Env):
 
     def _info(self, reward_parts: dict[str, float], termination: str | None) -> dict[str, Any]:
         """Fresh info dict; ``agent_ids[i]``/``predicted_ids[i]`` name the agent of observation row i (-1: none);
-        ``termination`` is what ended the episode this step (see ``TERMINATIONS``), None otherwise."""
+        ``termination`` is what ended the episode this step (see ``TERMINATIONS``), None otherwise; on a pedestrian
+        collision ``contact_time_s`` is the moment of impact [s into the step] and ``at_fault`` the judgement then."""
         row_ids = self.tracks.row_ids.copy()
+        hit = self._contact if termination == "pedestrian_collision" else None
         return {
             "frame": int(self.tracks.now.frame),
             "agent_ids": row_ids,
             "predicted_ids": np.where(self._obs["futures_mask"], row_ids, -1),
             "reward_parts": dict(reward_parts),
             "termination": termination,
-            "at_fault": self._at_fault if termination == "pedestrian_collision" else None,
+            "contact_time_s": None if hit is None else float(hit.time_s),
+            "at_fault": None if hit is None else robot_at_fault(hit),
             "metrics": self.metrics.summary(),
         }
 

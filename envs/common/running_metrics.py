@@ -80,12 +80,11 @@ class RunningMetrics:
             self.off_map_points += int(off_map(futures, self.scene).sum())
             self.predicted_points += futures.size // 2
 
-    def update_ego(self, collided: bool, ego_xy_m: np.ndarray, peds_xy_m: np.ndarray) -> None:
-        """Count a collision and track the least ego-pedestrian centre distance."""
+    def update_ego(self, collided: bool, nearest_m: float) -> None:
+        """Count a collision and track the least ego-pedestrian centre distance (``nearest_m``, the least during
+        the step: contacts between two frames count) [m]."""
         self.ego_collisions += int(collided)
-        if len(peds_xy_m):
-            nearest = float(np.min(np.linalg.norm(peds_xy_m - ego_xy_m, axis=1)))
-            self.min_ego_distance_m = min(self.min_ego_distance_m, nearest)
+        self.min_ego_distance_m = min(self.min_ego_distance_m, float(nearest_m))
 
     def summary(self) -> Metrics:
         """Current values, distances in metres; None where there is nothing to report yet.

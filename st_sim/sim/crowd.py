@@ -13,6 +13,7 @@ pedestrians that reached their exit leave, those stuck for ``patience_s`` pick a
 from __future__ import annotations
 
 import os
+from itertools import pairwise
 from pathlib import Path
 
 import numpy as np
@@ -39,6 +40,7 @@ from st_sim.sim.pairs import Neighbours, cap_speed
 from st_sim.sim.population import PROGRESS_M, PopulationError, Roster, choose_exits
 from st_sim.sim.spawning import Arrivals, initial_crowd, place_arrivals
 from st_sim.sim.stops import start_standing
+from st_sim.sim.sweep import Contact, closest_approach, first_contact
 from st_sim.sim.walls import WallGrid
 
 CONTACT_TOLERANCE_M = 0.01  # the ego counts as touching a wall this close [m]
@@ -113,14 +115,15 @@ class CrowdSim:
         self._next_group = 0
         self._ego_body: pymunk.Body | None = None
         self._ego_command_mps = np.zeros(2)
-        self._ego_collided = False
+        self._ego_contact: Contact | None = None
+        self._ego_touched_wall = False
+        self._ego_nearest_m = np.inf
         keep_clear_m = np.zeros((0, 2))
         if ego is not None:
             start = layout.ego_start_m if ego.start_m is None else np.asarray(ego.start_m, dtype=np.float64)
             self._ego_body = physics.add_ego(self.space, start, ego.radius_m)
             self._admit(Roster.of([self._ego_body.id], [-1], [0], [0.0], [ego.radius_m], np.zeros(2), 0),
                         [self._ego_body])
-            self.space.on_collision(physics.EGO_TYPE, None, pre_solve=self._on_ego_contact)
             keep_clear_m = start[None]
         self.add(initial_crowd(self.nav, layout, cfg, n_initial, keep_clear_m,
                                 self._roster.radius_m.max(initial=0.0), self._next_group, rng, start_region))
@@ -205,7 +208,24 @@ class CrowdSim:
     @property
     def ego_collided(self) -> bool:
         """True if the ego touched a pedestrian or a wall during the last step."""
-        return self._ego_collided
+        return self._ego_contact is not None or self._ego_touched_wall
+
+    @property
+    def ego_contact(self) -> Contact | None:
+        """The ego's first contact with pedestrians during the last step (bodies of ``EgoConfig.radius_m`` and
+        ``CrowdConfig.radius_m`` overlapping at some instant of a substep, both moving in a straight line within
+        it), with the bodies' state at the impact; None without one."""
+        return self._ego_contact
+
+    @property
+    def ego_touched_wall(self) -> bool:
+        """True if the ego came within ``CONTACT_TOLERANCE_M`` of a wall at the end of a substep of the last step."""
+        return self._ego_touched_wall
+
+    @property
+    def ego_nearest_m(self) -> float:
+        """Least centre distance between the ego and a pedestrian during the last step [m] (inf: nobody)."""
+        return self._ego_nearest_m
 
     # ---------------------------------------------------------------- stepping
     def step(self, ego_velocity_mps: np.ndarray | None = None) -> None:
@@ -219,15 +239,17 @@ class CrowdSim:
         if self._ego_body is not None and ego_velocity_mps is not None:
             target = cap_speed(np.asarray(ego_velocity_mps, dtype=np.float64).reshape(1, 2),
                                np.array([self.ego_cfg.max_speed_mps]))[0]
-        self._ego_collided = False
+        self._ego_touched_wall = False
         roster, period = self._roster, self.layout.period
         movable = roster.ped_id >= 0
         mass_kg = np.where(movable, PED_MASS_KG, EGO_MASS_KG)[:, None]
         standing = roster.standing(self.step_count)
         walk_mps = np.where(standing, 0.0, roster.speed_mps)
         yielding = np.where(movable, np.where(standing, STANDING_YIELD, 1.0), 0.0)
+        marks = []  # positions at the start of every substep, then at the end of the step
         for substep in range(self.cfg.n_substeps):
             xy_m, v_mps = self._read()
+            marks.append(xy_m)
             fastest_mps = float(np.sqrt(np.max(v_mps[:, 0] ** 2 + v_mps[:, 1] ** 2, initial=0.0)))
             cutoff_m = max(self.cfg.steering.agent_cutoff_m, pair_reach_m(2 * self._widest_m, fastest_mps, self._dt_s))
             nb = Neighbours.within(xy_m, roster.radius_m, cutoff_m, period)
@@ -247,10 +269,12 @@ class CrowdSim:
             safe_v = keep_apart(v_mps, roster.radius_m, yielding, seen, walls, self._dt_s, BODY_GIVE_M)
             self._batch.write(safe_v, mass_kg * (wanted_v - safe_v) / self._dt_s)
             self.space.step(self._dt_s)
-            self._ego_collided |= self._ego_touches_wall()
+            self._ego_touched_wall |= self._ego_touches_wall()
             roster.moved_mps[:] = safe_v
         self.step_count += 1
         xy_m, _ = self._read()  # rows follow the roster: nothing was added or removed during the step
+        marks.append(xy_m)
+        self._sweep_ego(marks)
         if (roster.stop_step >= 0).any():
             start_standing(roster, self.step_count, self._in_gate(xy_m), self.cfg.population, self.rng)
         if period is None:
@@ -282,8 +306,28 @@ class CrowdSim:
             inside |= region.contains(xy_m)
         return inside
 
-    def _on_ego_contact(self, arbiter: pymunk.Arbiter, space: pymunk.Space, data: object) -> None:
-        self._ego_collided = True
+    def _sweep_ego(self, marks: list[np.ndarray]) -> None:
+        """The ego's first pedestrian contact and least pedestrian distance over the step, from the bodies' positions
+        (K, 2) at every substep boundary in ``marks`` (each body moving in a straight line within a substep)."""
+        self._ego_contact, self._ego_nearest_m = None, np.inf
+        slot = self._ego_slot
+        peds = np.flatnonzero(self._roster.ped_id >= 0)
+        if slot is None or not peds.size:
+            return
+        reach_m = self.ego_cfg.radius_m + self.cfg.radius_m
+        ids = self._roster.ped_id[peds]
+        for k, (start, end) in enumerate(pairwise(marks)):
+            peds_from = start[slot] + self._offset(start[peds] - start[slot])
+            peds_to = end[slot] + self._offset(end[peds] - end[slot])
+            nearest, _ = closest_approach(peds_from - start[slot], peds_to - end[slot])
+            self._ego_nearest_m = min(self._ego_nearest_m, float(nearest.min()))
+            if self._ego_contact is None:
+                self._ego_contact = first_contact(start[slot], end[slot], peds_from, peds_to, ids, reach_m,
+                                                  self._dt_s, k * self._dt_s)
+
+    def _offset(self, offset_m: np.ndarray) -> np.ndarray:
+        """(M, 2) offsets [m] as nearest images in a periodic layout (unchanged otherwise)."""
+        return offset_m if self.layout.period is None else self.layout.period.nearest_image(offset_m)
 
     def _ego_touches_wall(self) -> bool:
         """Walls stop the ego speculatively (no pymunk contact), so wall contact is a distance check."""
