@@ -60,12 +60,24 @@ def build_parser() -> argparse.ArgumentParser:
                        help=f"test scene (leave-one-out) or domain pair like A2B (default: {defaults.scene})")
     train.add_argument("--out", required=True, help="output folder for last.pt and best.pt")
     train.add_argument("--epochs", type=int, help=f"training epochs (default: {defaults.epochs})")
+    train.add_argument("--lr-schedule", choices=["cosine", "step"],
+                       help="learning rate after the warm-up: cosine decay to zero, or constant and multiplied by "
+                            "--lr-gamma at each of --lr-stages equal parts of the run "
+                            f"(default: {defaults.lr_schedule})")
+    train.add_argument("--lr-stages", type=int, help=f"parts of the step schedule (default: {defaults.lr_stages})")
+    train.add_argument("--lr-gamma", type=float,
+                       help=f"learning-rate factor between parts of the step schedule (default: {defaults.lr_gamma})")
+    train.add_argument("--warmup-epochs", type=float,
+                       help=f"linear learning-rate warm-up, 0 = none (default: {defaults.warmup_epochs})")
     train.add_argument("--min-steps", type=int, help="least optimiser steps; small training sets get more epochs "
                        f"(default: {defaults.min_steps})")
     train.add_argument("--objective", choices=["e2e", "eps"],
                        help=f"training objective (default: {defaults.objective})")
     train.add_argument("--k", type=int, help=f"Singular-space dimension (default: {defaults.k})")
     train.add_argument("--steps", type=int, help=f"DDIM steps M (default: {defaults.steps})")
+    train.add_argument("--sampler", choices=["x0-cosine", "eps-linear"],
+                       help="the refiner predicts the clean residual under a cosine noise schedule, or the noise "
+                            f"under the authors' linear betas (1e-4 to 5e-2) (default: {defaults.sampler})")
     train.add_argument("--fixed-anchors", dest="adapt_anchors", action="store_const", const=False,
                        help="use fixed prototype anchors (default: map-adaptive)")
     train.add_argument("--anchor-off-image", choices=["pull", "keep"],

@@ -18,7 +18,7 @@ from predictor.baselines import constant_velocity
 from predictor.config_check import check_config
 from predictor.normalize import AgentFrame, agent_frames, rotate
 from predictor.protocol import check_inputs, empty_prediction
-from predictor.refiner import Refiner, RefinerConfig
+from predictor.refiner import SAMPLERS, Refiner, RefinerConfig
 from predictor.singular_space import T_WIN, SingularSpace
 from replays.constants import TASKS
 from replays.scenes import Scene
@@ -72,6 +72,9 @@ class ModelConfig:
     """dropout in the interaction layers while training, [0, 0.9]"""
     steps: int = 10
     """M, DDIM steps"""
+    sampler: str = "x0-cosine"
+    """the refiner's diffusion: "x0-cosine" (the network predicts the clean residual, cosine schedule) or
+    "eps-linear" (it predicts the noise, the authors' linear betas from 1e-4 to 5e-2); DDIM with eta = 0"""
     init_noise: float = 1.0
     """scale of the starting noise x_M of the sampler"""
     zero_start: bool = True
@@ -87,7 +90,8 @@ class ModelConfig:
                             "heads": (1, 64), "layers": (1, 16), "dropout": (0.0, 0.9), "steps": (1, 1000),
                             "init_noise": (0.0, 100.0),
                             "on_map_tolerance_m": (0.0, 10.0)},
-                     choices={"task": tuple(TASKS), "anchor_off_image": OFF_IMAGE_MODES, "anchor_bend": BEND_SHAPES})
+                     choices={"task": tuple(TASKS), "anchor_off_image": OFF_IMAGE_MODES, "anchor_bend": BEND_SHAPES,
+                              "sampler": SAMPLERS})
         if self.dim % self.heads:
             raise ValueError(f"ModelConfig.dim={self.dim}, ModelConfig.heads={self.heads}: dim must be a multiple "
                              "of heads")

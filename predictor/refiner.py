@@ -1,11 +1,13 @@
 """Conditional denoising diffusion over the S x K anchor residual (all prototypes refined jointly).
 
-The network predicts the clean residual x0 from (noisy residual x_m, step m, conditions); epsilon
-follows from x0, so one network serves both training objectives:
+The network sees (noisy residual x_m, step m, conditions) and predicts, by the ``sampler`` setting, either the
+clean residual x0 ("x0-cosine": cosine noise schedule) or the noise epsilon ("eps-linear": the authors' linear
+beta schedule, beta from 1e-4 to 5e-2 over the M steps); the other one follows from it, so one network serves
+both training objectives:
   * ``eps``: the paper's epsilon-prediction MSE at a random diffusion step;
   * ``e2e``: unroll the M-step DDIM chain and minimise best-of-S ADE of the final paths.
-Conditions: the agent's history features, its anchors, and interaction through one transformer layer
-whose attention is masked to agents of the same window (scene moment).
+Conditions: the agent's history features, its anchors, and interaction through transformer layers whose
+attention is restricted to agents of the same window (scene moment).
 """
 
 from __future__ import annotations
@@ -16,6 +18,10 @@ from dataclasses import dataclass
 
 import torch
 from torch import nn
+from torch.nn import functional
+
+SAMPLERS = ("x0-cosine", "eps-linear")  # what the network predicts, and the noise schedule it is paired with
+LINEAR_BETAS = (1e-4, 5e-2)  # first and last beta of the "eps-linear" schedule (the authors' values)
 
 
 @dataclass(frozen=True)
@@ -39,7 +45,11 @@ class RefinerConfig:
     steps: int = 10
     """M, DDIM denoising steps"""
     zero_start: bool = True
-    """start the denoiser's output layer at zero, so the untrained refiner returns the anchors"""
+    """start the denoiser's output layer at zero: the untrained "x0-cosine" refiner returns the anchors, the
+    untrained "eps-linear" one the anchors plus its starting noise x_M / sqrt(alpha_bar_M)"""
+    sampler: str = "x0-cosine"
+    """"x0-cosine": the network predicts x0, cosine schedule; "eps-linear": it predicts epsilon, linear betas
+    (``LINEAR_BETAS``); both sample by deterministic DDIM (eta = 0)"""
 
 
 def cosine_alpha_bar(steps: int) -> torch.Tensor:
@@ -47,6 +57,15 @@ def cosine_alpha_bar(steps: int) -> torch.Tensor:
     m = torch.arange(steps + 1, dtype=torch.float64) / steps
     f = torch.cos((m + 0.008) / 1.008 * math.pi / 2) ** 2
     return (f / f[0]).clamp(min=1e-4).float()
+
+
+def linear_alpha_bar(steps: int) -> torch.Tensor:
+    """(steps + 1,) cumulative signal level of linearly spaced betas: 1 at m = 0, prod_{j <= m} (1 - beta_j).
+
+    With ``LINEAR_BETAS`` and 10 steps the last level is about 0.78: x_M keeps most of the signal.
+    """
+    betas = torch.linspace(*LINEAR_BETAS, steps, dtype=torch.float64)
+    return torch.cat([torch.ones(1, dtype=torch.float64), torch.cumprod(1 - betas, 0)]).float()
 
 
 def step_embedding(m: torch.Tensor, dim: int) -> torch.Tensor:
@@ -58,10 +77,12 @@ def step_embedding(m: torch.Tensor, dim: int) -> torch.Tensor:
 
 
 class Refiner(nn.Module):
-    """Context encoder (history + interaction) and an x0-predicting denoiser over S x K residuals."""
+    """Context encoder (history + interaction) and a denoiser over S x K residuals (x0 or epsilon output)."""
 
     def __init__(self, cfg: RefinerConfig):
         super().__init__()
+        if cfg.sampler not in SAMPLERS:
+            raise ValueError(f"RefinerConfig.sampler={cfg.sampler!r}: must be one of {', '.join(SAMPLERS)}")
         self.cfg = cfg
         d, h, sk = cfg.dim, cfg.denoiser_dim, cfg.num_samples * cfg.k
         self.encode_history = nn.Sequential(nn.Linear(cfg.history_dim + sk, d), nn.SiLU(), nn.Linear(d, d))
@@ -76,39 +97,65 @@ class Refiner(nn.Module):
         if cfg.zero_start:  # the untrained refiner predicts a zero residual: the futures are the anchors
             nn.init.zeros_(self.denoise[-1].weight)
             nn.init.zeros_(self.denoise[-1].bias)
-        self.register_buffer("alpha_bar", cosine_alpha_bar(cfg.steps), persistent=False)
+        alpha_bar = cosine_alpha_bar(cfg.steps) if cfg.sampler == "x0-cosine" else linear_alpha_bar(cfg.steps)
+        self.register_buffer("alpha_bar", alpha_bar, persistent=False)
         self.register_buffer("step_table", step_embedding(torch.arange(cfg.steps + 1), d), persistent=False)
 
     def context(self, history: torch.Tensor, anchors: torch.Tensor, group: torch.Tensor) -> torch.Tensor:
-        """Per-agent condition (B, dim) from history (B, F), anchors (B, S, K) and window ids (B,)."""
+        """Per-agent condition (B, dim) from history (B, F), anchors (B, S, K) and window ids (B,).
+
+        Each agent attends only to the agents of its own window. The layers' projections and feed-forward run on
+        the B agents; only the attention itself sees windows padded to the longest (W, longest, dim), which is
+        about four times B in a shuffled training batch. Same weights and result as ``self.interact`` with the
+        other windows masked out.
+        """
         tokens = self.encode_history(torch.cat([history, anchors.flatten(1)], dim=1))
         _, window, sizes = torch.unique(group, return_inverse=True, return_counts=True)
-        if len(sizes) <= 1:  # one window: everyone attends to everyone
-            return self.interact(tokens[None])[0]
-        # one padded row per window (W, longest, dim): attention within each window, not over a masked (B, B)
         order = torch.argsort(window, stable=True)
-        slot = torch.arange(len(group)) - torch.repeat_interleave(torch.cumsum(sizes, 0) - sizes, sizes)
-        rows = tokens.new_zeros(len(sizes), int(sizes.max()), tokens.shape[1])
-        rows = rows.index_put((window[order], slot), tokens[order])
-        padding = torch.arange(rows.shape[1]) >= sizes[:, None]  # (W, longest) True = no agent
-        out = torch.empty_like(tokens)
-        out[order] = self.interact(rows, src_key_padding_mask=padding)[window[order], slot]
-        return out
+        slot = torch.empty_like(window)
+        slot[order] = torch.arange(len(group)) - torch.repeat_interleave(torch.cumsum(sizes, 0) - sizes, sizes)
+        keys = torch.arange(int(sizes.max())) < sizes[:, None]  # (W, longest) True = an agent
+        for layer in self.interact.layers:
+            tokens = self._window_layer(layer, tokens, window, slot, keys)
+        return tokens
+
+    def _window_layer(self, layer: nn.TransformerEncoderLayer, x: torch.Tensor, window: torch.Tensor,
+                      slot: torch.Tensor, keys: torch.Tensor) -> torch.Tensor:
+        """One pre-norm encoder layer on tokens x (B, dim), agent i at row ``window[i]``, column ``slot[i]``."""
+        attention = layer.self_attn
+        heads, dim = attention.num_heads, x.shape[1]
+        qkv = functional.linear(layer.norm1(x), attention.in_proj_weight, attention.in_proj_bias)  # (B, 3 dim)
+        rows = qkv.new_zeros(*keys.shape, 3 * dim).index_put((window, slot), qkv)
+        q, k, v = rows.view(*keys.shape, 3, heads, dim // heads).permute(2, 0, 3, 1, 4)  # (W, heads, longest, .)
+        mixed = functional.scaled_dot_product_attention(q, k, v, attn_mask=keys[:, None, None, :],
+                                                        dropout_p=attention.dropout if self.training else 0.0)
+        mixed = mixed.transpose(1, 2).reshape(*keys.shape, dim)[window, slot]  # (B, dim)
+        x = x + layer.dropout1(attention.out_proj(mixed))
+        return x + layer.dropout2(layer.linear2(layer.dropout(layer.activation(layer.linear1(layer.norm2(x))))))
 
     def predict_x0(self, x_m: torch.Tensor, m: torch.Tensor, anchors: torch.Tensor, ctx: torch.Tensor) -> torch.Tensor:
         """Clean residual (B, S, K) from noisy residual x_m (B, S, K) at steps m (B,)."""
-        return self._denoise(x_m, self._step_invariant(anchors, ctx) + self.embed_step(self.step_table[m]))
+        out = self._denoise(x_m, self._step_invariant(anchors, ctx) + self.embed_step(self.step_table[m]))
+        return self._x0_eps(x_m, out, self.alpha_bar[m][:, None, None])[0]
 
     def _step_invariant(self, anchors: torch.Tensor, ctx: torch.Tensor) -> torch.Tensor:
         """(B, denoiser_dim): the anchors' share of the residual embedding plus the context (same at every step)."""
         sk = anchors[0].numel()
         weight, bias = self.embed_residual.weight, self.embed_residual.bias
-        return torch.nn.functional.linear(anchors.flatten(1), weight[:, sk:], bias) + self.embed_context(ctx)
+        return functional.linear(anchors.flatten(1), weight[:, sk:], bias) + self.embed_context(ctx)
 
     def _denoise(self, x_m: torch.Tensor, condition: torch.Tensor) -> torch.Tensor:
-        """Clean residual from x_m (B, S, K) and the summed conditions (B or 1, dim)."""
+        """The network's output (x0 or epsilon, by ``sampler``) from x_m (B, S, K) and the summed conditions."""
         weight = self.embed_residual.weight[:, :x_m[0].numel()]
-        return self.denoise(torch.nn.functional.linear(x_m.flatten(1), weight) + condition).view_as(x_m)
+        return self.denoise(functional.linear(x_m.flatten(1), weight) + condition).view_as(x_m)
+
+    def _x0_eps(self, x_m: torch.Tensor, out: torch.Tensor, a: torch.Tensor | float
+                ) -> tuple[torch.Tensor, torch.Tensor]:
+        """(x0, epsilon) from the network's output at signal level a, with x_m = sqrt(a) x0 + sqrt(1 - a) eps."""
+        a = torch.as_tensor(a)
+        if self.cfg.sampler == "x0-cosine":
+            return out, (x_m - a.sqrt() * out) / (1 - a).sqrt()
+        return (x_m - (1 - a).sqrt() * out) / a.sqrt(), out
 
     def sample(self, anchors: torch.Tensor, ctx: torch.Tensor, noise: torch.Tensor, steps: int | None = None
                ) -> torch.Tensor:
@@ -123,13 +170,10 @@ class Refiner(nn.Module):
         invariant = self._step_invariant(anchors, ctx)  # computed once for all M steps
         step_bias = self.embed_step(self.step_table)  # (M + 1, denoiser_dim), one row per step, shared by all agents
         for m, m_next in itertools.pairwise(schedule):
-            x0 = self._denoise(x, invariant + step_bias[m])
+            x0, eps = self._x0_eps(x, self._denoise(x, invariant + step_bias[m]), alpha_bar[m])
             if m_next == 0:
                 return x0
-            # x_next = sqrt(a_next) x0 + sqrt(1 - a_next) eps, with eps = (x - sqrt(a) x0) / sqrt(1 - a)
-            a, a_next = alpha_bar[m], alpha_bar[m_next]
-            keep = math.sqrt((1 - a_next) / (1 - a))
-            x = (math.sqrt(a_next) - keep * math.sqrt(a)) * x0 + keep * x
+            x = math.sqrt(alpha_bar[m_next]) * x0 + math.sqrt(1 - alpha_bar[m_next]) * eps
         return x
 
     def eps_loss(self, x0: torch.Tensor, anchors: torch.Tensor, ctx: torch.Tensor, generator: torch.Generator
@@ -139,5 +183,5 @@ class Refiner(nn.Module):
         noise = torch.randn(x0.shape, generator=generator)
         a = self.alpha_bar[m][:, None, None]
         x_m = a.sqrt() * x0 + (1 - a).sqrt() * noise
-        eps = (x_m - a.sqrt() * self.predict_x0(x_m, m, anchors, ctx)) / (1 - a).sqrt()
-        return (eps - noise).pow(2).mean()
+        out = self._denoise(x_m, self._step_invariant(anchors, ctx) + self.embed_step(self.step_table[m]))
+        return (self._x0_eps(x_m, out, a)[1] - noise).pow(2).mean()

@@ -24,7 +24,7 @@ from predictor.checkpoint import model_state, read_checkpoint, save_atomic
 from predictor.config_check import check_config
 from predictor.model import ModelConfig, SingularTrajectory, window_batches
 from predictor.normalize import SLOW_SPEED_M, agent_frames
-from predictor.refiner import Refiner
+from predictor.refiner import SAMPLERS, Refiner
 from predictor.singular_space import fit_singular_space
 from replays.atomic import write_text_atomic
 from replays.constants import TASKS
@@ -41,6 +41,7 @@ SINGLE_SAMPLE_SCALE_FLOOR_M = 0.05  # slow agents' speed-scale floor for S = 1 [
 # step], static agents unscaled: better validation FDE than the rule above on four of five scenes (RESULTS,
 # component swaps). UNIV's 0 leaves in the static population only agents without a heading (normalize).
 DETERMINISTIC_STATIC_M = {"eth": 0.021, "hotel": 0.014, "univ": 0.0, "zara1": 0.015, "zara2": 0.014}
+LR_SCHEDULES = ("cosine", "step")
 TRAIN_SUMMARY = "train.json"  # written when a run has finished: selected epoch, per-epoch history, wall time
 
 
@@ -63,7 +64,14 @@ class TrainConfig:
     weight_decay: float = 1e-4
     """AdamW weight decay"""
     warmup_epochs: float = 0.5
-    """linear warm-up, then cosine decay to zero over the remaining epochs"""
+    """linear warm-up of the learning rate over this many epochs (0: none), then ``lr_schedule``"""
+    lr_schedule: str = "cosine"
+    """"cosine": decay to zero over the epochs after the warm-up; "step": constant, multiplied by ``lr_gamma`` at
+    the start of each of ``lr_stages`` equal parts of the run (the authors' schedule: 256 epochs halved every 64)"""
+    lr_stages: int = 4
+    """"step" schedule: equal parts of the run, each at ``lr_gamma`` times the rate of the one before"""
+    lr_gamma: float = 0.5
+    """"step" schedule: learning-rate factor from one part to the next"""
     clip_grad: float = 1.0
     """gradient-norm clipping"""
     objective: str = "e2e"
@@ -82,6 +90,8 @@ class TrainConfig:
     """dropout in the refiner's interaction layers while training"""
     steps: int = 10
     """M, DDIM steps"""
+    sampler: str = "x0-cosine"
+    """the refiner's diffusion (``ModelConfig.sampler``): "x0-cosine" or the authors' "eps-linear" """
     adapt_anchors: bool = True
     """map-adaptive anchors (False = fixed prototypes)"""
     anchor_off_image: str = "pull"
@@ -132,12 +142,13 @@ class TrainConfig:
             "epochs": (1, 10_000), "min_steps": (0, 10**7), "batch_agents": (2, 10**6), "lr": (1e-8, 1.0),
             "weight_decay": (0.0, 1.0), "warmup_epochs": (0.0, 10_000.0), "clip_grad": (1e-6, 1e6),
             "fde_weight": (0.0, 100.0), "k": (1, 24), "dim": (4, 4096), "denoiser_dim": (4, 4096),
-            "steps": (1, 1000), "layers": (1, 16), "dropout": (0.0, 0.9),
+            "steps": (1, 1000), "layers": (1, 16), "dropout": (0.0, 0.9), "lr_stages": (1, 10_000),
+            "lr_gamma": (1e-6, 1.0),
             "init_noise": (0.0, 100.0), "seed": (0, 2**31 - 1), "threads": (1, 256),
             "select_tolerance_m": (0.0, 10.0), "max_train_windows": (1, 10**9), "ema_decay": (0.0, 0.99999),
             "slow_speed_m": (0.0, 10.0), "slow_scale_floor_m": (0.0, 10.0), "stand_speed_m": (0.0, 10.0),
         }, choices={"task": tuple(TASKS), "objective": ("e2e", "eps"), "anchor_off_image": OFF_IMAGE_MODES,
-                    "anchor_bend": BEND_SHAPES})
+                    "anchor_bend": BEND_SHAPES, "lr_schedule": LR_SCHEDULES, "sampler": SAMPLERS})
         if self.dim % 4:
             raise ValueError(f"TrainConfig.dim={self.dim}: must be a multiple of the 4 attention heads")
 
@@ -148,6 +159,17 @@ COSMETIC_FIELDS = ("out", "threads", "data_root", "progress")  # change neither 
 def model_fields(cfg: TrainConfig) -> dict:
     """The configuration without its cosmetic fields: what a checkpoint records and a resume must match."""
     return {k: v for k, v in asdict(cfg).items() if k not in COSMETIC_FIELDS}
+
+
+def lr_factor(step: int, cfg: TrainConfig, per_epoch: int, epochs: int) -> float:
+    """Learning rate of optimiser step ``step`` (0-based) as a share of ``cfg.lr``, for a run of ``epochs`` epochs of
+    ``per_epoch`` steps: the linear warm-up, then ``cfg.lr_schedule`` (the step schedule moves at epoch ends)."""
+    warmup = max(1, int(cfg.warmup_epochs * per_epoch))
+    ramp = min(1.0, (step + 1) / warmup)
+    if cfg.lr_schedule == "step":
+        return ramp * cfg.lr_gamma ** (step // per_epoch * cfg.lr_stages // epochs)
+    total = epochs * per_epoch
+    return min(ramp, 0.5 * (1 + math.cos(math.pi * min(1.0, max(0, step - warmup) / max(1, total - warmup)))))
 
 
 def split_scenes(windows: Windows, root) -> tuple[list, np.ndarray]:
@@ -322,7 +344,7 @@ def main(cfg: TrainConfig) -> Path:
     checksums = data_checksums(cfg, root)
     recorded = {"train_config": model_fields(cfg), "data_checksums": checksums}  # what every checkpoint carries
 
-    # ---- optimiser and schedule: AdamW, linear warm-up then cosine decay (per batch)
+    # ---- optimiser and schedule: AdamW, linear warm-up then cosine decay or steps (per batch)
     refiner = model.refiner
     resume = read_checkpoint(out / "last.pt") if (out / "last.pt").is_file() else None
     if resume is not None:  # an interrupted run: same data -> same spaces and anchors; restore the weights
@@ -338,9 +360,7 @@ def main(cfg: TrainConfig) -> Path:
     optimizer = torch.optim.AdamW(refiner.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
     per_epoch = len(window_batches(t_train["group"], cfg.batch_agents, None))
     epochs = max(cfg.epochs, math.ceil(cfg.min_steps / per_epoch))
-    total, warmup = epochs * per_epoch, max(1, int(cfg.warmup_epochs * per_epoch))
-    schedule = torch.optim.lr_scheduler.LambdaLR(optimizer, lambda i: min((i + 1) / warmup, 0.5 * (
-        1 + math.cos(math.pi * min(1.0, max(0, i - warmup) / max(1, total - warmup))))))
+    schedule = torch.optim.lr_scheduler.LambdaLR(optimizer, lambda i: lr_factor(i, cfg, per_epoch, epochs))
     start_epoch, best, history = 0, {"fde": float("inf")}, []
     average = WeightAverage(refiner, cfg.ema_decay)
     if resume is not None:
@@ -371,6 +391,7 @@ def main(cfg: TrainConfig) -> Path:
             optimizer.zero_grad(set_to_none=True)
             loss.backward()
             torch.nn.utils.clip_grad_norm_(refiner.parameters(), cfg.clip_grad)
+            lr = optimizer.param_groups[0]["lr"]  # the rate of this step, for the epoch's record
             optimizer.step()
             schedule.step()
             average.update()
@@ -381,8 +402,8 @@ def main(cfg: TrainConfig) -> Path:
             if math.isfinite(val_fde) and val_fde <= best["fde"] + cfg.select_tolerance_m:  # near-ties: later epoch
                 best = {"fde": val_fde, "ade": val_ade, "epoch": epoch + 1}
                 save_atomic({"model": model_state(model), **recorded, "best": best}, out / "best.pt")
-        record = {"epoch": epoch + 1, "train/loss": float(np.mean(losses)), "val/ade_m": val_ade,
-                  "val/fde_m": val_fde, "wall_s": time.perf_counter() - began}
+        record = {"epoch": epoch + 1, "train/loss": float(np.mean(losses)), "train/last_lr": lr,
+                  "val/ade_m": val_ade, "val/fde_m": val_fde, "wall_s": time.perf_counter() - began}
         history.append(record)
         if epochs <= 20 or (epoch + 1) % (epochs // 10) == 0 or epoch + 1 == epochs:  # at most ~20 lines
             print(f"{run_name} epoch {epoch + 1}: loss {record['train/loss']:.4f}  val ADE {val_ade:.4f}  "

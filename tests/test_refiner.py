@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 from predictor.anchors import onto_walkable
 from predictor.baselines import ConstantVelocity
 from predictor.model import SINGLE_SAMPLE_STAND_SPEED_M
-from predictor.refiner import Refiner, RefinerConfig
+from predictor.refiner import LINEAR_BETAS, SAMPLERS, Refiner, RefinerConfig, linear_alpha_bar
 from predictor.train import (
     DETERMINISTIC_STATIC_M,
     SINGLE_SAMPLE_SCALE_FLOOR_M,
@@ -54,10 +54,11 @@ def test_context_attends_within_each_window_only(windows: list[int], seed: int, 
     torch.testing.assert_close(refiner.context(history, anchors, group), masked, rtol=0, atol=1e-5)
 
 
-@pytest.mark.parametrize("denoiser_dim", [32, 64])
-def test_sampler_matches_textbook_ddim(denoiser_dim: int) -> None:
+@pytest.mark.parametrize("denoiser_dim, sampler", [(32, "x0-cosine"), (64, "x0-cosine"), (32, "eps-linear")])
+def test_sampler_matches_textbook_ddim(denoiser_dim: int, sampler: str) -> None:
     torch.manual_seed(0)
-    cfg = RefinerConfig(history_dim=10, num_samples=5, k=4, dim=32, denoiser_dim=denoiser_dim, heads=2, steps=6)
+    cfg = RefinerConfig(history_dim=10, num_samples=5, k=4, dim=32, denoiser_dim=denoiser_dim, heads=2, steps=6,
+                        zero_start=False, sampler=sampler)
     refiner = Refiner(cfg).eval()
     history, anchors = torch.randn(7, 10), torch.randn(7, 5, 4)
     group = torch.tensor([0, 0, 0, 1, 1, 2, 2])
@@ -68,6 +69,61 @@ def test_sampler_matches_textbook_ddim(denoiser_dim: int) -> None:
         slow = reference_ddim(refiner, anchors, ctx, noise)
     assert fast.shape == (7, 5, 4)
     torch.testing.assert_close(fast, slow, rtol=1e-5, atol=1e-5)
+
+
+@pytest.mark.parametrize("steps", [1, 10, 37])
+def test_linear_schedule_has_the_authors_betas(steps: int) -> None:
+    alpha_bar = linear_alpha_bar(steps).double()
+    betas = 1 - alpha_bar[1:] / alpha_bar[:-1]  # beta_m = 1 - alpha_bar_m / alpha_bar_(m-1)
+    assert alpha_bar[0] == 1 and len(alpha_bar) == steps + 1
+    expected = np.linspace(*LINEAR_BETAS, steps) if steps > 1 else [LINEAR_BETAS[0]]
+    np.testing.assert_allclose(betas.numpy(), expected, rtol=1e-4, atol=1e-7)
+    if steps == 10:  # the authors' M: x_M keeps most of the signal
+        assert 0.77 < float(alpha_bar[-1]) < 0.79
+
+
+def untrained(sampler: str) -> tuple[Refiner, torch.Tensor, torch.Tensor]:
+    """A zero-start refiner of ``sampler`` with the context of 6 agents in two windows."""
+    torch.manual_seed(1)
+    refiner = Refiner(RefinerConfig(history_dim=6, num_samples=3, k=4, dim=16, denoiser_dim=16, heads=2,
+                                    sampler=sampler)).eval()
+    anchors = torch.randn(6, 3, 4)
+    with torch.no_grad():
+        ctx = refiner.context(torch.randn(6, 6), anchors, torch.tensor([0, 0, 0, 1, 1, 1]))
+    return refiner, anchors, ctx
+
+
+def test_untrained_eps_refiner_rescales_its_starting_noise_and_the_x0_one_returns_zero() -> None:
+    """Zero output means epsilon = 0 for "eps-linear": every DDIM step only rescales x, so the chain ends at
+    x_M / sqrt(alpha_bar_M); for "x0-cosine" it means x0 = 0."""
+    noise = torch.randn(6, 3, 4)
+    for sampler in SAMPLERS:
+        refiner, anchors, ctx = untrained(sampler)
+        with torch.no_grad():
+            out = refiner.sample(anchors, ctx, noise)
+        expected = noise / refiner.alpha_bar[-1].sqrt() if sampler == "eps-linear" else torch.zeros_like(noise)
+        torch.testing.assert_close(out, expected, rtol=1e-5, atol=1e-6)
+
+
+def test_eps_loss_of_an_untrained_eps_refiner_is_the_noise_power() -> None:
+    """Zero epsilon predicted against the drawn noise: the loss is the mean square of that noise (the x0 sampler's
+    loss also depends on the clean residual)."""
+    x0 = torch.randn(6, 3, 4) * 3
+    losses = {}
+    for sampler in SAMPLERS:
+        refiner, anchors, ctx = untrained(sampler)
+        with torch.no_grad():
+            losses[sampler] = refiner.eps_loss(x0, anchors, ctx, torch.Generator().manual_seed(5)).item()
+    draws = torch.Generator().manual_seed(5)
+    torch.randint(1, 11, (6,), generator=draws)  # the steps, drawn first
+    noise_power = float(torch.randn(x0.shape, generator=draws).pow(2).mean())
+    assert losses["eps-linear"] == pytest.approx(noise_power, rel=1e-6)
+    assert abs(losses["x0-cosine"] - noise_power) > 0.1
+
+
+def test_unknown_sampler_is_refused_naming_the_field() -> None:
+    with pytest.raises(ValueError, match=r"RefinerConfig.sampler='ddpm'.*x0-cosine, eps-linear"):
+        Refiner(RefinerConfig(history_dim=6, sampler="ddpm"))
 
 
 def test_denoiser_width_sets_the_mlp_not_the_context() -> None:

@@ -5,16 +5,20 @@ from __future__ import annotations
 import json
 import math
 import os
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
 import torch
+from hypothesis import assume, given, settings
+from hypothesis import strategies as st
 
 from predictor.baselines import ConstantVelocity
-from predictor.checkpoint import CheckpointError, content_hash, load, read_checkpoint
+from predictor.checkpoint import CheckpointError, content_hash, load, model_from_state, read_checkpoint
 from predictor.model import window_batches
-from predictor.train import TrainConfig, TrainingError, main
+from predictor.refiner import linear_alpha_bar
+from predictor.train import TrainConfig, TrainingError, lr_factor, main
 from replays import load_scene, load_windows
 from st_sim.metrics import ade_fde
 
@@ -74,7 +78,9 @@ def test_cosmetic_flags_do_not_block_a_resume(trained, monkeypatch):
 
 @pytest.mark.parametrize("field, value", [("epochs", 0), ("epochs", -1), ("min_steps", -5), ("k", 0), ("steps", 0),
                                           ("lr", float("nan")), ("batch_agents", 1.5), ("seed", True),
-                                          ("objective", "mse"), ("anchor_bend", "curl"), ("dim", 30)])
+                                          ("objective", "mse"), ("anchor_bend", "curl"), ("dim", 30),
+                                          ("sampler", "ddpm"), ("lr_schedule", "linear"), ("lr_stages", 0),
+                                          ("lr_gamma", 0.0), ("lr_gamma", 1.5), ("warmup_epochs", -1.0)])
 def test_bad_training_settings_are_refused_naming_the_field(field, value):
     with pytest.raises(ValueError, match=f"TrainConfig.{field}="):
         TrainConfig(**{field: value})
@@ -136,8 +142,6 @@ def test_small_training_sets_get_epochs_up_to_min_steps(tmp_path):
 
 
 def test_predicted_end_points_are_pulled_onto_walkable_pixels(trained):
-    from dataclasses import replace
-
     model = load(f"{trained.out}/best.pt")
     test = load_windows("stochastic", "eth", "test")  # ETH's camera sees a small part of a long walkway
     eth = load_scene("eth")
@@ -151,8 +155,6 @@ def test_predicted_end_points_are_pulled_onto_walkable_pixels(trained):
 def test_predicted_points_are_kept_on_walkable_ground(trained):
     """By default no predicted point lies deeper than on_map_tolerance_m inside a wall or off the image: moving
     the points onto the map again moves none of them; without it, HOTEL's forecasts leave the map."""
-    from dataclasses import replace
-
     from predictor.anchors import onto_walkable
 
     model = load(f"{trained.out}/best.pt")
@@ -213,3 +215,72 @@ def test_averaged_weights_are_kept_and_a_stopped_run_continues_with_its_average(
     main(parts)
     resumed = read_checkpoint(tmp_path / "parts" / "best.pt")["model"]["weights"]
     assert all(torch.equal(resumed[k], best[k]) for k in best), "resuming lost the average"
+
+
+@pytest.fixture(scope="module")
+def authors_run(tmp_path_factory) -> TrainConfig:
+    """The authors' sampler and step schedule on the small slice: 4 epochs in 2 stages, no warm-up."""
+    cfg = TrainConfig(task="stochastic", scene="zara1", out=str(tmp_path_factory.mktemp("authors")),
+                      **{**SMALL, "epochs": 4}, sampler="eps-linear", lr_schedule="step", lr_stages=2,
+                      warmup_epochs=0.0)
+    main(cfg)
+    return cfg
+
+
+def test_step_schedule_sets_each_epochs_rate(authors_run):
+    history = read_checkpoint(f"{authors_run.out}/last.pt")["history"]
+    assert [h["train/last_lr"] for h in history] == pytest.approx([1e-3, 1e-3, 5e-4, 5e-4])
+
+
+def test_eps_linear_training_beats_constant_velocity_and_reloads_its_sampler(authors_run):
+    model = load(f"{authors_run.out}/best.pt")
+    assert model.cfg.sampler == model.refiner.cfg.sampler == "eps-linear"
+    torch.testing.assert_close(model.refiner.alpha_bar, linear_alpha_bar(model.cfg.steps))
+    test = load_windows("stochastic", "zara1", "test")
+    scene = load_scene("zara1")
+    ours, _ = ade_fde(model.predict(test.obs, test.group, scene, 20), test.fut)
+    cvm, _ = ade_fde(ConstantVelocity().predict(test.obs, test.group, scene, 20), test.fut)
+    assert ours.mean() < 0.8 * cvm.mean(), (ours.mean(), cvm.mean())
+
+
+def test_checkpoints_without_a_sampler_field_load_with_the_x0_cosine_sampler(trained):
+    """Checkpoints written before the sampler option was added keep the sampler they were trained with."""
+    state = read_checkpoint(f"{trained.out}/best.pt")["model"]
+    older = {**state, "config": {k: v for k, v in state["config"].items() if k != "sampler"}}
+    assert "sampler" in state["config"] and model_from_state(older).refiner.cfg.sampler == "x0-cosine"
+
+
+def test_authors_step_schedule_halves_every_64_of_256_epochs():
+    cfg = TrainConfig(lr_schedule="step", warmup_epochs=0.0)
+    rates = {epoch: lr_factor(epoch * 50 + 49, cfg, 50, 256) for epoch in (0, 63, 64, 127, 128, 191, 192, 255)}
+    assert rates == {0: 1.0, 63: 1.0, 64: 0.5, 127: 0.5, 128: 0.25, 191: 0.25, 192: 0.125, 255: 0.125}
+
+
+@settings(max_examples=60, deadline=None)
+@given(per_epoch=st.integers(1, 40), epochs=st.integers(1, 60), stages=st.integers(1, 8),
+       gamma=st.floats(0.1, 0.9), warmup=st.floats(0.0, 3.0))
+def test_step_schedule_is_piecewise_constant_per_epoch_and_falls_by_gamma(per_epoch, epochs, stages, gamma, warmup):
+    """The warm-up starts at 1 / its steps; after it the rate is constant within an epoch, never rises, and every
+    value is gamma to a power; without a warm-up it takes one value per stage (one per epoch when there are fewer
+    epochs than stages) and ends at gamma^(stages - 1)."""
+    cfg = TrainConfig(lr_schedule="step", lr_stages=stages, lr_gamma=gamma, warmup_epochs=warmup)
+    warmup_steps = max(1, int(warmup * per_epoch))
+    assume(warmup_steps < epochs * per_epoch)
+    rates = np.array([lr_factor(i, cfg, per_epoch, epochs) for i in range(epochs * per_epoch)])
+    assert rates[0] == pytest.approx(1 / warmup_steps)
+    after = rates.reshape(epochs, per_epoch)[math.ceil(warmup_steps / per_epoch):]
+    assert np.all(after == after[:, :1]) and np.all(np.diff(after[:, 0]) <= 0)
+    powers = np.log(np.unique(after[:, 0])) / math.log(gamma)
+    np.testing.assert_allclose(powers, np.round(powers), atol=1e-9)
+    cold = replace(cfg, warmup_epochs=0.0)
+    full = np.array([lr_factor(e * per_epoch, cold, per_epoch, epochs) for e in range(epochs)])
+    assert len(np.unique(full)) == min(stages, epochs) and full[0] == 1
+    if stages <= epochs:
+        assert full[-1] == pytest.approx(gamma ** (stages - 1))
+
+
+def test_cosine_schedule_warms_up_then_falls_to_zero():
+    cfg = TrainConfig(warmup_epochs=1.0)
+    rates = np.array([lr_factor(i, cfg, 10, 6) for i in range(60)])
+    np.testing.assert_allclose(rates[:10], np.arange(1, 11) / 10)
+    assert np.all(np.diff(rates[10:]) < 0) and rates[-1] < 0.01
