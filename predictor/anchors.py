@@ -14,7 +14,7 @@ prototypes.
 
 from __future__ import annotations
 
-import weakref
+import functools
 
 import numpy as np
 from scipy.cluster.vq import kmeans2
@@ -43,25 +43,24 @@ def prototype_anchors(coefficients: np.ndarray, num_anchors: int, seed: int = 0)
     return centroids[np.argsort(-sizes, kind="stable")]
 
 
-_FIELDS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-
-
+@functools.lru_cache(maxsize=8)
 def nearest_walkable_field(scene: Scene) -> np.ndarray:
     """(2, 2H, 2W) int32 row and column (image pixels) of the nearest walkable pixel, over the padded canvas.
 
     The canvas is the (H, W) map centred in a non-walkable border of H/2 rows and W/2 columns on each
-    side; canvas pixel (r, c) is image pixel (r - H//2, c - W//2). Cached per scene.
+    side; canvas pixel (r, c) is image pixel (r - H//2, c - W//2). Cached for the last 8 scene objects
+    (32 bytes per image pixel: 39 MB for a 1280 x 960 map); read-only.
     """
-    if scene not in _FIELDS:
-        if not scene.walkable.any():
-            raise ValueError(f"{scene}: walkability map has no walkable pixel")
-        height, width = scene.walkable.shape
-        canvas = np.pad(scene.walkable, ((height // 2, height - height // 2), (width // 2, width - width // 2)))
-        _, indices = distance_transform_edt(~canvas, return_indices=True)
-        indices[0] -= height // 2
-        indices[1] -= width // 2
-        _FIELDS[scene] = indices.astype(np.int32)
-    return _FIELDS[scene]
+    if not scene.walkable.any():
+        raise ValueError(f"{scene}: walkability map has no walkable pixel")
+    height, width = scene.walkable.shape
+    canvas = np.pad(scene.walkable, ((height // 2, height - height // 2), (width // 2, width - width // 2)))
+    _, indices = distance_transform_edt(~canvas, return_indices=True)
+    indices[0] -= height // 2
+    indices[1] -= width // 2
+    field = indices.astype(np.int32)
+    field.flags.writeable = False
+    return field
 
 
 def _end_targets(end_px: np.ndarray, scene: Scene, off_image: str) -> tuple[np.ndarray, np.ndarray]:
