@@ -14,7 +14,9 @@ predictor over the same seeded episodes. Kendall's tau between the open-loop FDE
 collision rate (positive: the lower the FDE, the safer the robot) and between FDE and the failure rate (1 - success),
 each with a paired bootstrap 95 % interval (2000 resamples of windows or stream seeds, and of episodes, the same for
 every predictor). The few-shot models are trained first (every 10th training window, seed 0). Everything runs through
-the grid runner (resumable, ``--executor ray``). Writes ``OUT/study.json`` and the scatter plot ``OUT/study.png``.
+the grid runner (resumable, ``--executor ray``). Writes ``OUT/study.json`` and the scatter plot ``OUT/study.png``
+(matplotlib: FDE with its bootstrap interval against the at-fault rate with its Wilson interval);
+``--replot OUT/study.json`` redraws the plot alone.
 """
 
 from __future__ import annotations
@@ -36,6 +38,8 @@ from replays.atomic import write_text_atomic
 from st_sim.apps.cli import add_grid_arguments
 from st_sim.apps.grid import Job, raise_on_failure, run_jobs
 from st_sim.apps.navigation.episodes import NavRun, grid_job
+from st_sim.apps.navigation.metrics import rate_interval
+from st_sim.charts import ScatterPoint, interval_scatter, save_figure
 
 PREDICTORS = {  # label -> spec (in envs and on windows); "singular" is the envs' own, its samples weighed by prior
     "cvm": "cvm", "cvm-s": "cvm-s", "linear": "linear", "singular": "singular",
@@ -111,62 +115,54 @@ def study_env(env: str, labels: list[str], open_results: dict, closed_results: d
     n_units, n_episodes = units.max() + 1, at_fault.shape[1]
     point = {"fault": kendall(fde.mean(1), at_fault.mean(1)), "failure": kendall(fde.mean(1), failed.mean(1))}
     boot = {"fault": [], "failure": []}
+    boot_fde = []  # (RESAMPLES, P) each predictor's mean FDE over the resampled units
     for _ in range(RESAMPLES):
         picked_units = rng.integers(0, n_units, n_units)
         rows = np.concatenate([np.flatnonzero(units == u) for u in picked_units])
         picked_episodes = rng.integers(0, n_episodes, n_episodes)
         open_fde = fde[:, rows].mean(1)
+        boot_fde.append(open_fde)
         boot["fault"].append(kendall(open_fde, at_fault[:, picked_episodes].mean(1)))
         boot["failure"].append(kendall(open_fde, failed[:, picked_episodes].mean(1)))
     taus = {kind: {"tau": point[kind], "low": float(np.percentile(boot[kind], 2.5)),
                    "high": float(np.percentile(boot[kind], 97.5))} for kind in point}
-    rows = [{"predictor": label, "ade": float(ade[i].mean()), "fde": float(fde[i].mean()),
-             **{name: closed_results[label]["summary"][name]["value"]
-                for name in ("success", "collision", "collision_at_fault", "timeout")}}
-            for i, label in enumerate(labels)]
+    fde_low, fde_high = np.percentile(np.array(boot_fde), [2.5, 97.5], axis=0)
+    rows = []
+    for i, label in enumerate(labels):
+        summary = closed_results[label]["summary"]
+        rows.append({"predictor": label, "ade": float(ade[i].mean()), "fde": float(fde[i].mean()),
+                     "fde_low": float(fde_low[i]), "fde_high": float(fde_high[i]),
+                     **{name: summary[name]["value"] for name in ("success", "collision", "collision_at_fault",
+                                                                  "timeout")},
+                     "collision_at_fault_low": summary["collision_at_fault"]["low"],
+                     "collision_at_fault_high": summary["collision_at_fault"]["high"]})
     return {"env": env, "rows": rows, "tau": taus}
 
 
-def plot(study: list[dict], path: Path) -> Path:
-    """One scatter panel per env: open-loop FDE (x) against the at-fault collision rate (y), labelled points."""
-    import cv2
+def plot(study: list[dict], episodes: int, path: Path) -> Path:
+    """One scatter panel per env: open-loop FDE (x, with its bootstrap interval) against the at-fault collision
+    rate (y, with its Wilson interval), every point labelled with its predictor.
 
-    width, height, left, bottom, top = 420, 380, 60, 50, 40
-    panels = []
+    Studies written before the intervals were kept have no FDE interval (drawn without one) and no collision
+    interval (computed here from the rate and ``episodes``)."""
+    panels = {}
     for part in study:
-        image = np.full((height, width, 3), 255, np.uint8)
-        fde = np.array([r["fde"] for r in part["rows"]])
-        fault = np.array([r["collision_at_fault"] for r in part["rows"]])
-        x0, x1 = fde.min() * 0.95, fde.max() * 1.05
-        y1 = max(fault.max() * 1.15, 0.01)
-
-        def px(x: float, y: float, x0: float = x0, x1: float = x1, y1: float = y1) -> tuple[int, int]:
-            return (round(left + (x - x0) / (x1 - x0) * (width - left - 20)),
-                    round(height - bottom - y / y1 * (height - bottom - top)))
-
-        cv2.line(image, px(x0, 0), px(x1, 0), (0, 0, 0), 1)
-        cv2.line(image, px(x0, 0), px(x0, y1), (0, 0, 0), 1)
-        for frac in (0.0, 0.5, 1.0):
-            cv2.putText(image, f"{x0 + frac * (x1 - x0):.2f}", (px(x0 + frac * (x1 - x0), 0)[0] - 15,
-                        height - bottom + 18), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (0, 0, 0), 1)
-            cv2.putText(image, f"{frac * y1:.3f}", (5, px(x0, frac * y1)[1] + 4), cv2.FONT_HERSHEY_SIMPLEX, 0.4,
-                        (0, 0, 0), 1)
-        for row in part["rows"]:
-            point = px(row["fde"], row["collision_at_fault"])
-            cv2.circle(image, point, 5, (200, 80, 0), -1)
-            cv2.putText(image, row["predictor"], (point[0] + 6, point[1] - 4), cv2.FONT_HERSHEY_SIMPLEX, 0.35,
-                        (60, 60, 60), 1)
+        env_id, mode = ENVS[part["env"]]
         tau = part["tau"]["fault"]
-        cv2.putText(image, f"{part['env']}: tau {tau['tau']:+.2f} [{tau['low']:+.2f}, {tau['high']:+.2f}]",
-                    (left, 25), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 0), 1)
-        cv2.putText(image, "open-loop FDE [m]", (width // 2 - 50, height - 12), cv2.FONT_HERSHEY_SIMPLEX, 0.4,
-                    (0, 0, 0), 1)
-        panels.append(image)
-    figure = np.concatenate(panels, axis=1)
-    cv2.putText(figure, "at-fault collisions (y)", (5, 12), cv2.FONT_HERSHEY_SIMPLEX, 0.35, (0, 0, 0), 1)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    cv2.imwrite(str(path), figure)
-    return path
+        title = (f"{env_id}{f' ({mode})' if mode else ''}\nKendall tau {tau['tau']:+.2f} "
+                 f"[{tau['low']:+.2f}, {tau['high']:+.2f}]")
+        points = []
+        for row in part["rows"]:
+            rate = row["collision_at_fault"]
+            low, high = row.get("collision_at_fault_low"), row.get("collision_at_fault_high")
+            if low is None:
+                low, high = rate_interval(round(rate * episodes), episodes)
+            x_interval = (row["fde_low"], row["fde_high"]) if "fde_low" in row else None
+            points.append(ScatterPoint(row["predictor"], row["fde"], 100 * rate, x_interval, (100 * low, 100 * high)))
+        panels[title] = points
+    figure = interval_scatter("open-loop FDE, best of 20 [m]", f"at-fault collisions [% of {episodes} episodes]",
+                              panels, title="MPC with each predictor: open-loop accuracy against closed-loop safety")
+    return save_figure(figure, path)
 
 
 def main() -> None:
@@ -178,8 +174,14 @@ def main() -> None:
     parser.add_argument("--out", default="runs/study", help="study folder (default: runs/study)")
     parser.add_argument("--plugin", action="append", default=[], metavar="LABEL=SPEC",
                         help="add a plug-in predictor package.module:name under LABEL (repeatable)")
+    parser.add_argument("--replot", type=Path, default=None, metavar="STUDY_JSON",
+                        help="only redraw the scatter plot of a study.json (written beside it as study.png)")
     add_grid_arguments(parser)
     args = parser.parse_args()
+    if args.replot is not None:
+        saved = json.loads(args.replot.read_text())
+        print(f"wrote {plot(saved['study'], saved['episodes'], args.replot.with_name('study.png'))}")
+        return
     for item in args.plugin:
         label, _, spec = item.partition("=")
         if not label or ":" not in spec or label in PREDICTORS:
@@ -229,7 +231,7 @@ def main() -> None:
             print(f"\nKendall tau, FDE vs {text}: {tau['tau']:+.3f} (95 % bootstrap interval {tau['low']:+.3f} .. "
                   f"{tau['high']:+.3f})")
     write_text_atomic(out / "study.json", json.dumps({"episodes": args.episodes, "study": study}, indent=1))
-    print(f"\nwrote {out / 'study.json'} and {plot(study, out / 'study.png')}")
+    print(f"\nwrote {out / 'study.json'} and {plot(study, args.episodes, out / 'study.png')}")
 
 
 if __name__ == "__main__":

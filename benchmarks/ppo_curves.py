@@ -1,7 +1,9 @@
 """Learning curves of PPO training runs in one PNG: success rate and mean return of the last 100 training episodes
-against env steps, one colour per run (each run folder's ``curve.json``, written by ``train_ppo``).
+against env steps, one colour per label (each run folder's ``curve.json``, written by ``train_ppo``). A label with
+several run folders (seeds) is drawn as their smoothed mean with a band over the runs.
 
     python benchmarks/ppo_curves.py runs/nav/ppo-predictions runs/nav/ppo-no-predictions --out results/ppo/curves.png
+    python benchmarks/ppo_curves.py predictions=runs/nav/p-seed0,runs/nav/p-seed1 --out runs/nav/seeds.png
 """
 
 from __future__ import annotations
@@ -11,22 +13,29 @@ import json
 from pathlib import Path
 
 from st_sim.apps.navigation.train_ppo import plot_curve
+from st_sim.charts import new_figure
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("runs", nargs="+", type=Path, help="train_ppo output folders")
+    parser.add_argument("runs", nargs="+", metavar="[LABEL=]DIR[,DIR...]",
+                        help="train_ppo output folders; LABEL defaults to the (first) folder's name")
     parser.add_argument("--out", type=Path, default=Path("results/ppo/curves.png"), help="PNG to write")
     parser.add_argument("--title", default="PPO on STCrowd-SimCrossing-v1", help="title of the figure")
     args = parser.parse_args()
-    curves = {}
-    for run in args.runs:
-        path = run / "curve.json"
-        if not path.is_file():
-            parser.error(f"{path}: no such file (is {run} a train_ppo output folder?)")
-        curves[run.name] = json.loads(path.read_text())
-        last = curves[run.name][-1] if curves[run.name] else {}
-        print(f"{run.name}: {len(curves[run.name])} points, last {last}")
+    new_figure()  # fails now, with the install command, if matplotlib is missing
+    curves: dict[str, list[list[dict]]] = {}
+    for item in args.runs:
+        label, _, folders = item.rpartition("=")
+        runs = [Path(folder) for folder in folders.split(",")]
+        label = label or runs[0].name
+        for run in runs:
+            path = run / "curve.json"
+            if not path.is_file():
+                parser.error(f"{path}: no such file (is {run} a train_ppo output folder?)")
+            curve = json.loads(path.read_text())
+            curves.setdefault(label, []).append(curve)
+            print(f"{label}: {run}: {len(curve)} points, last {curve[-1] if curve else {}}")
     print(f"wrote {plot_curve(curves, args.out, args.title)}")
 
 

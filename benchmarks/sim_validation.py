@@ -6,7 +6,8 @@ Scenarios come from ``st_sim.sim.validation`` (seed 0). RiMEA tests that apply t
 1 (free walking speed: 40 m at 1.33 m/s within 26-34 s), 4 (fundamental diagram in a periodic corridor),
 6 (20 people round a corner, nobody through a wall), 7 (speed distribution of a population: Kolmogorov-Smirnov
 distance below 0.19 at n = 50), 12-like (flow through a bottleneck vs its width). Stairs (2, 3), reaction times (5),
-buildings and exits (8-11, 13-15) do not apply. The fundamental-diagram plot (PNG, OpenCV) goes to --out.
+buildings and exits (8-11, 13-15) do not apply. The fundamental-diagram plot (PNG, matplotlib) goes to --out;
+``--replot OUT/sim_validation.json`` redraws it from the saved figures.
 
     OMP_NUM_THREADS=1 python benchmarks/sim_validation.py                         # all, both models and ORCA
     OMP_NUM_THREADS=1 python benchmarks/sim_validation.py --models speed_model --quick
@@ -21,7 +22,9 @@ from pathlib import Path
 
 import numpy as np
 
+from replays.atomic import write_text_atomic
 from replays.constants import STEP_S
+from st_sim.charts import band_chart, save_figure
 from st_sim.sim import CrowdConfig, CrowdSim, EgoConfig, SocialForceConfig, SpeedModelConfig, make_layout
 from st_sim.sim.config import WALL_RADIUS_M
 from st_sim.sim.layouts import periodic_corridor
@@ -147,46 +150,18 @@ def orca_fd(density: float, two_way: bool, quick: bool, length_m: float = 20.0, 
     return {"density": density, "speed": float(np.mean(speeds)), "lanes": float(np.mean(lanes)) if two_way else None}
 
 
-def plot_fd(results: dict[str, list[dict]], orca: list[dict], path: Path) -> None:
-    """Weidmann's curve with its +-20 % band and every model's points, as a PNG (OpenCV)."""
-    import cv2
-
-    width, height, left, bottom, top, right = 900, 620, 90, 70, 50, 30
-    x_max, y_max = 5.5, 1.6
-
-    def px(rho: float, v: float) -> tuple[int, int]:
-        return (round(left + rho / x_max * (width - left - right)),
-                round(height - bottom - v / y_max * (height - bottom - top)))
-
-    image = np.full((height, width, 3), 255, np.uint8)
+def plot_fd(results: dict[str, list[dict]], orca: list[dict], path: Path) -> Path:
+    """Weidmann's curve with its +-20 % band and every model's measured points (matplotlib PNG)."""
     rho = np.linspace(0.3, 5.4, 200)
-    band = [px(r, 1.2 * float(weidmann_speed_mps(r))) for r in rho] + \
-           [px(r, 0.8 * float(weidmann_speed_mps(r))) for r in rho[::-1]]
-    cv2.fillPoly(image, [np.array(band, np.int32)], (225, 225, 225))
-    cv2.polylines(image, [np.array([px(r, float(weidmann_speed_mps(r))) for r in rho], np.int32)], False, (0, 0, 0), 2)
-    for tick in np.arange(0, x_max + 0.01, 0.5):
-        cv2.putText(image, f"{tick:g}", (px(tick, 0)[0] - 10, height - bottom + 25), cv2.FONT_HERSHEY_SIMPLEX, 0.5,
-                    (0, 0, 0), 1)
-    for tick in np.arange(0, y_max + 0.01, 0.2):
-        cv2.putText(image, f"{tick:.1f}", (left - 45, px(0, tick)[1] + 5), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (0, 0, 0), 1)
-    cv2.line(image, px(0, 0), px(x_max, 0), (0, 0, 0), 1)
-    cv2.line(image, px(0, 0), px(0, y_max), (0, 0, 0), 1)
-    cv2.putText(image, "density [1/m^2]", (width // 2 - 60, height - 20), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (0, 0, 0), 1)
-    cv2.putText(image, "speed [m/s]", (10, top - 25), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (0, 0, 0), 1)
-    colours = {"speed_model": (200, 80, 0), "social_force": (0, 0, 200), "orca (pyrvo)": (0, 150, 0)}
-    series = {**results, **({"orca (pyrvo)": orca} if orca else {})}
-    legend = [("Weidmann (+-20 % shaded)", (0, 0, 0))]
-    for name, rows in series.items():
-        colour = colours.get(name, (120, 120, 120))
-        for row in rows:
-            cv2.circle(image, px(row["density"], row["speed"]), 7, colour, -1)
-        legend.append((name, colour))
-    for k, (label, colour) in enumerate(legend):
-        y = top + 20 + 25 * k
-        cv2.circle(image, (width - 300, y - 5), 7, colour, -1)
-        cv2.putText(image, label, (width - 285, y), cv2.FONT_HERSHEY_SIMPLEX, 0.55, (0, 0, 0), 1)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    cv2.imwrite(str(path), image)
+    weidmann = weidmann_speed_mps(rho)
+    series = {**results, **({"ORCA (pyrvo)": orca} if orca else {})}
+    figure = band_chart(
+        "density [pedestrians/m²]", "mean speed [m/s]",
+        ("Weidmann", rho, weidmann, np.stack([(1 - FD_BAND) * weidmann, (1 + FD_BAND) * weidmann])),
+        {name.replace("_", " "): (np.array([r["density"] for r in rows]), np.array([r["speed"] for r in rows]))
+         for name, rows in series.items()},
+        band_label=f"Weidmann ±{FD_BAND:.0%}", title="Fundamental diagram, periodic 20 m × 4 m corridor, one-way")
+    return save_figure(figure, path)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -197,7 +172,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--quick", action="store_true", help="shorter runs (40 instead of 100 measured steps)")
     parser.add_argument("--out", type=Path, default=Path("results/sim_validation"),
                         help="folder for the plot and the JSON figures (default: results/sim_validation)")
+    parser.add_argument("--replot", type=Path, default=None, metavar="JSON",
+                        help="only redraw the plot from a saved sim_validation.json (written beside it)")
     args = parser.parse_args(argv)
+    if args.replot is not None:
+        print(f"plot: {replot(args.replot)}")
+        return 0
 
     report: dict[str, dict] = {}
     fd: dict[str, list[dict]] = {}
@@ -250,11 +230,18 @@ def main(argv: list[str] | None = None) -> int:
             print(f"| two-way 20 m x 8 m, {rho:g} /m^2 | {row['speed']:.2f} | | {row['lanes']:.2f} |", flush=True)
             report.setdefault("orca", {})[f"two_way_{rho:g}"] = row
         report.setdefault("orca", {})["fundamental_diagram"] = orca
-    plot = args.out / "fundamental_diagram.png"
-    plot_fd(fd, orca, plot)
-    (args.out / "sim_validation.json").write_text(json.dumps(report, indent=2, default=float) + "\n")
+    plot = plot_fd(fd, orca, args.out / "fundamental_diagram.png")
+    write_text_atomic(args.out / "sim_validation.json", json.dumps(report, indent=2, default=float) + "\n")
     print(f"\nplot: {plot}; figures: {args.out / 'sim_validation.json'}")
     return 0
+
+
+def replot(figures: Path) -> Path:
+    """Redraw the fundamental diagram from a saved ``sim_validation.json`` (beside it), without simulating."""
+    report = json.loads(figures.read_text())
+    fd = {name: part["fundamental_diagram"] for name, part in report.items() if name in MODELS}
+    return plot_fd(fd, report.get("orca", {}).get("fundamental_diagram", []),
+                   figures.with_name("fundamental_diagram.png"))
 
 
 if __name__ == "__main__":

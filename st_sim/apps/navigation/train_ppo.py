@@ -181,39 +181,28 @@ def resumable_state(cfg: TrainConfig) -> tuple[Path, list[dict]] | None:
     return out / "resume.zip", json.loads(curve_path.read_text()) if curve_path.exists() else []
 
 
-def plot_curve(curves: dict[str, list[dict]], path: Path, title: str) -> Path:
-    """Learning-curve PNG (OpenCV) of one or more runs: success rate (top) and mean return (bottom) of the last
-    ``CURVE_WINDOW`` training episodes against env steps; one colour per run, named in the legend."""
-    import cv2
+def plot_curve(curves: dict[str, list[dict] | list[list[dict]]], path: Path, title: str) -> Path | None:
+    """Learning-curve PNG of one or more runs: success rate (top) and mean return (bottom) of the last
+    ``CURVE_WINDOW`` training episodes against env steps, one colour per label. A label holds one run's
+    ``curve.json`` points (drawn raw and smoothed) or a list of several runs' (seeds: smoothed mean and range band).
 
-    width, panel, margin, left = 720, 240, 40, 70
-    height = 2 * panel + 3 * margin
-    image = np.full((height, width, 3), 255, np.uint8)
-    font, black = cv2.FONT_HERSHEY_SIMPLEX, (0, 0, 0)
-    colours = [(0, 120, 0), (200, 80, 0), (0, 0, 200), (120, 0, 120)]
-    last = max((p["timesteps"] for curve in curves.values() for p in curve), default=1)
-    returns = [p["return"] for curve in curves.values() for p in curve] or [0.0]
-    panels = (("success", 0.0, 1.0), ("return", min(returns), max(max(returns), min(returns) + 1e-6)))
-    cv2.putText(image, title, (left, 25), font, 0.5, black, 1)
-    for row, (key, low, high) in enumerate(panels):
-        top = margin + row * (panel + margin)
-        cv2.rectangle(image, (left, top), (width - margin, top + panel), black, 1)
-        for frac in (0.0, 0.5, 1.0):
-            y = int(top + panel - frac * panel)
-            cv2.putText(image, f"{low + frac * (high - low):.2f}", (5, y + 4), font, 0.4, black, 1)
-        cv2.putText(image, key, (left + 5, top + 15), font, 0.45, black, 1)
-        for curve, colour in zip(curves.values(), colours, strict=False):
-            points = np.array([[left + p["timesteps"] / last * (width - margin - left),
-                                top + panel - (p[key] - low) / (high - low) * panel] for p in curve], np.int32)
-            if len(points) > 1:
-                cv2.polylines(image, [points], False, colour, 2, cv2.LINE_AA)
-    top_legend = margin + 15  # inside the success panel's top right corner
-    for index, (label, colour) in enumerate(zip(curves, colours, strict=False)):
-        cv2.putText(image, label, (width - margin - 230, top_legend + 13 * index), font, 0.4, colour, 1)
-    cv2.putText(image, f"env steps (0 .. {last})", (width // 2 - 60, height - 8), font, 0.45, black, 1)
-    with atomic_path(path) as tmp:  # makes the folder too
-        cv2.imwrite(str(tmp), image)
-    return path
+    Returns the path, or None (with a note on stderr) when matplotlib is not installed: the curve's data is in
+    ``curve.json`` and ``benchmarks/ppo_curves.py`` draws it later.
+    """
+    from st_sim.charts import learning_curves, save_figure
+
+    runs = {label: [runs] if not runs or isinstance(runs[0], dict) else runs for label, runs in curves.items()}
+    runs = {label: [run for run in label_runs if run] for label, label_runs in runs.items()}
+    panels = [(f"{name} (last {CURVE_WINDOW} episodes)",
+               {label: [(np.array([p["timesteps"] for p in run]), np.array([p[key] for p in run])) for run in
+                        label_runs] for label, label_runs in runs.items() if label_runs})
+              for key, name in (("success", "success rate"), ("return", "mean return"))]
+    try:
+        figure = learning_curves("env steps", panels, title=title)
+    except ImportError as err:
+        print(f"{path} not drawn: {err}", file=sys.stderr)
+        return None
+    return save_figure(figure, path)
 
 
 def main(cfg: TrainConfig) -> Path:
