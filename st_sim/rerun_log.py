@@ -13,16 +13,29 @@ Timelines: ``step`` (sequence) and ``time`` (seconds, step * 0.4). Entities, all
     world/anchors/prototype      LineStrips2D, anchors before adaptation (M agents x S strips)
     world/anchors/adapted        LineStrips2D, anchors after adaptation to the map
     world/ego, world/ego/goal    Points2D, the ego robot and its goal
-    metrics/<name>               Scalars
+    metrics/<unit>/<name>        Scalars; <unit> is ``metric_unit(name)``: reward, metres, share or count
 
 Entities logged at one step and absent from the next are cleared, so agents that left the scene do not
 linger in the viewer. Colours follow ``st_sim.plot.agent_colors``.
 
-Files: a recording is written in place under its final name and flushed at least every ``FLUSH_EVERY_S``,
-so a run that is interrupted, garbage-collected without ``close`` or even killed leaves a readable file. A
-finished recording is never overwritten: if the path exists, the next free ``<stem>-<n><suffix>`` is used
-(``RerunLogger.path`` says which). Two live writers to one path are refused: the first holds an exclusive
-lock on ``.<name>.lock`` beside it until it closes (the lock dies with its process).
+The default blueprint puts the world view on the left and one time-series view per unit on the right
+(``METRIC_VIEWS``): the reward, distances in metres (ADE, FDE, the closest pedestrian), shares in [0, 1] (map
+violation) and counts (matured predictions, collisions), so a metric of 0.05 is never drawn flat on the
+scale of a reward of 15.
+
+Files (``st_sim.rerun_file``): ``checked_recording_target`` expands ``~`` and refuses a target that cannot be
+written, naming it. A recording is written in place under its final name and flushed at least every
+``FLUSH_EVERY_S``, so a run that is interrupted, garbage-collected without ``close`` or even killed leaves a
+readable file. A write that fails (disk full, file-size limit) raises ``RecordingWriteError`` naming the file,
+from ``log_step`` or ``close``; the file is cut back to what the last complete flush wrote (or removed if
+nothing was). A finished recording is never overwritten: if the path exists, the next free
+``<stem>-<n><suffix>`` is used (``RerunLogger.path`` says which). Two live writers to one path are refused.
+
+Memory: recordings are written without Rerun's footer, a manifest of every chunk that Rerun's file sink keeps
+in memory until the end of the recording, so a recording of any length holds only the data of one flush
+(``NEVER_S``: the batcher never flushes on its own). Rerun reads such files by scanning them; ``rerun rrd
+optimize`` adds the footer afterwards. The file sink's warning about the missing footer is silenced when this
+module is the first to import Rerun and ``RUST_LOG`` is unset (its errors still print).
 
 Placing the photo: Rerun's transforms are affine, the ETH/UCY homographies are not always. When an affine
 map fits the homography to within ``PROJECTIVE_TOL_M`` over the whole photo (zara1, zara2, univ: exactly
@@ -34,6 +47,7 @@ pixel covering the photo's footprint, which is then placed with a scale and a tr
 from __future__ import annotations
 
 import os
+import sys
 import time
 import weakref
 from dataclasses import dataclass
@@ -42,13 +56,31 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from replays.atomic import try_lock
 from replays.constants import STEP_S
 from replays.errors import MemoryBudgetError
 from replays.scenes import Scene
 from st_sim.plot import ADAPTED_RGB, BLOCKED_TINT_RGB, GT_RGB, PROTOTYPE_RGB, agent_colors
+from st_sim.rerun_file import (
+    RecordingPathError,
+    RecordingSink,
+    RecordingWriteError,
+    checked_recording_target,
+    claim,
+    new_file,
+    unlock,
+)
 
+__all__ = ["METRIC_VIEWS", "RecordingPathError", "RecordingWriteError", "RerunLogger", "SceneRaster",
+           "checked_recording_target", "metric_unit", "scene_raster"]
+
+QUIET_FILE_SINK = "warn,re_log_encoding::rrd::file_sink=error"  # Rust log filter: no footer warning per file
 try:
+    if "rerun" not in sys.modules and "RUST_LOG" not in os.environ:
+        os.environ["RUST_LOG"] = QUIET_FILE_SINK  # read once, when Rerun's bindings load
+        try:
+            import rerun as rr
+        finally:
+            del os.environ["RUST_LOG"]  # child processes see the user's environment
     import rerun as rr
     import rerun.blueprint as rrb
 except ImportError as err:
@@ -58,7 +90,8 @@ PROJECTIVE_TOL_M = 0.05  # largest affine-fit error [m] over the photo for which
 WARP_M_PER_PX = 0.025  # resolution of the world-aligned raster of projective scenes [m per pixel]
 MAX_RASTER_PX = 8000  # a raster side longer than this means a broken homography (<= 256 MB of raster)
 FLUSH_EVERY_S = 1.0  # longest wall time between flushes of a file recording [s]
-MAX_NUMBERED = 10_000  # most numbered siblings tried for a new recording name
+NEVER_S = 1e9  # batcher tick: the batcher never flushes on its own, only ``RecordingSink.flush`` [s]
+NEVER_BYTES = 1 << 40  # batcher size threshold, likewise never reached [bytes]
 AGENT_RADIUS_M = 0.25  # drawn radius of a pedestrian [m]
 EGO_RADIUS_M = 0.4  # drawn radius of the ego robot [m]
 TRAIL_RADIUS_M = 0.05  # half-width of history lines [m]
@@ -67,8 +100,28 @@ PREDICTION_ALPHA = 110  # opacity (0-255) of predicted futures
 WALKABLE, BLOCKED, OFF_PHOTO = 0, 1, 2  # classes of the logged walkability image
 
 
-class RecordingPathError(ValueError):
-    """A Rerun recording path is in use by another live writer, or is not a path a file can be written to."""
+METRIC_VIEWS = {  # unit -> title of its time-series view
+    "reward": "reward",
+    "metres": "distance [m]: ADE, FDE, clearance",
+    "share": "share [0-1]: map violation",
+    "count": "count: matured predictions, collisions",
+}
+SHARE_NAMES = frozenset({"map_violation"})  # shares whose name does not end in _share or _rate
+
+
+def metric_unit(name: str) -> str:
+    """The unit group (a key of ``METRIC_VIEWS``) a metric is plotted in, from its name.
+
+    ``reward...`` -> "reward"; a name ending in ``_m`` -> "metres"; ``_share``, ``_rate`` or one of
+    ``SHARE_NAMES`` -> "share"; anything else (matured, ego_collisions) -> "count".
+    """
+    if name.startswith("reward"):
+        return "reward"
+    if name.endswith("_m"):
+        return "metres"
+    if name.endswith(("_share", "_rate")) or name in SHARE_NAMES:
+        return "share"
+    return "count"
 
 
 @dataclass(frozen=True)
@@ -140,8 +193,8 @@ class RerunLogger:
                              metrics={"ade_m": ade})
 
     Args:
-        target: path of the .rrd file to write (see "Files" in the module docstring), or "spawn" to open a
-            viewer.
+        target: path of the .rrd file to write (``~`` expanded; see "Files" in the module docstring), or
+            "spawn" to open a viewer.
         scene: scene whose photo and walkability map are logged once, or None.
         app_id: Rerun application id.
 
@@ -149,33 +202,37 @@ class RerunLogger:
         path: the file being written (``target``, or a numbered sibling if it existed); None for "spawn".
 
     Raises:
-        RecordingPathError: another live logger writes to ``target``, or it is a folder or a special file.
+        RecordingPathError: another live logger writes to ``target``, or it cannot be written (see
+            ``checked_recording_target``).
+        RecordingWriteError: the scene could not be written to the file.
     """
 
     def __init__(self, target: str | os.PathLike, scene: Scene | None, app_id: str = "stcrowd"):
-        self._rec = rr.RecordingStream(app_id)
-        self._rec.set_log_time_enabled(False)  # only the step and time timelines
-        self._rec.set_log_tick_enabled(False)
+        target = checked_recording_target(target)
+        batching = rr.ChunkBatcherConfig(flush_tick=NEVER_S, flush_num_bytes=NEVER_BYTES, flush_num_rows=NEVER_BYTES)
+        recording = rr.RecordingStream(app_id, batcher_config=batching)
+        recording.set_log_time_enabled(False)  # only the step and time timelines
+        recording.set_log_tick_enabled(False)
         blueprint = _blueprint(scene)
-        self.path: Path | None = None
-        lock = None
-        if str(target) == "spawn":
-            self._rec.spawn(default_blueprint=blueprint)
+        if target == "spawn":
+            recording.spawn(default_blueprint=blueprint)
+            self._sink = RecordingSink(recording)
         else:
-            lock = _claim(Path(target))
+            lock = claim(target)
             try:
-                self.path = _new_file(Path(target))
+                self._sink = RecordingSink(recording, new_file(target), lock, blueprint)
             except BaseException:
-                _release(None, lock)
+                unlock(lock)
                 raise
-            self._rec.save(self.path, default_blueprint=blueprint)
-        # closes the file and frees the lock on close(), garbage collection or interpreter exit
-        self._finish = weakref.finalize(self, _release, self._rec, lock)
+        self.path: Path | None = self._sink.path
+        # finishes the file and frees the lock on close(), garbage collection or interpreter exit
+        self._finish = weakref.finalize(self, self._sink.finish)
         self._live: set[str] = set()  # per-step entities logged at the previous step
+        self._rec = recording
         self._rec.log("world", rr.Transform3D(scale=[1.0, -1.0, 1.0]), static=True)
         if scene is not None:
             self._log_scene(scene)
-        self._flush()
+        self._sink.flush()
 
     def __enter__(self) -> RerunLogger:
         return self
@@ -184,12 +241,12 @@ class RerunLogger:
         self.close()
 
     def close(self) -> None:
-        """Flush and finish the file (footer), free its path's lock; later calls do nothing."""
-        self._finish()
+        """Flush and finish the file, free its path's lock; later calls do nothing.
 
-    def _flush(self) -> None:
-        self._rec.flush()
-        self._flushed_at = time.monotonic()
+        Raises:
+            RecordingWriteError: the last steps could not be written (the file keeps the steps before them).
+        """
+        self._finish()
 
     def log_step(self, step: int, positions_m: np.ndarray, ids: np.ndarray, *,
                  trails: list[np.ndarray] | np.ndarray | None = None, trail_mask: np.ndarray | None = None,
@@ -198,6 +255,9 @@ class RerunLogger:
                  metrics: dict[str, float] | None = None, prototype_anchors: np.ndarray | None = None,
                  adapted_anchors: np.ndarray | None = None) -> None:
         """Log one step (0.4 s); entities not given now but logged at the previous step are cleared.
+
+        Raises ``ValueError`` for a malformed argument, and ``RecordingWriteError`` (now and at every later
+        call) once the file could not be written.
 
         Args:
             step: step index; ``time`` is step * 0.4 s.
@@ -209,10 +269,12 @@ class RerunLogger:
             predictions: (M, S, T_pred, 2) futures, metres, of the agents ``prediction_ids`` (M,).
             prediction_ids: (M,) integer ids of the predicted agents (also used by the anchors).
             ego_xy_m: (2,) ego position; ego_goal_m: (2,) its goal; metres.
-            metrics: name -> value, logged as ``metrics/<name>``.
+            metrics: name -> value, logged as ``metrics/<unit>/<name>`` (unit: ``metric_unit(name)``).
             prototype_anchors: (M, S, T, 2) anchors before adaptation, metres, world frame.
             adapted_anchors: (M, S, T, 2) anchors after adaptation, metres, world frame.
         """
+        if self._sink.error is not None:
+            raise self._sink.error
         self._rec.set_time("step", sequence=step)
         self._rec.set_time("time", duration=step * STEP_S)
         positions_m = _as_points(positions_m, "positions_m", (None, 2))
@@ -229,12 +291,12 @@ class RerunLogger:
         if ego_xy_m is not None:
             logged |= self._log_ego(ego_xy_m, ego_goal_m)
         for name, value in (metrics or {}).items():
-            self._rec.log(f"metrics/{name}", rr.Scalars(float(value)))
+            self._rec.log(f"metrics/{metric_unit(name)}/{name}", rr.Scalars(float(value)))
         for path in sorted(self._live - logged):
             self._rec.log(path, rr.Clear(recursive=False))
         self._live = logged
-        if self.path is not None and time.monotonic() - self._flushed_at >= FLUSH_EVERY_S:
-            self._flush()  # a killed run keeps all but the last second
+        if time.monotonic() - self._sink.flushed_at >= FLUSH_EVERY_S:
+            self._sink.flush()  # a killed run keeps all but the last second
 
     def _log_scene(self, scene: Scene) -> None:
         raster = scene_raster(scene)
@@ -297,43 +359,6 @@ class RerunLogger:
         return {"world/ego", "world/ego/goal"}
 
 
-def _claim(target: Path) -> tuple[int, Path]:
-    """Lock ``.<name>.lock`` beside ``target`` for this writer; returns (descriptor, lock path)."""
-    if target.is_dir() or (target.exists() and not target.is_file()):
-        raise RecordingPathError(f"rerun target {target} is a folder or a special file; give a .rrd file path")
-    target.parent.mkdir(parents=True, exist_ok=True)
-    lock_path = target.with_name(f".{target.name}.lock")
-    fd = os.open(lock_path, os.O_RDWR | os.O_CREAT, 0o644)
-    if not try_lock(fd):
-        os.close(fd)
-        raise RecordingPathError(f"{target}: another logger (this process or another) is writing to this path; "
-                                 "give each env or run its own rerun= path")
-    return fd, lock_path
-
-
-def _new_file(target: Path) -> Path:
-    """Create ``target``, or the first free ``<stem>-<n><suffix>`` if it exists, exclusively; returns its path."""
-    for number in range(MAX_NUMBERED):
-        path = target if number == 0 else target.with_name(f"{target.stem}-{number}{target.suffix}")
-        try:
-            os.close(os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644))
-        except FileExistsError:
-            continue
-        return path
-    raise RecordingPathError(f"{target}: {MAX_NUMBERED} numbered recordings exist already; choose another name")
-
-
-def _release(recording: rr.RecordingStream | None, lock: tuple[int, Path] | None) -> None:
-    """Finish the recording (flush, footer) and delete and unlock the lock file."""
-    if recording is not None:
-        recording.flush()
-        recording.disconnect()
-    if lock is not None:
-        fd, lock_path = lock
-        lock_path.unlink(missing_ok=True)
-        os.close(fd)
-
-
 def _as_points(array, name: str, shape: tuple[int | None, ...], allow_nan: bool = False) -> np.ndarray:
     """float32 array of the given shape (None = any size), finite unless ``allow_nan``."""
     array = np.asarray(array, dtype=np.float32)
@@ -348,14 +373,15 @@ def _as_points(array, name: str, shape: tuple[int | None, ...], allow_nan: bool 
 
 
 def _blueprint(scene: Scene | None) -> rrb.Blueprint:
-    """Default layout: the world (y up, framed on the scene) beside the metric plots."""
+    """Default layout: the world (y up, framed on the scene) beside one time-series view per metric unit."""
     bounds = None
     if scene is not None:
         height, width = scene.walkable.shape
         corners_m = scene.pixel_to_world(np.array([[0, 0], [width, 0], [0, height], [width, height]], float))
         low, high = corners_m.min(axis=0), corners_m.max(axis=0)
         bounds = rrb.VisualBounds2D(x_range=[low[0], high[0]], y_range=[-high[1], -low[1]])  # y flipped
+    plots = [rrb.TimeSeriesView(origin=f"/metrics/{unit}", name=title) for unit, title in METRIC_VIEWS.items()]
     return rrb.Blueprint(rrb.Horizontal(
         rrb.Spatial2DView(origin="/", contents="/world/**", name="world", visual_bounds=bounds),
-        rrb.TimeSeriesView(origin="/metrics", name="metrics"),
-        column_shares=[3, 1]))
+        rrb.Vertical(*plots),
+        column_shares=[3, 2]))

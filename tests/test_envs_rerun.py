@@ -4,13 +4,9 @@ from __future__ import annotations
 
 import gymnasium as gym
 import numpy as np
-import rerun as rr
+from rrd_files import read_rrd
 
 import envs  # noqa: F401
-
-
-def entity_paths(path) -> set[str]:
-    return {str(chunk.entity_path) for chunk in rr.chunk.RrdReader(str(path)).stream()}
 
 
 def test_replay_env_rerun_recording_holds_predictions_and_anchors(tmp_path):
@@ -20,8 +16,9 @@ def test_replay_env_rerun_recording_holds_predictions_and_anchors(tmp_path):
     for _ in range(15):  # predictions of the first step mature after 12 more
         env.step(np.zeros(2, np.float32))
     env.close()
-    paths = entity_paths(out)
+    paths = set(read_rrd(out))
     for expected in ("/world/agents", "/world/trails", "/world/anchors/prototype", "/world/anchors/adapted",
-                     "/world/scene/photo", "/metrics/ade_m"):
+                     "/world/scene/photo", "/metrics/metres/ade_m",
+                     "/metrics/reward/reward", "/metrics/share/map_violation", "/metrics/count/matured"):
         assert expected in paths, (expected, sorted(paths))
     assert any(p.startswith("/world/predictions/") for p in paths)

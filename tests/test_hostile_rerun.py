@@ -1,9 +1,12 @@
 """Rerun recordings are never lost: no overwriting, a readable file after GC, exit, Ctrl-C or kill -9, and two
-writers to one path get an error.
+writers to one path get an error. A failed write (full disk, file-size limit) stops the run with an error naming
+the file and leaves a readable recording or none; a bad target is refused when the env is made.
 """
 
 from __future__ import annotations
 
+import os
+import resource
 import signal
 import subprocess
 import sys
@@ -12,22 +15,12 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 import pytest
-import rerun as rr
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from rrd_files import logged_steps
 
 import envs  # noqa: F401  (registers the ids)
 from st_sim.rerun_log import RecordingPathError, RerunLogger
-
-
-def logged_steps(path: Path) -> int:
-    """Distinct ``step`` values in a recording (read with Rerun's own reader, as the viewer would)."""
-    steps: set[int] = set()
-    for chunk in rr.chunk.RrdReader(str(path)).stream():
-        batch = chunk.to_record_batch()
-        if "step" in batch.schema.names:
-            steps |= set(batch.column("step").to_pylist())
-    return len(steps)
 
 
 def replay_env(path: Path) -> gym.Env:
@@ -145,3 +138,83 @@ def test_a_lock_left_by_a_killed_writer_does_not_block_the_next(unclosed_runs: P
         log.log_step(0, np.zeros((1, 2)), [0])
     assert log.path == unclosed_runs / "kill-1.rrd" and logged_steps(out) >= 11
     assert not (unclosed_runs / ".kill.rrd.lock").exists()
+
+
+@pytest.mark.parametrize("target", ["under-a-file", "proc", "empty"])
+def test_an_unwritable_target_is_refused_when_the_env_is_made(tmp_path: Path, target: str) -> None:
+    (tmp_path / "notes.txt").write_text("a file, not a folder")
+    path = {"under-a-file": str(tmp_path / "notes.txt" / "run.rrd"), "proc": "/proc/stcrowd-test.rrd",
+            "empty": ""}[target]
+    with pytest.raises(RecordingPathError, match="rerun") as raised:
+        gym.make("STCrowd-Zara1-v0", predictor="cvm", ego=False, rerun=path)
+    assert path in str(raised.value), raised.value
+    assert isinstance(raised.value, ValueError)
+
+
+def test_a_home_relative_target_is_written_under_home(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    (tmp_path / "home").mkdir()
+    (tmp_path / "work").mkdir()
+    monkeypatch.setenv("HOME", str(tmp_path / "home"))
+    monkeypatch.chdir(tmp_path / "work")
+    env = gym.make("STCrowd-Zara1-v0", predictor="cvm", ego=False, rerun="~/runs/zara1.rrd")
+    env.reset(seed=0)
+    env.step(np.zeros(2))
+    env.close()
+    out = tmp_path / "home" / "runs" / "zara1.rrd"
+    assert env.unwrapped.rerun_paths == [out] and logged_steps(out) == 2
+    assert not any((tmp_path / "work").iterdir()), "a literal ./~ folder was made"
+
+
+LIMITED_WRITER = """
+import resource, sys, time
+import gymnasium as gym, numpy as np, envs
+path, when = sys.argv[1], sys.argv[2]
+env = gym.make("STCrowd-Zara1-v0", predictor="cvm", ego=False, rerun=path, max_episode_steps=100_000)
+limit = 1000
+if when == "later":
+    env.reset(seed=0, options={"start_index": 0})
+    time.sleep(1.1)  # longer than FLUSH_EVERY_S: the next step flushes, and the scene and two steps reach the file
+    env.step(np.zeros(2))
+    limit = env.unwrapped.rerun_paths[0].stat().st_size + 1000
+resource.setrlimit(resource.RLIMIT_FSIZE, (limit, resource.RLIM_INFINITY))  # writes beyond it fail (EFBIG)
+print(limit, flush=True)
+if when == "first":
+    env.reset(seed=0, options={"start_index": 0})
+for _ in range(5000):
+    env.step(np.zeros(2))
+env.close()
+"""
+
+
+@pytest.mark.parametrize("when", ["first", "later"])
+def test_a_failed_write_stops_the_run_naming_the_file(tmp_path: Path, when: str) -> None:
+    out = tmp_path / "run.rrd"
+    proc = subprocess.run([sys.executable, "-c", LIMITED_WRITER, str(out), when], capture_output=True, text=True,
+                          timeout=600)
+    assert proc.returncode != 0, "the run went on as if the recording had been written"
+    assert "RecordingWriteError" in proc.stderr and f"{out}: writing the Rerun recording failed" in proc.stderr, \
+        proc.stderr[-2000:]
+    if when == "first":
+        assert not out.exists(), "an empty recording was left behind"
+    else:
+        limit = int(proc.stdout.split()[0])
+        assert out.stat().st_size <= limit - 1000, "the file keeps bytes of the failed write"
+        assert logged_steps(out) >= 2, "the readable prefix lost the steps written before the failure"
+    assert not list(tmp_path.glob(".*")), "lock file left behind"
+
+
+def limit_file_size() -> None:
+    """In a child before exec: every write that would make a file longer than 1 byte fails with EFBIG."""
+    resource.setrlimit(resource.RLIMIT_FSIZE, (1, resource.RLIM_INFINITY))
+
+
+def test_navigate_names_the_recording_it_cannot_write(tmp_path: Path) -> None:
+    folder = tmp_path / "rerun"
+    proc = subprocess.run([sys.executable, "-m", "st_sim", "navigate", "--env", "STCrowd-SimCrossing-v1",
+                           "--policy", "straight", "--predictor", "none", "--episodes", "2", "--quiet",
+                           "--rerun", str(folder)], capture_output=True, text=True, timeout=600,
+                          preexec_fn=limit_file_size, env={**os.environ, "PYTHONDONTWRITEBYTECODE": "1"})
+    expected = folder / "STCrowd-SimCrossing-v1_straight_none_seed0.rrd"
+    assert proc.returncode == 1, proc.stderr[-2000:]
+    assert f"error: {expected}: writing the Rerun recording failed: File too large" in proc.stderr, proc.stderr[-2000:]
+    assert sorted(p.name for p in folder.iterdir()) == [], "a recording (or its lock) was left behind"

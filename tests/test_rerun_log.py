@@ -2,31 +2,16 @@ from __future__ import annotations
 
 import importlib
 import sys
-from collections import defaultdict
 
 import numpy as np
 import pytest
-import rerun as rr
+from rrd_files import read_blueprint, read_rrd, rrd_reader
 
 from replays import load_scene, load_windows
 from replays.scenes import Scene
-from st_sim.rerun_log import BLOCKED, OFF_PHOTO, WALKABLE, RerunLogger, scene_raster
+from st_sim.rerun_log import BLOCKED, METRIC_VIEWS, OFF_PHOTO, WALKABLE, RerunLogger, metric_unit, scene_raster
 
 S = 4  # predicted futures per agent in the synthetic steps
-
-
-def read_rrd(path) -> dict[str, dict[int | None, dict[str, object]]]:
-    """entity path -> step (None for static) -> component column -> value, read with Rerun's chunk reader."""
-    entities: dict[str, dict[int | None, dict[str, object]]] = defaultdict(lambda: defaultdict(dict))
-    for chunk in rr.chunk.RrdReader(path).stream():
-        if chunk.entity_path.startswith("/__"):  # recording properties
-            continue
-        batch = chunk.to_record_batch()
-        steps = batch.column("step").to_pylist() if "step" in batch.schema.names else [None] * batch.num_rows
-        for name in (n for n in batch.schema.names if ":" in n):
-            for step, value in zip(steps, batch.column(name).to_pylist(), strict=True):
-                entities[chunk.entity_path][step][name] = value
-    return entities
 
 
 def synthetic_step(step: int, rng: np.random.Generator) -> dict[str, np.ndarray]:
@@ -64,7 +49,8 @@ def test_recording_has_the_design_entity_paths(toy_recording):
     entities = read_rrd(path)
     expected = {"/world", "/world/scene", "/world/scene/photo", "/world/scene/walkable", "/world/agents",
                 "/world/trails", "/world/predictions/3", "/world/predictions/8", "/world/anchors/prototype",
-                "/world/anchors/adapted", "/world/ego", "/world/ego/goal", "/metrics/ade_m", "/metrics/collisions"}
+                "/world/anchors/adapted", "/world/ego", "/world/ego/goal", "/metrics/metres/ade_m",
+                "/metrics/count/collisions"}
     assert expected <= set(entities), f"missing {expected - set(entities)}"
     assert not path.with_name(f".{path.name}.part").exists(), "temporary file left behind"
 
@@ -81,7 +67,7 @@ def test_recording_holds_the_logged_values(toy_recording):
         np.testing.assert_allclose(strips, logged["predictions"][0], rtol=1e-6, err_msg=f"[step {step}] agent 3")
         adapted = entities["/world/anchors/adapted"][step]["LineStrips2D:strips"]
         assert len(adapted) == len(logged["prediction_ids"]) * S, f"[step {step}] adapted anchor strips"
-        assert entities["/metrics/ade_m"][step]["Scalars:scalars"] == [0.5 * step], f"[step {step}]"
+        assert entities["/metrics/metres/ade_m"][step]["Scalars:scalars"] == [0.5 * step], f"[step {step}]"
     trail_lengths = [len(strip) for strip in entities["/world/trails"][1]["LineStrips2D:strips"]]
     assert trail_lengths == [6, 2, 6], "masked trail points must be dropped"
     np.testing.assert_allclose(entities["/world/ego"][2]["Points2D:positions"], [[1.0, 3.0]])
@@ -97,7 +83,7 @@ def test_recording_clears_agents_no_longer_predicted(toy_recording):
 
 def test_recording_time_timeline_counts_seconds(toy_recording):
     path, _ = toy_recording
-    for chunk in rr.chunk.RrdReader(path).stream():
+    for chunk in rrd_reader(path).stream():
         if chunk.entity_path == "/world/agents":
             batch = chunk.to_record_batch()
             steps = batch.column("step").to_pylist()
@@ -105,6 +91,36 @@ def test_recording_time_timeline_counts_seconds(toy_recording):
             assert time_ns == [round(step * 0.4e9) for step in steps]
             return
     pytest.fail("no /world/agents chunk")
+
+
+def test_blueprint_puts_each_unit_in_its_own_time_series_beside_the_world(toy_recording):
+    path, steps = toy_recording
+    parts = read_blueprint(path)
+    views = {key: part for key, part in parts.items() if "class_identifier" in part}
+    time_series = {part["space_origin"][0]: (key, part["display_name"][0]) for key, part in views.items()
+                   if part["class_identifier"] == ["TimeSeries"]}
+    assert time_series.keys() == {f"/metrics/{unit}" for unit in METRIC_VIEWS}, time_series
+    assert {name for _, name in time_series.values()} == set(METRIC_VIEWS.values())
+    world = [key for key, part in views.items() if part["class_identifier"] == ["2D"]]
+    assert len(world) == 1 and parts[f"{world[0]}/ViewContents"]["query"] == ["/world/**"]
+    containers = {key.removeprefix("/"): part["contents"] for key, part in parts.items() if "contents" in part}
+    root = next(contents for contents in containers.values() if f"{world[0].removeprefix('/')}" in contents)
+    column = containers[next(c for c in root if c.startswith("container/"))]
+    assert sorted(column) == sorted(key.removeprefix("/") for key, _ in time_series.values()), \
+        "the time series share one column beside the world view"
+    logged = {f"/metrics/{metric_unit(name)}/{name}" for step in steps for name in step["metrics"]}
+    for entity in logged:
+        origins = [origin for origin in time_series if entity.startswith(origin + "/")]
+        assert len(origins) == 1, f"{entity} is shown in {origins}"
+    assert logged <= set(read_rrd(path)), "metrics are logged where the blueprint looks"
+
+
+@pytest.mark.parametrize(("name", "unit"), [
+    ("reward", "reward"), ("ade_m", "metres"), ("fde_m", "metres"), ("min_ego_ped_distance_m", "metres"),
+    ("map_violation", "share"), ("discomfort_share", "share"), ("collision_rate", "share"), ("matured", "count"),
+    ("ego_collisions", "count")], ids=lambda value: str(value))
+def test_metric_unit_groups_metrics_by_what_they_measure(name: str, unit: str) -> None:
+    assert metric_unit(name) == unit
 
 
 def test_affine_scene_photo_is_placed_by_its_homography(tmp_path):

@@ -75,6 +75,10 @@ class CrowdEnv(gym.Env):
             raise ConfigError(f"config={config!r}: expected an envs.common.config.EnvConfig or None")
         if rerun is not None and not isinstance(rerun, str | os.PathLike):
             raise EnvInputError(f"rerun={rerun!r}: expected a .rrd path, 'spawn' or None")
+        if rerun is not None:  # ~ expanded; an unwritable path is refused here, naming it, not at reset()
+            from st_sim.rerun_log import checked_recording_target
+
+            rerun = checked_recording_target(rerun)
         self.scene, self.n_max, self.where = scene, n_max, where
         self.cfg = config or EnvConfig()
         self.t_obs, self.num_samples = task_sizes(task)
