@@ -28,6 +28,7 @@ RULE_BEFORE = {"slow_speed_m": 0.1, "slow_scale_floor_m": 0.05}  # S = 1 before 
 GAP_SCENES = ("eth", "zara1", "zara2")  # stochastic FDE above the paper's by more than its rounding (issue 31)
 LONG = 16  # epochs of the longer runs: a stochastic model in about 2 min on one core (the budget is 3)
 AUTHORS_SCHEDULE = {"epochs": LONG, "lr_schedule": "step", "warmup_epochs": 0.0}  # halved at each quarter
+AUTHORS_SAMPLER = {"sampler": "eps-linear", "fixed_noise": True}  # their chain starts from one fixed draw
 SWAPS = {  # name -> (task, scenes, overrides of TrainConfig)
     "ours": ("stochastic", ("zara2", "zara1"), {}),
     "ADE-only loss": ("stochastic", ("zara2", "zara1"), {"fde_weight": 0.0}),
@@ -46,11 +47,13 @@ SWAPS = {  # name -> (task, scenes, overrides of TrainConfig)
     # issue 31: the authors' sampler and training schedule (256 epochs halved every 64, no warm-up), scaled to
     # LONG epochs, alone and together, and the same length with our cosine schedule
     "ours (issue 31)": ("stochastic", GAP_SCENES, {}),
-    "eps-linear sampler": ("stochastic", GAP_SCENES, {"sampler": "eps-linear"}),
+    "eps-linear sampler, fresh noise": ("stochastic", GAP_SCENES, {"sampler": "eps-linear"}),
+    "authors' sampler": ("stochastic", GAP_SCENES, AUTHORS_SAMPLER),
+    "fixed noise": ("stochastic", GAP_SCENES, {"fixed_noise": True}),
     f"{LONG} epochs": ("stochastic", GAP_SCENES, {"epochs": LONG}),
     f"authors' schedule, {LONG} epochs": ("stochastic", GAP_SCENES, AUTHORS_SCHEDULE),
-    f"authors' schedule, {LONG} epochs + eps-linear sampler": ("stochastic", GAP_SCENES,
-                                                               {**AUTHORS_SCHEDULE, "sampler": "eps-linear"}),
+    f"authors' schedule, {LONG} epochs + authors' sampler": ("stochastic", GAP_SCENES,
+                                                             {**AUTHORS_SCHEDULE, **AUTHORS_SAMPLER}),
 }
 
 

@@ -95,6 +95,9 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument("--init-noise", type=float,
                        help=f"scale of the sampler's starting noise, 0 = a deterministic chain "
                             f"(default: {defaults.init_noise})")
+    train.add_argument("--fixed-noise", dest="fixed_noise", action="store_const", const=True,
+                       help="start every training chain from the sampler's fixed noise, the draw inference uses "
+                            "(default: a fresh draw per agent and step)")
     train.add_argument("--stand-speed", dest="stand_speed_m", type=float,
                        help="agents whose last step is shorter [m per 0.4 s step] keep constant velocity at "
                             "inference (default: 0.05 for single-sample tasks, else off)")

@@ -77,6 +77,9 @@ class ModelConfig:
     "eps-linear" (it predicts the noise, the authors' linear betas from 1e-4 to 5e-2); DDIM with eta = 0"""
     init_noise: float = 1.0
     """scale of the starting noise x_M of the sampler"""
+    noise_seed: int = 0
+    """seed of the sampler's fixed starting noise: the training run's seed, so inference draws the noise its
+    validation saw (checkpoints written before this field drew seed 0)"""
     zero_start: bool = True
     """the refiner's output layer starts at zero (untrained refiner = anchors)"""
     stand_speed_m: float | None = None
@@ -89,7 +92,7 @@ class ModelConfig:
                             "slow_scale_floor_m": (0.0, 10.0), "dim": (4, 4096), "denoiser_dim": (4, 4096),
                             "heads": (1, 64), "layers": (1, 16), "dropout": (0.0, 0.9), "steps": (1, 1000),
                             "init_noise": (0.0, 100.0),
-                            "on_map_tolerance_m": (0.0, 10.0)},
+                            "noise_seed": (0, 2**31 - 1), "on_map_tolerance_m": (0.0, 10.0)},
                      choices={"task": tuple(TASKS), "anchor_off_image": OFF_IMAGE_MODES, "anchor_bend": BEND_SHAPES,
                               "sampler": SAMPLERS})
         if self.dim % self.heads:
@@ -140,14 +143,13 @@ class SingularTrajectory:
     name = "singular"
 
     def __init__(self, cfg: ModelConfig, spaces: list[SingularSpace], anchors: np.ndarray,
-                 coef_scale: np.ndarray, residual_scale: np.ndarray, refiner: Refiner, seed: int = 0):
+                 coef_scale: np.ndarray, residual_scale: np.ndarray, refiner: Refiner):
         self.cfg = cfg
         self.spaces = spaces
         self.anchors = anchors  # (2, S, K) prototype coefficients per population
         self.coef_scale = coef_scale  # (2,) typical coefficient size per population
         self.residual_scale = residual_scale  # (2,) typical anchor-to-truth residual per population
         self.refiner = refiner.eval()
-        self.seed = seed
         self.source: str | None = None  # the checkpoint it was loaded from (set by predictor.checkpoint)
         self.bases = torch.tensor(np.stack([s.basis for s in spaces]), dtype=torch.float32)  # (2, 24, K)
         self._noise: torch.Tensor | None = None
@@ -244,7 +246,7 @@ class SingularTrajectory:
         be in the same call (the stream and the offline evaluation then agree exactly).
         """
         if self._noise is None:
-            generator = torch.Generator().manual_seed(self.seed)
+            generator = torch.Generator().manual_seed(self.cfg.noise_seed)
             self._noise = self.cfg.init_noise * torch.randn((1, self.cfg.num_samples, self.cfg.k), generator=generator)
         return self._noise
 

@@ -117,6 +117,9 @@ class TrainConfig:
     """the refiner's output layer starts at zero, so training starts from the anchors"""
     init_noise: float = 1.0
     """scale of the sampler's starting noise x_M (0 = a deterministic refinement chain)"""
+    fixed_noise: bool = False
+    """e2e training starts every chain from the sampler's fixed noise, the draw inference uses (the authors' code),
+    instead of a fresh draw per agent and step"""
     stand_speed_m: float | None = None
     """inference only: slower agents [m per 0.4 s step] keep constant velocity; None: 0.05 for single-sample
     tasks, 0 (off) otherwise"""
@@ -193,7 +196,7 @@ def fit_model(cfg: TrainConfig, train: Windows) -> SingularTrajectory:
         slow_speed_m = per_scene if per_scene is not None else SINGLE_SAMPLE_SLOW_SPEED_M if single else SLOW_SPEED_M
     shared = {f.name: getattr(cfg, f.name) for f in fields(ModelConfig) if hasattr(cfg, f.name)}  # same-named
     model_cfg = ModelConfig(**{**shared, "obs_len": task["obs_len"], "num_samples": task["num_samples"],
-                               "slow_speed_m": slow_speed_m, "slow_scale_floor_m": floor_m})
+                               "slow_speed_m": slow_speed_m, "slow_scale_floor_m": floor_m, "noise_seed": cfg.seed})
     frames = agent_frames(train.obs, model_cfg.scale_by_speed, model_cfg.slow_speed_m, model_cfg.slow_scale_floor_m)
     futures = frames.to_agent(train.fut.astype(np.float64))
     spaces, anchors, coef_scale, residual_scale = [], [], [], []
@@ -215,7 +218,7 @@ def fit_model(cfg: TrainConfig, train: Windows) -> SingularTrajectory:
         coef_scale.append(coefs.std())
         residual_scale.append(np.sqrt((nearest**2).mean() / cfg.k))
     return SingularTrajectory(model_cfg, spaces, np.stack(anchors), np.array(coef_scale), np.array(residual_scale),
-                              Refiner(model_cfg.refiner_config()), seed=cfg.seed)
+                              Refiner(model_cfg.refiner_config()))
 
 
 def split_tensors(model: SingularTrajectory, windows: Windows, root) -> dict[str, torch.Tensor]:
@@ -239,7 +242,8 @@ def rollout(model: SingularTrajectory, t: dict[str, torch.Tensor], idx: torch.Te
             steps: int | None = None) -> torch.Tensor:
     """Agent-frame predictions in metres (B, S, 12, 2) for samples ``idx`` through the full DDIM chain.
 
-    ``noise_seed``: fresh starting noise per agent (training); None: the model's fixed sampler noise.
+    ``noise_seed``: fresh starting noise per agent (training); None: the model's fixed sampler noise (inference,
+    and training with ``fixed_noise``).
     """
     refiner = model.refiner
     anchors = t["anchors"][idx]
@@ -381,7 +385,8 @@ def main(cfg: TrainConfig) -> Path:
                    f"{epochs}", leave=False, disable=not cfg.progress)
         for step, idx in enumerate(bar):
             if cfg.objective == "e2e":
-                ade, fde = best_of_s(rollout(model, t_train, idx, noise_seed=epoch * 100_000 + step),
+                noise_seed = None if cfg.fixed_noise else epoch * 100_000 + step
+                ade, fde = best_of_s(rollout(model, t_train, idx, noise_seed=noise_seed),
                                      t_train["truth_m"][idx])
                 loss = ade.mean() + cfg.fde_weight * fde.mean()
             else:

@@ -219,10 +219,10 @@ def test_averaged_weights_are_kept_and_a_stopped_run_continues_with_its_average(
 
 @pytest.fixture(scope="module")
 def authors_run(tmp_path_factory) -> TrainConfig:
-    """The authors' sampler and step schedule on the small slice: 4 epochs in 2 stages, no warm-up."""
+    """The authors' sampler (fixed noise) and step schedule on the small slice: 4 epochs in 2 stages, no warm-up."""
     cfg = TrainConfig(task="stochastic", scene="zara1", out=str(tmp_path_factory.mktemp("authors")),
-                      **{**SMALL, "epochs": 4}, sampler="eps-linear", lr_schedule="step", lr_stages=2,
-                      warmup_epochs=0.0)
+                      **{**SMALL, "epochs": 4}, sampler="eps-linear", fixed_noise=True, lr_schedule="step",
+                      lr_stages=2, warmup_epochs=0.0, seed=3)
     main(cfg)
     return cfg
 
@@ -241,6 +241,36 @@ def test_eps_linear_training_beats_constant_velocity_and_reloads_its_sampler(aut
     ours, _ = ade_fde(model.predict(test.obs, test.group, scene, 20), test.fut)
     cvm, _ = ade_fde(ConstantVelocity().predict(test.obs, test.group, scene, 20), test.fut)
     assert ours.mean() < 0.8 * cvm.mean(), (ours.mean(), cvm.mean())
+
+
+def test_a_loaded_checkpoint_samples_the_noise_its_validation_saw(authors_run):
+    """The sampler's fixed noise is drawn from the run's seed (3 here) at training and after loading, so the
+    loaded model reproduces the validation FDE that selected it."""
+    from predictor.train import split_tensors, validate
+
+    model = load(f"{authors_run.out}/best.pt")
+    assert model.cfg.noise_seed == 3
+    val = load_windows("stochastic", "zara1", "val")
+    _, fde = validate(model, split_tensors(model, val, None), authors_run.batch_agents)
+    assert fde == pytest.approx(read_checkpoint(f"{authors_run.out}/best.pt")["best"]["fde"], abs=1e-5)
+
+
+@pytest.mark.parametrize("fixed_noise", [False, True])
+def test_fixed_noise_trains_every_chain_from_the_samplers_draw(tmp_path, monkeypatch, fixed_noise):
+    from predictor import train
+
+    rollout, seeds = train.rollout, []
+
+    def spy(model, t, idx, noise_seed, steps=None):
+        seeds.append(noise_seed)
+        return rollout(model, t, idx, noise_seed, steps)
+
+    monkeypatch.setattr(train, "rollout", spy)
+    main(TrainConfig(task="stochastic", scene="zara1", out=str(tmp_path), **{**SMALL, "epochs": 1},
+                     fixed_noise=fixed_noise))
+    training = seeds[:-len(window_batches(torch.from_numpy(load_windows("stochastic", "zara1", "val").group),
+                                          SMALL["batch_agents"], None))]  # validation's calls come last
+    assert training and all((seed is None) == fixed_noise for seed in training)
 
 
 def test_checkpoints_without_a_sampler_field_load_with_the_x0_cosine_sampler(trained):
