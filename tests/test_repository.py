@@ -1,4 +1,5 @@
-"""What the repository itself holds: no file names a folder of the machine that wrote it."""
+"""What the repository itself holds: only the files that belong at its root, and no file that names a folder of the
+machine that wrote it."""
 
 from __future__ import annotations
 
@@ -21,7 +22,32 @@ def tracked_files() -> list[Path]:
     except (OSError, subprocess.CalledProcessError):
         skip = {".git", ".venv", "runs", "build", "__pycache__", ".pytest_cache", ".ruff_cache", ".hypothesis"}
         return [p for p in REPO.rglob("*") if p.is_file() and not skip & set(p.relative_to(REPO).parts)
-                and not p.name.endswith(".egg-info")]
+                and not any(part.endswith(".egg-info") for part in p.relative_to(REPO).parts)]
+
+
+# what belongs at the root: the packages and their companions, the project files; anything else (a log, a scratch
+# script, an output) goes in a folder of its own or in runs/ (git-ignored)
+ROOT_ALLOWED = {
+    ".ci", ".gitignore", "CITATION.cff", "LICENSE", "Makefile", "README.md", "RESULTS.md", "mkdocs.yml",
+    "pyproject.toml", "benchmarks", "docs", "envs", "examples", "predictor", "replays", "results", "st_sim", "tests",
+}
+
+
+def test_the_root_holds_only_what_belongs_there() -> None:
+    stray = sorted({p.relative_to(REPO).parts[0] for p in tracked_files()} - ROOT_ALLOWED)
+    assert not stray, (f"stray entries at the repository root: {stray}; move them into a folder (runs/ for outputs, "
+                       "benchmarks/ for scripts) or, if they belong, add them to ROOT_ALLOWED in this test")
+
+
+def test_the_readme_stays_a_five_minute_read() -> None:
+    """What a stranger needs first (the commands CI and the Makefile keep true) in under 200 lines; the rest is
+    in docs/."""
+    readme = (REPO / "README.md").read_text(encoding="utf-8")
+    assert len(readme.splitlines()) < 200, f"README.md has {len(readme.splitlines())} lines; move detail to docs/"
+    for command in ("make demo", "make test", "OMP_NUM_THREADS=1 python -m pytest", "python -m st_sim demo"):
+        assert command in readme, f"README.md no longer shows `{command}`"
+    for page in ("docs/getting-started.md", "docs/environments.md", "docs/navigation.md", "docs/contributing.md"):
+        assert f"]({page}" in readme and (REPO / page).is_file(), f"README.md does not link {page}"
 
 
 def test_the_file_list_is_the_repository() -> None:
