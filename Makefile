@@ -2,13 +2,18 @@
 #   make demo   the virtual environment, CPU-only PyTorch, the project; then the demo
 #   make test   the same, plus the ETH/UCY data (unless STCROWD_DATA points at a copy); then the test suite
 # On a machine whose pip already offers a CPU build of torch: make demo TORCH="torch==2.13.0"
+# Then:
+#   make docs   the documentation site, as CI builds it (mkdocs build --strict, into site/)
+#   make fuzz   the property tests with fresh random draws, FUZZ_FACTOR times their examples (docs/contributing.md)
 
 PYTHON ?= python3
 VENV ?= .venv
 TORCH ?= torch --index-url https://download.pytorch.org/whl/cpu
 PY := $(VENV)/bin/python
+FUZZ_FACTOR ?= 10
+FUZZ_TESTS ?= tests
 
-.PHONY: demo test data setup
+.PHONY: demo test docs fuzz data setup
 
 demo: setup
 	@echo "== running the demo: python -m st_sim demo"
@@ -17,6 +22,14 @@ demo: setup
 test: setup data
 	@echo "== running the tests: OMP_NUM_THREADS=1 python -m pytest"
 	OMP_NUM_THREADS=1 $(PY) -m pytest
+
+docs: setup
+	@echo "== building the documentation site: mkdocs build --strict (into site/)"
+	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs build --strict
+
+fuzz: setup data
+	@echo "== exploring: the property tests in $(FUZZ_TESTS), fresh draws, $(FUZZ_FACTOR)x their examples"
+	HYPOTHESIS_PROFILE=fuzz HYPOTHESIS_FUZZ_FACTOR=$(FUZZ_FACTOR) OMP_NUM_THREADS=1 $(PY) -m pytest $(FUZZ_TESTS)
 
 setup: $(VENV)/.installed
 

@@ -1,13 +1,54 @@
-"""Shared fixtures. The ETH/UCY data root comes from $STCROWD_DATA (set by .ci/run); a missing root fails."""
+"""Shared fixtures and the hypothesis profiles. The ETH/UCY data root comes from $STCROWD_DATA (set by .ci/run); a
+missing root fails.
+
+Hypothesis profiles, chosen by $HYPOTHESIS_PROFILE (default "ci"; see docs/contributing.md, "Property tests"):
+- "ci": every run draws the same examples (``derandomize``: each test's draws are seeded by the test itself), so a
+  landing never fails on a rare draw it did not cause. Hypothesis's example database is off with derandomize; the
+  record of past failures is the ``@example(...)`` decorators pinned on the tests, which every profile runs first.
+- "fuzz" (``make fuzz``): fresh random draws, $HYPOTHESIS_FUZZ_FACTOR (default 10) times each test's own
+  ``max_examples``, only the property tests; failures are kept in the local database ``.hypothesis/`` and replayed
+  first on the next fuzz run, until they are pinned as ``@example``.
+"""
 
 from __future__ import annotations
 
+import os
 from dataclasses import replace
 
 import numpy as np
 import pytest
+from hypothesis import is_hypothesis_test, settings
 
 from replays.scenes import Scene
+
+settings.register_profile("ci", derandomize=True, print_blob=True)
+settings.register_profile("fuzz", derandomize=False, print_blob=True)
+PROFILE = os.environ.get("HYPOTHESIS_PROFILE", "ci")
+settings.load_profile(PROFILE)  # before the test modules are imported: their @settings inherit it
+FUZZ_FACTOR = int(os.environ.get("HYPOTHESIS_FUZZ_FACTOR", "10"))  # examples per test, times its own max_examples
+
+
+def pytest_report_header(config: pytest.Config) -> str:
+    return f"hypothesis profile: {PROFILE} ($HYPOTHESIS_PROFILE; ci = the same draws on every run)"
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Fuzz profile: keep only the property tests, each drawing ``FUZZ_FACTOR`` times its own ``max_examples``."""
+    if PROFILE != "fuzz":
+        return
+    kept, dropped, widened = [], [], set()
+    for item in items:
+        test = getattr(item, "obj", None)
+        if not is_hypothesis_test(test):
+            dropped.append(item)
+            continue
+        kept.append(item)
+        if id(test) not in widened:  # parametrised items share one function
+            widened.add(id(test))
+            own = test._hypothesis_internal_use_settings  # the settings @given reads at each call
+            test._hypothesis_internal_use_settings = settings(own, max_examples=own.max_examples * FUZZ_FACTOR)
+    config.hook.pytest_deselected(items=dropped)
+    items[:] = kept
 
 
 @pytest.fixture(autouse=True)
