@@ -14,7 +14,6 @@ from envs.common.config import EnvConfig
 from envs.common.crowd_env import CrowdEnv, check_flag
 from envs.common.ego import move_within, spawn_start_goal, walkable_points
 from envs.common.errors import EnvInputError, ResetOptionsError
-from envs.common.layouts import build_layout
 from envs.common.predictors import shipped_checkpoint
 from envs.common.reactive import ReactiveCrowd
 from envs.common.tracks import Frame
@@ -23,12 +22,11 @@ from replays.data_root import data_root
 from replays.errors import RecordingError
 from replays.recording import read_recording
 from replays.scenes import load_scene, scene_info
-from st_sim.sim.walls import WallGrid
+from st_sim.sim.map_depth import MapDepth
 
 MIN_REPLAY_STEPS = 50  # a random start leaves at least this many steps (20 s) of recording
 MIN_FRAMES = 2  # a replay starts at one listed frame and steps to the next
 PEDESTRIAN_MODES: tuple[str, ...] = ("log", "reactive")  # the recording exactly, or stepping round the robot
-WALL_CELL_M = 0.2  # grid of the scene's walls that reactive pedestrians keep clear of [m]
 
 
 @dataclass(frozen=True, eq=False)
@@ -75,10 +73,9 @@ def _load_replay(path: Path, version: tuple[int, int, int]) -> Replay:
 
 
 @cache
-def scene_walls(scene: str, root: Path) -> WallGrid:
-    """The walls traced from a scene's walkability map, as reactive pedestrians see them (built once)."""
-    layout = build_layout(scene, root)
-    return WallGrid(layout.walls_m, layout.bounds_m, WALL_CELL_M, ReactiveCrowd.wall_reach_m())
+def scene_depth(scene: str, root: Path) -> MapDepth:
+    """How deep points lie in a scene's non-walkable area, as reactive pedestrians check it (built once)."""
+    return MapDepth(load_scene(scene, root))
 
 
 class ReplayCrowdEnv(CrowdEnv):
@@ -92,7 +89,7 @@ class ReplayCrowdEnv(CrowdEnv):
     inf) and cannot leave the arena (recorded area + 1 m, within the scene's image: a move off the image keeps
     only the axis that stays on it). With ``pedestrians="log"`` (default) the pedestrians walk exactly as recorded
     and do not react to it; with ``"reactive"`` each one walks its own log until the robot is in its way, then
-    steps round it with the simulator's steering and rejoins its log (``envs.common.reactive``).
+    steps aside or slows down along its logged route and catches up with its log (``envs.common.reactive``).
 
     ## Action Space
     Box(-1.5, 1.5, (2,), float32): ego velocity (vx, vy) [m/s], world frame; scaled down to
@@ -102,7 +99,8 @@ class ReplayCrowdEnv(CrowdEnv):
 
     ## Observation Space
     Dict, all positions in metres, world frame, N_max = most pedestrians in one frame of the scene's
-    recordings (ETH 27, HOTEL 18, UNIV 75, ZARA1/2 20):
+    recordings (ETH 27, HOTEL 18, UNIV 75, ZARA1/2 20; with reactive pedestrians, also counting those who may still
+    be on their way to where their log ended, ``ReactiveCrowd.capacity``):
     - "ego": (6,) float32 x, y [m], vx, vy [m/s], goal x, y [m]; zeros when ``ego=False``.
     - "history": (N_max, T_obs, 2) float32, oldest first, last column = now; 0 where unobserved.
     - "history_mask": (N_max, T_obs) bool, agent present in that frame.
@@ -190,7 +188,8 @@ class ReplayCrowdEnv(CrowdEnv):
             raise EnvInputError(f"recording={recording!r}: scene {info.name} has {', '.join(info.recordings)}")
         replays = {name: load_replay(root / info.name / "test" / f"{name}.txt") for name in info.recordings}
         self.replay = replays[recording]
-        n_max = max(int(r.present.sum(axis=1).max()) for r in replays.values())
+        n_max = max(int(r.present.sum(axis=1).max()) if pedestrians == "log" else ReactiveCrowd.capacity(r.present)
+                    for r in replays.values())
         super().__init__(load_scene(info.name, root), n_max, str(self.replay.path), predictor, task, ego,
                          render_mode, config, pretrained=shipped_checkpoint(task, info.name), rerun=rerun,
                          root=root)
@@ -201,7 +200,7 @@ class ReplayCrowdEnv(CrowdEnv):
         self.index = 0
         self.reactive: ReactiveCrowd | None = None
         if pedestrians == "reactive":
-            self.reactive = ReactiveCrowd(self.replay.xy_m, self.replay.present, scene_walls(info.name, root),
+            self.reactive = ReactiveCrowd(self.replay.xy_m, self.replay.present, scene_depth(info.name, root),
                                           self.cfg.ego_radius_m + self.cfg.pedestrian_radius_m)
 
     def _check_options(self, options: dict[str, Any]) -> None:
@@ -243,7 +242,7 @@ class ReplayCrowdEnv(CrowdEnv):
             return self.replay.frame(self.index)
         robot = (start_m, self.ego_xy_m) if self.ego else (None, None)
         xy = self.reactive.step(self.index, *robot)
-        cols = np.flatnonzero(self.replay.present[self.index])
+        cols = np.flatnonzero(self.reactive.state.present)
         return Frame(int(self.replay.frames[self.index]), self.replay.agents[cols], xy[cols])
 
     def _info(self, reward_parts: dict[str, float], termination: str | None) -> dict[str, Any]:

@@ -75,13 +75,20 @@ class CrowdVectorEnv(VectorEnv):
         self._autoreset = np.zeros(self.num_envs, bool)
 
     def reset(self, *, seed: int | Sequence[int | None] | None = None, options: dict | None = None):
-        """Reset every sub-env: ``seed`` an int (sub-env i gets seed + i), a list of one per sub-env, or None."""
+        """Reset every sub-env: ``seed`` an int (sub-env i gets seed + i), a list of one per sub-env, or None.
+        Every seed and the options are checked before any sub-env is reset."""
         if seed is None or (isinstance(seed, int | np.integer) and not isinstance(seed, bool)):
             seeds = [None if seed is None else int(seed) + i for i in range(self.num_envs)]
         elif isinstance(seed, Sequence) and not isinstance(seed, str) and len(seed) == self.num_envs:
             seeds = list(seed)
         else:
             raise EnvInputError(f"seed={seed!r}: expected None, an int or a list of {self.num_envs} seeds")
+        for i, env_seed in enumerate(seeds):
+            if env_seed is not None and (isinstance(env_seed, bool | np.bool_) or
+                                         not isinstance(env_seed, int | np.integer) or env_seed < 0):
+                raise EnvInputError(f"sub-env {i}: seed={env_seed!r}: expected None or an int >= 0; no sub-env "
+                                    "was reset")
+        self.envs[0].check_reset_options(options)
         for env, env_seed in zip(self.envs, seeds, strict=True):
             env.begin_reset(seed=env_seed, options=options)
         outputs = [env.end_reset(*prediction) for env, prediction in zip(self.envs, self._predict_all(), strict=True)]
@@ -94,7 +101,11 @@ class CrowdVectorEnv(VectorEnv):
 
     def step(self, actions: Any):
         """Step every sub-env (or reset those whose episode ended at the previous step) and forecast once."""
-        actions = np.asarray(actions)
+        try:
+            actions = np.asarray(actions)
+        except (ValueError, TypeError) as err:  # ragged nesting and the like
+            raise EnvInputError(f"actions must be an array of shape {self.action_space.shape} (num_envs, 2), got "
+                                f"a ragged {type(actions).__name__}") from err
         if actions.shape != self.action_space.shape:
             raise EnvInputError(f"actions must have shape {self.action_space.shape} (num_envs, 2), got {actions.shape}")
         velocities = [None if self._autoreset[i] else env.check_step(action)  # every check before anything moves
@@ -105,11 +116,12 @@ class CrowdVectorEnv(VectorEnv):
                 env.begin_reset()
             else:
                 env.advance(velocities[i])
+        forecasts = self._predict_all()
         observations, step_infos = [], []
         rewards = np.zeros(self.num_envs)
         terminations = np.zeros(self.num_envs, bool)
         truncations = np.zeros(self.num_envs, bool)
-        for i, (env, prediction) in enumerate(zip(self.envs, self._predict_all(), strict=True)):
+        for i, (env, prediction) in enumerate(zip(self.envs, forecasts, strict=True)):
             if self._autoreset[i]:
                 obs, info = env.end_reset(*prediction)
                 self._elapsed[i] = 0
@@ -149,8 +161,16 @@ class CrowdVectorEnv(VectorEnv):
 
     def _predict_all(self, which: Sequence[int] | None = None) -> list[Forecast]:
         """(futures, anchors) of the sub-envs ``which`` (None: all), in that order: kept forecasts where a sub-env
-        has one (``ForecastCache``), one predictor call for the agents of all the others."""
-        which = range(self.num_envs) if which is None else which
+        has one (``ForecastCache``), one predictor call for the agents of all the others. If the predictor fails,
+        every sub-env refuses to step until the vector env is reset (``CrowdEnv.interrupt``)."""
+        try:
+            return self._forecasts(range(self.num_envs) if which is None else which)
+        except Exception as err:
+            for env in self.envs:
+                env.interrupt(f"the predictor failed: {err}")
+            raise
+
+    def _forecasts(self, which: Sequence[int]) -> list[Forecast]:
         forecasts: dict[int, Forecast | None] = {i: self.envs[i].cached_forecast() for i in which}
         missing = [i for i, forecast in forecasts.items() if forecast is None]
         histories = [self.envs[i].histories_to_predict() for i in missing]

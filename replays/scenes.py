@@ -114,6 +114,8 @@ class Scene:
     """A scene's geometry: homography, walkability map, photo and world <-> pixel conversion.
 
     Built from files with ``load_scene`` (ETH/UCY) or from arrays (simulated layouts rasterised to a map).
+    Read-only: ``load_scene`` shares one Scene per process among envs, evaluators and plug-ins, so its arrays are
+    private copies that refuse writes, and its attributes cannot be reassigned (``AttributeError``).
 
     Attributes:
         name: scene name.
@@ -122,19 +124,30 @@ class Scene:
         photo: (H, W, 3) uint8 RGB (a rendering of the map for simulated layouts).
     """
 
+    __slots__ = ("H", "H_inv", "__weakref__", "name", "photo", "walkable")
+
     def __init__(self, name: str, H: np.ndarray, walkable: np.ndarray, photo: np.ndarray | None = None):
-        self.name = name
-        self.H = np.asarray(H, dtype=np.float64)
-        if self.H.shape != (3, 3) or not np.isfinite(self.H).all() or abs(np.linalg.det(self.H)) < 1e-12:
-            raise ValueError(f"scene {name}: H must be a finite, invertible 3x3 matrix, got shape {self.H.shape}")
-        self.H_inv = np.linalg.inv(self.H)
-        self.walkable = np.asarray(walkable, dtype=bool)
-        if self.walkable.ndim != 2 or 0 in self.walkable.shape:
-            raise ValueError(f"scene {name}: walkable must be a non-empty (H, W) map, got shape {self.walkable.shape}")
-        self.photo = photo if photo is not None else np.repeat(self.walkable[..., None] * np.uint8(255), 3, -1)
-        if self.photo.shape != (*self.walkable.shape, 3):
-            raise ValueError(f"scene {name}: photo must be (H, W, 3) like the map {self.walkable.shape}, "
-                             f"got {self.photo.shape}")
+        H = np.array(H, dtype=np.float64)
+        if H.shape != (3, 3) or not np.isfinite(H).all() or abs(np.linalg.det(H)) < 1e-12:
+            raise ValueError(f"scene {name}: H must be a finite, invertible 3x3 matrix, got shape {H.shape}")
+        walkable = np.array(walkable, dtype=bool)
+        if walkable.ndim != 2 or 0 in walkable.shape:
+            raise ValueError(f"scene {name}: walkable must be a non-empty (H, W) map, got shape {walkable.shape}")
+        photo = np.array(photo) if photo is not None else np.repeat(walkable[..., None] * np.uint8(255), 3, -1)
+        if photo.shape != (*walkable.shape, 3):
+            raise ValueError(f"scene {name}: photo must be (H, W, 3) like the map {walkable.shape}, "
+                             f"got {photo.shape}")
+        for field, value in (("name", str(name)), ("H", H), ("H_inv", np.linalg.inv(H)), ("walkable", walkable),
+                             ("photo", photo)):
+            if isinstance(value, np.ndarray):
+                value.flags.writeable = False
+            object.__setattr__(self, field, value)
+
+    def __setattr__(self, name: str, value: object) -> None:
+        raise AttributeError(f"Scene {self.name} is read-only: build a new Scene instead of setting {name!r}")
+
+    def __reduce__(self) -> tuple:
+        return Scene, (self.name, self.H, self.walkable, self.photo)
 
     def __repr__(self) -> str:
         return f"Scene({self.name}, map {self.walkable.shape[1]}x{self.walkable.shape[0]} px)"

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from replays import load_scene
+from replays.scenes import Scene
 from st_sim.sim import CrowdConfig, CrowdSim, Layout, Region, layout_from_scene, make_layout
 from st_sim.sim.layouts import periodic_corridor
 from st_sim.sim.pairs import Neighbours
@@ -85,10 +86,10 @@ def test_zara1_simulated_pedestrians_stay_on_the_map(zara1: Layout) -> None:
 
 
 def test_layout_from_scene_without_border_openings_is_rejected(toy_scene) -> None:
-    toy_scene.walkable[:] = False
-    toy_scene.walkable[20:40, 20:40] = True  # an island that never reaches the image border
+    island = np.zeros_like(toy_scene.walkable)
+    island[20:40, 20:40] = True  # an island that never reaches the image border
     with pytest.raises(ValueError, match="toy"):
-        layout_from_scene(toy_scene)
+        layout_from_scene(Scene("toy", toy_scene.H, island))
 
 
 def test_wall_grid_distance_matches_brute_force(zara1: Layout) -> None:

@@ -111,6 +111,7 @@ class CrowdEnv(gym.Env):
         self._previous_xy_m = np.zeros(2)  # the ego before this step
         self._contact: Contact | None = None  # the step's first pedestrian contact, if any
         self._episode_over = False  # terminated, or the world ended: step needs a reset first
+        self._interrupted: str | None = None  # why the last step could not finish: step needs a reset first
         self.anchors: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # (ids, prototype, adapted)
         self.rerun_target, self._rerun, self._rerun_step = rerun, None, 0
         self.rerun_paths: list[Path] = []
@@ -122,16 +123,21 @@ class CrowdEnv(gym.Env):
 
     def step(self, action: np.ndarray):
         self.begin_step(action)
-        return self.end_step(*self._predict(self.histories_to_predict()))
+        try:
+            forecast = self._predict(self.histories_to_predict())
+        except Exception as err:
+            self.interrupt(f"the predictor failed: {err}")
+            raise
+        return self.end_step(*forecast)
 
     def begin_reset(self, *, seed: int | None = None, options: dict | None = None) -> None:
         """First half of ``reset``: check the arguments, start the episode's world (no prediction yet)."""
-        options = self._checked_options(options)
+        options = self.check_reset_options(options)
         if seed is not None and (isinstance(seed, bool | np.bool_) or not isinstance(seed, int | np.integer)
                                  or seed < 0):
             raise EnvInputError(f"{self.where}: seed={seed!r}: expected None or an int >= 0")
         super().reset(seed=None if seed is None else int(seed))
-        self._obs, self._episode_over = None, False
+        self._obs, self._episode_over, self._interrupted = None, False, None
         self.tracks.clear()
         self.metrics.reset()
         for frame in self._reset_world(options):
@@ -161,9 +167,17 @@ class CrowdEnv(gym.Env):
         self.tracks.push(self._step_world(velocity_mps))
         self._sense()
 
+    def interrupt(self, reason: str) -> None:
+        """Refuse every ``step`` until ``reset``: the step in progress could not finish (``reason``), and as its world
+        had already moved, the episode cannot go on without skipping a frame."""
+        self._interrupted = f"{reason} (at frame {self.tracks.now.frame if self.tracks.frames else None})"
+
     def check_step(self, action: Any) -> np.ndarray | None:
         """The ego velocity (2,) m/s that ``action`` commands (None in spectator mode), after every check that
         ``step`` makes before anything changes; raises ``EnvInputError`` or ``NeedsResetError``."""
+        if self._interrupted is not None:
+            raise NeedsResetError(f"{self.where}: the last step did not finish, {self._interrupted}; its world had "
+                                  "already moved, so call reset() before stepping again")
         if self._obs is None:
             raise NeedsResetError(f"{self.where}: call reset() before step()")
         if self._episode_over:
@@ -293,8 +307,9 @@ class CrowdEnv(gym.Env):
 
     # helpers -----------------------------------------------------------------------------------------
 
-    def _checked_options(self, options: Any) -> dict[str, Any]:
-        """``options`` as a dict after refusing a non-mapping and keys this env does not read."""
+    def check_reset_options(self, options: Any) -> dict[str, Any]:
+        """``options`` as a dict after refusing a non-mapping, keys this env does not read and values it cannot use
+        (``ResetOptionsError``); nothing changes."""
         if options is None:
             return {}
         if not isinstance(options, Mapping):

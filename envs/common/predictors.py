@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from replays.constants import POSITION_LIMIT_M, T_PRED, TASKS
+from replays.constants import T_PRED, TASKS
 from replays.scenes import Scene
 from st_sim.metrics import check_futures
 
@@ -97,13 +97,13 @@ def predict_futures(model: Any, history_m: np.ndarray, scene: Scene | None, num_
         group: (P,) int64 scene moment of each agent (agents interact only within one); None: all in one.
 
     Returns:
-        futures: (P, S, 12, 2) float32 metres, clipped to +-POSITION_LIMIT_M.
+        futures: (P, S, 12, 2) float32 metres, within +-POSITION_LIMIT_M.
         anchors: (prototype, adapted), each (P, S, 12, 2) metres, for predictors with
             ``predict_detailed`` (SingularTrajectory); None otherwise.
 
     Raises:
-        ValueError: the predictor returned anything but (P, S, 12, 2) finite floats (``st_sim.metrics.PredictionError``;
-            ``predictor.plugins.PluginError`` from a plug-in).
+        ValueError: the predictor returned anything but (P, S, 12, 2) finite floats within +-POSITION_LIMIT_M
+            (``st_sim.metrics.PredictionError``; ``predictor.plugins.PluginError`` from a plug-in).
     """
     if len(history_m) == 0:
         return np.zeros((0, num_samples, T_PRED, 2), np.float32), None
@@ -115,7 +115,7 @@ def predict_futures(model: Any, history_m: np.ndarray, scene: Scene | None, num_
     else:
         futures = model.predict(history_m, group, scene, num_samples)
     futures = check_futures(futures, len(history_m), num_samples, getattr(model, "name", type(model).__name__))
-    return np.clip(futures, -POSITION_LIMIT_M, POSITION_LIMIT_M), anchors
+    return futures, anchors
 
 
 Forecast = tuple[np.ndarray, tuple[np.ndarray, np.ndarray] | None]

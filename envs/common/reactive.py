@@ -1,14 +1,31 @@
-"""Reactive replay: recorded pedestrians who walk their own logs and step round the robot when it is in their way.
+"""Reactive replay: recorded pedestrians walk their own logged routes, stepping aside or slowing down for the robot.
 
 Every pedestrian follows its recording exactly until its logged path over the next ``LOOK_AHEAD_STEPS`` frames
 would bring it within ``CLEARANCE_M`` of the robot's body (the robot taken at its current velocity) or of a
-pedestrian already off its log. From then on it is simulated: each 0.4 s step it heads for where its log is now,
-at the speed that catches up (at most ``CATCH_UP_MPS``, or 1.25 times its log's speed), steered by the simulator's
-calibrated speed model round the robot, the other pedestrians and the scene's walls, with the contact rules of
-the simulator (``st_sim.sim.contacts.keep_apart``: the robot and everybody on their logs are obstacles that do not
-give way). Once it is back within ``REJOIN_M`` of its log and nothing is in the way, it is on its log again. A
-pedestrian whose log ends leaves, off its log or not; one who appears where the robot stands starts just clear of
-it. With the robot out of everyone's way, the replay is the recording exactly.
+pedestrian already off its log. From then on it stays on its logged *route* and only chooses where along it and how
+far to its side: its place is the log at a fractional frame ``tau`` (never ahead of the log) moved ``offset_m`` to
+the left of the route's direction there (a Frenet frame along the log). Each 0.4 s step it picks, among a grid of
+progress along its route (from half a step back to as far as it can walk in one, or to where its log is now) and
+side offsets (up to ``MAX_OFFSET_M``), the place that loses the least time
+and strays the least while
+
+- it walks no faster than it can catch up (``CATCH_UP_MPS``, or ``CATCH_UP_FACTOR`` times its log's speed);
+- along its step it is never deeper in the scene's non-walkable area, nor farther off the image, than the nearest
+  point of its log (near that point of its route, ``DEPTH_WINDOW``) or its log close to that point of the route
+  (``CROSSING_WINDOW``): a log that crosses a traced wall lets it cross there too and traps nobody, while nobody is
+  pushed into a wall beside a log, nor jumps over a thin one;
+- along the whole step, moving in a straight line, it keeps ``ROBOT_MARGIN_M`` beyond the env's contact distance
+  from the robot (moving in its straight line) and ``2 BODY_RADIUS_M - PAIR_GIVE_M`` from everybody else (or at
+  least the gap it already had);
+- it keeps clear of where the robot and the others will be over the next ``ANTICIPATION_STEPS`` (a cost, so that
+  it steps aside early rather than at the last moment).
+
+The pedestrians off their log choose one after another, the one nearest the robot first, each seeing the choices
+already made. Once a pedestrian is within ``REJOIN_M`` of where its log is now and nothing is in its way, it is on
+its log again. A pedestrian whose log ends while it is behind walks on to where its log ends and leaves there (at most
+``MAX_LINGER_STEPS`` later; within ``LEAVE_BESIDE_ROBOT_M`` of it where the robot stands on that spot); one who
+appears where the robot (or a pedestrian off its log) stands starts beside its log, just clear of them. With the robot
+out of everyone's way, the replay is the recording exactly.
 """
 
 from __future__ import annotations
@@ -19,20 +36,87 @@ from typing import Final
 import numpy as np
 
 from replays.constants import STEP_S
-from st_sim.sim import speed_model
-from st_sim.sim.config import SpeedModelConfig
-from st_sim.sim.contacts import keep_apart, pair_reach_m
-from st_sim.sim.pairs import Neighbours, cap_speed
-from st_sim.sim.walls import WallGrid
+from st_sim.sim.map_depth import MapDepth
+from st_sim.sim.sweep import closest_approach
 
 LOOK_AHEAD_STEPS: Final[int] = 3  # a pedestrian looks this many 0.4 s steps along its log for the robot [-]
 CLEARANCE_M: Final[float] = 0.2  # ... and leaves its log if that path passes closer than this to a body [m]
-REJOIN_M: Final[float] = 0.1  # back on its log when this close to it and nothing is in the way [m]
-BODY_RADIUS_M: Final[float] = 0.2  # radius of a reactive pedestrian's body among pedestrians and walls [m]
+REJOIN_M: Final[float] = 0.1  # back on its log (or out of the scene, at the log's end) when this close to it [m]
+BODY_RADIUS_M: Final[float] = 0.2  # radius of a reactive pedestrian's body [m]
 ROBOT_MARGIN_M: Final[float] = 0.05  # reactive pedestrians keep this much beyond the env's contact distance [m]
+PAIR_GIVE_M: Final[float] = 0.05  # two pedestrians may come this far inside body contact (shoulders turn) [m]
 CATCH_UP_MPS: Final[float] = 1.8  # fastest a pedestrian walks to catch up with its log [m/s] ...
 CATCH_UP_FACTOR: Final[float] = 1.25  # ... or this multiple of its log's own speed, if that is faster [-]
-SUBSTEPS: Final[int] = 2  # steering substeps per 0.4 s step [-]
+MAX_OFFSET_M: Final[float] = 1.2  # farthest a pedestrian steps to the side of its route [m]
+PROGRESS_SHARES: Final[np.ndarray] = np.linspace(-0.5, 1.0, 25)  # progress along the route it may choose per step,
+"""as shares of the farthest it can walk in one (and catching up with its log at once); back up to half a step [-]"""
+OFFSETS_M: Final[np.ndarray] = np.linspace(-MAX_OFFSET_M, MAX_OFFSET_M, 13)  # side offsets it may choose [m]
+DEPTH_TOLERANCE_M: Final[float] = 0.0  # it may stand this much deeper in the non-walkable area than its log [m]
+MAX_LINGER_STEPS: Final[int] = 25  # a pedestrian behind its log leaves at most this many steps after the log ends
+LEAVE_BESIDE_ROBOT_M: Final[float] = 1.0  # where the robot stands on the end of a log, one leaves this close to it [m]
+ANTICIPATION_STEPS: Final[int] = 3  # it keeps clear of where the others will be over this many steps [-]
+COMFORT_M: Final[float] = 0.3  # ... by this much beyond contact [m]
+LAG_COST: Final[float] = 1.0  # cost of a frame (0.4 s) of delay against its log [1/frame]
+OFFSET_COST: Final[float] = 0.5  # cost of standing a metre to the side of its route [1/m]
+SWAY_COST: Final[float] = 0.2  # cost of changing its side offset by a metre in one step [1/m]
+RISK_COST: Final[float] = 10.0  # cost of the anticipated intrusions into the comfort gap [1/m^2]
+STUCK_COST: Final[float] = 0.5  # cost of standing still again, per step it already stood still off its log [-]
+STILL_M: Final[float] = 0.02  # a pedestrian moving less than this in a step stands still [m]
+MIN_STEP_M: Final[float] = 0.01  # log steps shorter than this give no direction [m]
+PATH_SAMPLES: Final[tuple[float, ...]] = (0.25, 0.5, 0.75, 1.0)  # where along a step the map bound is checked [-]
+DEPTH_WINDOW: Final[int] = 8  # ... at its nearest point within this many frames either side of its route point [-]
+CROSSING_WINDOW: Final[int] = 2  # ... or its deepest within this many frames of its route point [-]
+TRACE_SHARES: Final[tuple[float, ...]] = (0.0, 0.25, 0.5, 0.75)  # points of a log between two frames it is traced at
+TANGENT_WINDOW: Final[int] = 2  # a route's direction is averaged over this many frames either side [-]
+WALL_WEIGHT: Final[float] = 100.0  # with no candidate within every bound: a metre into a wall weighs 100 of the rest
+
+
+@dataclass(frozen=True)
+class Robot:
+    """The robot's move over the step: from ``from_m`` to ``to_m`` (2,) [m] in a straight line."""
+
+    from_m: np.ndarray
+    to_m: np.ndarray
+
+    @property
+    def velocity_mps(self) -> np.ndarray:
+        return (self.to_m - self.from_m) / STEP_S
+
+
+@dataclass(frozen=True, eq=False)
+class Step:
+    """What the pedestrians off their log see while they choose, one after another, within one step to frame
+    ``index``: rows are the replay's agents.
+
+    Attributes:
+        start: (A, 2) positions before the step [m].  xy: (A, 2) positions after it, as far as chosen (the log for
+            those on it, the choice for those who chose, the start for those yet to choose) [m].
+        present, off_log, chosen: (A,) bool.  velocity_mps: (A, 2) velocities over the previous step [m/s].
+        stuck: (A,) steps each has stood still off its log.
+    """
+
+    index: int
+    start: np.ndarray
+    xy: np.ndarray
+    present: np.ndarray
+    off_log: np.ndarray
+    chosen: np.ndarray
+    velocity_mps: np.ndarray
+    stuck: np.ndarray
+    robot: Robot
+
+
+@dataclass(frozen=True, eq=False)
+class Candidates:
+    """The places a pedestrian off its log may choose in one step: route point ``tau`` (C,), side ``offset_m`` (C,),
+    position ``xy_m`` (C, 2) [m], ``violation`` (C,) of the bounds (0: keeps them all; a metre into a wall weighs
+    ``WALL_WEIGHT``) and ``cost`` (C,) [-]."""
+
+    tau: np.ndarray
+    offset_m: np.ndarray
+    xy_m: np.ndarray
+    violation: np.ndarray
+    cost: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -42,12 +126,22 @@ class ReactiveState:
     Attributes:
         xy_m: (A, 2) positions [m]; NaN for agents absent now.
         velocity_mps: (A, 2) velocities over the last step [m/s].
-        off_log: (A,) bool, simulated (not at their logged position).
+        present: (A,) bool, in the scene now: present in the log, or still on the way to where the log ended.
+        off_log: (A,) bool, not at their logged position now.
+        tau: (A,) fractional frame index of the log point that a pedestrian's place is taken from (off its log).
+        offset_m: (A,) how far left of the route's direction at ``tau`` it stands [m] (off its log).
+        linger: (A,) steps since its log ended (a pedestrian still on its way out), 0 otherwise.
+        stuck: (A,) steps in a row a pedestrian off its log has stood still (moved under ``STILL_M``).
     """
 
     xy_m: np.ndarray
     velocity_mps: np.ndarray
+    present: np.ndarray
     off_log: np.ndarray
+    tau: np.ndarray
+    offset_m: np.ndarray
+    linger: np.ndarray
+    stuck: np.ndarray
 
 
 class ReactiveCrowd:
@@ -55,24 +149,47 @@ class ReactiveCrowd:
 
     Args:
         log_xy_m: (F, A, 2) logged positions [m], NaN where absent.  present: (F, A) bool.
-        walls: the scene's walls (``WallGrid`` with a reach of at least ``wall_reach_m()``).
+        depth: the scene's non-walkable depth map (``MapDepth``).
         contact_m: centre distance at which the env counts a robot-pedestrian contact [m].
     """
 
-    def __init__(self, log_xy_m: np.ndarray, present: np.ndarray, walls: WallGrid, contact_m: float):
-        self.log_xy_m, self.present, self.walls = log_xy_m, present, walls
-        self.robot_radius_m = contact_m + ROBOT_MARGIN_M - BODY_RADIUS_M  # as seen by the pedestrians
-        self.steering = SpeedModelConfig()
+    def __init__(self, log_xy_m: np.ndarray, present: np.ndarray, depth: MapDepth, contact_m: float):
+        self.log_xy_m, self.present, self.depth = log_xy_m, present, depth
+        self.robot_reach_m = contact_m + ROBOT_MARGIN_M  # centre distance a pedestrian keeps from the robot
+        agents = present.shape[1]
+        step = np.diff(np.nan_to_num(log_xy_m), axis=0)  # (F - 1, A, 2)
+        moving = present[:-1] & present[1:]
+        length = np.where(moving, np.linalg.norm(step, axis=-1), 0.0)
+        self.log_speed_mps = np.r_[length, np.zeros((1, agents))] / STEP_S  # (F, A), 0 at the end of a run
+        self.run_first, self.run_last = run_bounds(present)
+        arc = np.cumsum(np.r_[np.zeros((1, agents)), length], axis=0)  # (F, A) metres walked since the first frame
+        self.arc_m = np.where(present, arc - arc[np.maximum(self.run_first, 0), np.arange(agents)], np.nan)
+        """(F, A) metres along the log since the start of its run of presence (NaN where absent)"""
+        on_log, ahead = np.where(present[..., None], log_xy_m, 0.0), np.r_[step, np.zeros((1, agents, 2))]
+        self.trace_m = on_log[:, :, None] + np.array(TRACE_SHARES)[:, None] * ahead[:, :, None]
+        """(F, A, K, 2) points of the log from frame f toward f + 1 [m] (a fast log may cross a thin wall between)"""
+        self.trace_depth_m = self.depth.at(self.trace_m)
+        """(F, A, K) how deep each of those lies in the non-walkable area [m]"""
+        self.tangent = smoothed(route_tangents(step, moving & (length >= MIN_STEP_M), present), self.run_first,
+                                self.run_last)  # (F, A, 2)
         self.state = self._on_log(0)
 
     @staticmethod
-    def wall_reach_m() -> float:
-        """Least reach [m] of the wall grid: the steering's wall cutoff, or what a catching-up body can close."""
-        return max(SpeedModelConfig().wall_cutoff_m, 2 * BODY_RADIUS_M + 4 * STEP_S * CATCH_UP_MPS)
+    def capacity(present: np.ndarray) -> int:
+        """Most pedestrians present at once in reactive mode: those of the log and those still on their way out."""
+        ended = np.zeros_like(present)
+        ended[1:] = present[:-1] & ~present[1:]  # logs that ended just before frame f
+        window = np.cumsum(ended, axis=0)
+        lingering = window - np.r_[np.zeros((MAX_LINGER_STEPS, present.shape[1]), int),
+                                   window[:-MAX_LINGER_STEPS]][: len(window)]
+        return int((present.sum(axis=1) + ((lingering > 0) & ~present).sum(axis=1)).max())
 
     def _on_log(self, index: int) -> ReactiveState:
-        xy = np.where(self.present[index][:, None], self.log_xy_m[index], np.nan)
-        return ReactiveState(xy, np.zeros_like(xy), np.zeros(len(xy), bool))
+        now = self.present[index]
+        xy = np.where(now[:, None], self.log_xy_m[index], np.nan)
+        agents = len(now)
+        return ReactiveState(xy, np.zeros_like(xy), now.copy(), np.zeros(agents, bool), np.full(agents, float(index)),
+                             np.zeros(agents), np.zeros(agents, int), np.zeros(agents, int))
 
     def reset(self, index: int) -> np.ndarray:
         """Everybody on their log at frame ``index``; returns the (A, 2) positions."""
@@ -80,117 +197,256 @@ class ReactiveCrowd:
         return self.state.xy_m
 
     def deviation_m(self, index: int) -> np.ndarray:
-        """(present agents,) distance of each pedestrian present at frame ``index`` from its log [m]."""
-        now = self.present[index]
-        return np.linalg.norm(self.state.xy_m[now] - self.log_xy_m[index, now], axis=1)
+        """(present agents,) distance of each pedestrian present now from its log at frame ``index`` (from where its
+        log ended, for one still on its way out) [m]."""
+        cols = np.flatnonzero(self.state.present)
+        ended = self.run_last[np.floor(self.state.tau[cols]).astype(int), cols]
+        frames = np.where(self.present[index, cols], index, ended)
+        return np.linalg.norm(self.state.xy_m[cols] - self.log_xy_m[frames, cols], axis=1)
 
     def step(self, index: int, robot_from_m: np.ndarray | None, robot_to_m: np.ndarray | None) -> np.ndarray:
         """Advance from frame ``index - 1`` to ``index`` while the robot moves from ``robot_from_m`` to
-        ``robot_to_m`` (2,) [m] (None: no robot); returns the (A, 2) positions at ``index`` (NaN: absent)."""
-        before, now = self.present[index - 1], self.present[index]
-        log_now = self.log_xy_m[index]
-        xy = np.where(now[:, None], log_now, np.nan)
+        ``robot_to_m`` (2,) [m] (None: no robot); returns the (A, 2) positions at ``index`` (NaN: absent; who is
+        present is ``state.present``)."""
         old = self.state
-        stays = before & now
-        off_log = old.off_log & stays  # a pedestrian whose log ends leaves
+        logged, log_now = self.present[index], self.log_xy_m[index]
         if robot_to_m is None:
-            self.state = ReactiveState(xy, self._velocity(xy, old.xy_m, stays), np.zeros(len(xy), bool))
-            return xy
-        robot_v = (robot_to_m - robot_from_m) / STEP_S
-        off_log |= stays & self._in_the_way(index, robot_to_m, robot_v, old, off_log)
-        if off_log.any():
-            xy[off_log] = self._steer(index, off_log, old, robot_from_m, robot_to_m)
-        reach_m = self.robot_radius_m + BODY_RADIUS_M
-        newcomer = now & ~before
-        xy, pushed = self._clear_of_robot(xy, newcomer, robot_to_m)
-        off_log |= pushed
-        back = off_log & ~self._in_the_way(index + 1, robot_to_m + robot_v * STEP_S, robot_v,
-                                           ReactiveState(xy, old.velocity_mps, off_log), off_log)
-        back &= np.linalg.norm(np.nan_to_num(xy - log_now), axis=1) < REJOIN_M
-        back &= np.linalg.norm(np.nan_to_num(log_now - robot_to_m, nan=np.inf), axis=1) >= reach_m  # log is clear
-        xy[back] = log_now[back]
-        off_log &= ~back
-        self.state = ReactiveState(xy, self._velocity(xy, old.xy_m, stays), off_log)
+            self.state = self._on_log(index)
+            self.state.velocity_mps[:] = velocity(self.state.xy_m, old.xy_m, old.present & logged)
+            return self.state.xy_m
+        robot = Robot(robot_from_m, robot_to_m)
+        lingering = old.present & old.off_log & ~logged & (old.linger < MAX_LINGER_STEPS)  # on their way out
+        present = logged | lingering
+        off_log = (old.off_log & old.present & logged & (old.linger == 0)) | lingering  # a log that starts again: on
+        start = np.where(old.present[:, None], old.xy_m, log_now)  # (A, 2) where each one is before the step
+        going = old.present & logged & ~off_log & self._in_the_way(index, robot.to_m, robot.velocity_mps, old)
+        off_log |= going
+        tau = np.where(off_log, old.tau, float(index))
+        tau[going] = index - 1.0  # from where they stood: their log at the previous frame
+        offset = np.where(off_log, old.offset_m, 0.0)
+        xy = np.where(off_log[:, None], start, log_now)
+        xy[~present] = np.nan
+        step = Step(index, start, xy, present, off_log, np.zeros(len(present), bool), old.velocity_mps, old.stuck,
+                    robot)
+        reach = np.linalg.norm(np.nan_to_num(log_now - robot.to_m, nan=np.inf), axis=1)
+        for agent in np.flatnonzero(logged & ~old.present):  # appears where the robot or one off its log stands?
+            taken = start[off_log & present]
+            if reach[agent] >= self.robot_reach_m and \
+                    not (np.linalg.norm(taken - log_now[agent], axis=1) < 2 * BODY_RADIUS_M - PAIR_GIVE_M).any():
+                continue
+            offset[agent] = self._clear_offset(agent, index, robot.to_m, taken)
+            xy[agent] = start[agent] = self._place(np.array([agent]), np.array([float(index)]), offset[[agent]],
+                                                   index)[0]
+            off_log[agent] = step.chosen[agent] = True
+        order = np.flatnonzero(off_log & ~step.chosen)
+        order = order[np.argsort(np.linalg.norm(start[order] - robot.to_m, axis=1), kind="stable")]
+        for agent in order:  # the nearest to the robot first, each seeing the choices made before it
+            tau[agent], offset[agent], xy[agent] = self._choose(agent, tau[agent], offset[agent], step)
+            step.chosen[agent] = True
+        # back on the log: caught up, beside it, and nothing in the way; out of the scene: where the log ended
+        ahead = ReactiveState(xy, velocity(xy, old.xy_m, old.present & present), present, off_log, tau, offset,
+                              old.linger, old.stuck)
+        rejoin = (off_log & logged & (np.linalg.norm(np.nan_to_num(xy - log_now, nan=np.inf), axis=1) <= REJOIN_M)
+                  & ~self._in_the_way(index + 1, robot.to_m + robot.velocity_mps * STEP_S, robot.velocity_mps, ahead)
+                  & (reach >= self.robot_reach_m))
+        xy[rejoin] = log_now[rejoin]
+        off_log &= ~rejoin
+        cols = np.arange(len(tau))
+        log_end = self.log_xy_m[self.run_last[np.clip(np.floor(tau), 0, None).astype(int), cols], cols]
+        to_end = np.linalg.norm(np.nan_to_num(xy - log_end, nan=np.inf), axis=1)
+        end_taken = np.linalg.norm(np.nan_to_num(log_end - robot.to_m, nan=np.inf), axis=1) < self.robot_reach_m + \
+            REJOIN_M  # the robot stands where the log ends: leave as close to it as it lets one get
+        present &= ~(lingering & ((to_end <= REJOIN_M) | (end_taken & (to_end <= LEAVE_BESIDE_ROBOT_M))))
+        off_log &= present
+        xy[~present] = np.nan
+        still = off_log & (np.linalg.norm(np.nan_to_num(xy - start), axis=1) < STILL_M)
+        self.state = ReactiveState(xy, velocity(xy, old.xy_m, old.present & present), present, off_log,
+                                   np.where(off_log, tau, float(index)), np.where(off_log, offset, 0.0),
+                                   np.where(present & lingering, old.linger + 1, 0), np.where(still, old.stuck + 1, 0))
         return xy
 
-    @staticmethod
-    def _velocity(xy: np.ndarray, old_xy: np.ndarray, stays: np.ndarray) -> np.ndarray:
-        return np.where(stays[:, None], (xy - old_xy) / STEP_S, 0.0)
+    # ------------------------------------------------------------------------------------------------ choosing
+    def _route(self, agents: np.ndarray, tau: np.ndarray, run_frame: int) -> tuple[np.ndarray, np.ndarray]:
+        """Point of each agent's logged route at fractional frame ``tau`` and the left normal there; (..., 2) each
+        for ``agents``/``tau`` of the same shape (...). ``tau`` is held within the run of the log that holds frame
+        ``run_frame`` (where the agents are on their routes now)."""
+        first, last = self.run_first[run_frame, agents], self.run_last[run_frame, agents]
+        tau = np.clip(tau, first, last)
+        frame = np.floor(tau).astype(int)
+        after = np.minimum(frame + 1, last)
+        share = (tau - frame)[..., None]
+        point = (1 - share) * self.log_xy_m[frame, agents] + share * self.log_xy_m[after, agents]
+        tangent = (1 - share) * self.tangent[frame, agents] + share * self.tangent[after, agents]
+        tangent /= np.maximum(np.linalg.norm(tangent, axis=-1, keepdims=True), 1e-9)
+        return point, np.stack([-tangent[..., 1], tangent[..., 0]], axis=-1)
 
-    def _in_the_way(self, index: int, robot_m: np.ndarray, robot_v: np.ndarray, state: ReactiveState,
-                    off_log: np.ndarray) -> np.ndarray:
+    def _tau_ahead(self, agent: int, tau: float, ahead_m: np.ndarray, run_frame: int) -> np.ndarray:
+        """(K,) the latest fractional frames whose route points lie ``ahead_m`` (K,) metres further along the agent's
+        logged route than ``tau`` (through any stretch where the log stood still), within the run of ``run_frame``."""
+        first, last = self.run_first[run_frame, agent], self.run_last[run_frame, agent]
+        arc = self.arc_m[first:last + 1, agent]
+        frame = int(np.floor(tau))
+        here = arc[frame - first] + (tau - frame) * (arc[min(frame + 1, last) - first] - arc[frame - first])
+        target = here + ahead_m
+        k = np.clip(np.searchsorted(arc, target, side="right") - 1, 0, len(arc) - 1)
+        step = np.diff(arc, append=arc[-1])[k]
+        share = np.where(step > 0, np.clip((target - arc[k]) / np.where(step > 0, step, 1.0), 0.0, 1.0), 0.0)
+        return first + k + share
+
+    def _place(self, agents: np.ndarray, tau: np.ndarray, offset_m: np.ndarray, run_frame: int) -> np.ndarray:
+        """(..., 2) positions at route points ``tau`` (within the run holding ``run_frame``) moved ``offset_m`` to the
+        side."""
+        point, normal = self._route(agents, tau, run_frame)
+        return point + offset_m[..., None] * normal
+
+    def _clear_offset(self, agent: int, index: int, robot_m: np.ndarray, others_m: np.ndarray) -> float:
+        """The smallest side offset [m] at frame ``index`` that clears the robot and the pedestrians at ``others_m``
+        (K, 2) and stays as walkable as the log (0 if none does)."""
+        offsets = OFFSETS_M[np.argsort(np.abs(OFFSETS_M), kind="stable")]
+        who, taus = np.full(len(offsets), agent), np.full(len(offsets), float(index))
+        places = self._place(who, taus, offsets, index)
+        apart = np.linalg.norm(places[:, None] - others_m[None], axis=-1).min(axis=1, initial=np.inf)
+        fine = ((np.linalg.norm(places - robot_m, axis=1) >= self.robot_reach_m)
+                & (apart >= 2 * BODY_RADIUS_M - PAIR_GIVE_M) & (self._too_deep_m(agent, index, places, index) == 0))
+        return float(offsets[np.argmax(fine)]) if fine.any() else 0.0
+
+    def _too_deep_m(self, agent: int, tau: float, places: np.ndarray, run_frame: int) -> np.ndarray:
+        """(...) how much deeper in the non-walkable area each place (..., 2) is than the agent's log: than the point
+        of its log nearest to it within ``DEPTH_WINDOW`` frames of route point ``tau``, or the log's deepest point
+        within ``CROSSING_WINDOW`` frames of it (a crossing of a thin wall, beside it) [m]; 0 where that point is off
+        the image, 1000 for a place off the image beside a log on it."""
+        first, last = self.run_first[run_frame, agent], self.run_last[run_frame, agent]
+        frame = int(np.floor(tau))
+        window = slice(max(first, frame - DEPTH_WINDOW), min(last, frame + DEPTH_WINDOW) + 1)
+        trace = self.trace_m[window, agent].reshape(-1, 2)
+        trace_depth = self.trace_depth_m[window, agent].reshape(-1)
+        nearest = np.argmin(np.linalg.norm(places[..., None, :] - trace, axis=-1), axis=-1)
+        close = slice(max(first, frame - CROSSING_WINDOW), min(last, frame + CROSSING_WINDOW) + 1)
+        log_depth = np.maximum(trace_depth[nearest], self.trace_depth_m[close, agent].max())
+        excess = np.maximum(self.depth.at(places) - log_depth - DEPTH_TOLERANCE_M, 0.0)
+        return np.where(np.isinf(log_depth), 0.0, np.minimum(excess, 1e3))
+
+    def _choose(self, agent: int, tau: float, offset: float, step: Step) -> tuple[float, float, np.ndarray]:
+        """(tau, offset [m], position (2,)) of ``agent`` at frame ``step.index``: the cheapest candidate that keeps
+        every bound (see the module docstring), or the one that breaks them the least."""
+        c = self._candidates(agent, tau, offset, step)
+        best = int(np.argmin(np.where(c.violation > 0, np.inf, c.cost))) if (c.violation == 0).any() else \
+            int(np.argmin(c.violation))
+        return float(c.tau[best]), float(c.offset_m[best]), c.xy_m[best]
+
+    def _candidates(self, agent: int, tau: float, offset: float, step: Step) -> Candidates:
+        """Every place ``agent`` may choose at frame ``step.index``, how far each breaks the bounds, and its cost."""
+        run_frame = int(tau)
+        cap = max(tau, min(float(step.index), float(self.run_last[run_frame, agent])))  # never ahead of the log
+        reach_m = max(CATCH_UP_MPS, CATCH_UP_FACTOR * self.log_speed_mps[run_frame, agent]) * STEP_S
+        first = float(self.run_first[run_frame, agent])
+        taus = np.unique(np.r_[self._tau_ahead(agent, tau, reach_m * PROGRESS_SHARES, run_frame), cap].clip(first, cap))
+        offsets = np.unique(np.r_[OFFSETS_M, offset])
+        c_tau, c_off = np.repeat(taus, len(offsets)), np.tile(offsets, len(taus))
+        who = np.full(len(c_tau), agent)
+        places = self._place(who, c_tau, c_off, run_frame)  # (C, 2)
+        here = step.start[agent]
+        too_fast = np.maximum(np.linalg.norm(places - here, axis=1) - reach_m, 0.0)
+        too_deep = np.max([self._too_deep_m(agent, tau, here + share * (places - here), run_frame)
+                           for share in PATH_SAMPLES], axis=0)  # along the way: no jumping over a thin wall
+        robot_gap, _ = closest_approach(here - step.robot.from_m, places - step.robot.to_m)
+        too_close = np.maximum(self.robot_reach_m - robot_gap, 0.0)
+        others = np.flatnonzero(step.present & (np.arange(len(step.present)) != agent))
+        if others.size:
+            their_from, their_to = step.start[others], step.xy[others]  # the log now, a choice, or where they stand
+            allowed = np.minimum(2 * BODY_RADIUS_M - PAIR_GIVE_M, np.linalg.norm(their_from - here, axis=1) - 1e-6)
+            pair_gap, _ = closest_approach(here - their_from, places[:, None] - their_to[None])  # (C, O)
+            too_close = too_close + np.maximum(allowed - pair_gap, 0.0).sum(axis=1)
+        staying = np.linalg.norm(places - here, axis=1) < STILL_M  # stuck for a while: try another way round
+        cost = (LAG_COST * (step.index - c_tau) + OFFSET_COST * np.abs(c_off) + SWAY_COST * np.abs(c_off - offset)
+                + RISK_COST * self._risk(agent, c_tau, c_off, others, step, run_frame)
+                + STUCK_COST * step.stuck[agent] * staying)
+        return Candidates(c_tau, c_off, places, too_fast + too_close + WALL_WEIGHT * too_deep, cost)
+
+    def _risk(self, agent: int, c_tau: np.ndarray, c_off: np.ndarray, others: np.ndarray, step: Step,
+              run_frame: int) -> np.ndarray:
+        """(C,) squared intrusions [m^2] into the comfort gap round the robot and the others off their logs over the
+        next ``ANTICIPATION_STEPS``, if the agent walks on along its route at its log's pace from each candidate and
+        they go on at their velocities."""
+        ahead = np.arange(1, ANTICIPATION_STEPS + 1, dtype=np.float64)  # (H,)
+        later = self._place(np.full((len(c_tau), len(ahead)), agent), c_tau[:, None] + ahead,
+                            np.repeat(c_off[:, None], len(ahead), 1), run_frame)  # (C, H, 2)
+        robot = step.robot.to_m + ahead[:, None] * STEP_S * step.robot.velocity_mps  # (H, 2)
+        risk = (np.maximum(self.robot_reach_m + COMFORT_M - np.linalg.norm(later - robot, axis=-1), 0.0) ** 2).sum(1)
+        off_log = others[step.off_log[others]]  # those on their logs keep to them: the hard bounds cover them
+        if off_log.size:
+            moving = step.xy[off_log][None] + ahead[:, None, None] * STEP_S * step.velocity_mps[off_log][None]
+            pair = np.linalg.norm(later[:, :, None] - moving[None], axis=-1)  # (C, H, O)
+            risk += (np.maximum(2 * BODY_RADIUS_M + COMFORT_M / 2 - pair, 0.0) ** 2).sum(axis=(1, 2))
+        return risk
+
+    def _in_the_way(self, index: int, robot_m: np.ndarray, robot_v: np.ndarray, state: ReactiveState) -> np.ndarray:
         """(A,) bool: agents whose log from frame ``index`` on comes within CLEARANCE_M of the robot's body (at its
         velocity) or of a pedestrian off its log (at theirs) within LOOK_AHEAD_STEPS."""
         frames = min(LOOK_AHEAD_STEPS, len(self.present) - index)
         if frames <= 0:
-            return np.zeros(len(off_log), bool)
+            return np.zeros(len(state.off_log), bool)
         ahead = np.arange(frames)[:, None] * STEP_S  # (H, 1) seconds
         log = self.log_xy_m[index:index + frames]  # (H, A, 2), NaN where absent
         robot = robot_m + ahead * robot_v  # (H, 2)
-        gap = np.linalg.norm(log - robot[:, None], axis=-1) - self.robot_radius_m - BODY_RADIUS_M
+        gap = np.linalg.norm(log - robot[:, None], axis=-1) - self.robot_reach_m
         hit = np.nan_to_num(gap, nan=np.inf).min(axis=0) < CLEARANCE_M
-        others = np.flatnonzero(off_log)
-        if others.size:
+        others = np.flatnonzero(state.off_log & state.present)
+        if others.size:  # a pedestrian off its log is in the way where it comes closer than its own log would
             where = state.xy_m[others] + ahead[:, :, None] * state.velocity_mps[others]  # (H, O, 2)
-            gap = np.linalg.norm(log[:, :, None] - where[:, None], axis=-1) - 2 * BODY_RADIUS_M  # (H, A, O)
+            gap = np.linalg.norm(log[:, :, None] - where[:, None], axis=-1)  # (H, A, O)
+            logged_gap = np.linalg.norm(log[:, :, None] - log[:, others][:, None], axis=-1)
+            bound = np.minimum(2 * BODY_RADIUS_M + CLEARANCE_M, np.nan_to_num(logged_gap, nan=np.inf) - PAIR_GIVE_M)
             gap[:, others, np.arange(others.size)] = np.inf  # nobody is in their own way
-            hit |= np.nan_to_num(gap, nan=np.inf).min(axis=(0, 2)) < CLEARANCE_M
+            hit |= (np.nan_to_num(gap, nan=np.inf) < bound).any(axis=(0, 2))
         return hit
 
-    def _steer(self, index: int, off_log: np.ndarray, old: ReactiveState, robot_from_m: np.ndarray,
-               robot_to_m: np.ndarray) -> np.ndarray:
-        """(O, 2) positions at frame ``index`` of the agents off their log, after SUBSTEPS of steering."""
-        before, now = self.log_xy_m[index - 1], self.log_xy_m[index]
-        present = self.present[index - 1] & self.present[index]
-        others = np.flatnonzero(present & ~off_log)
-        mine = np.flatnonzero(off_log)
-        n_mine, n_others = len(mine), len(others)
-        radius = np.r_[np.full(n_mine + n_others, BODY_RADIUS_M), self.robot_radius_m]
-        yielding = np.r_[np.ones(n_mine), np.zeros(n_others + 1)]
-        xy = old.xy_m[mine]
-        velocity = old.velocity_mps[mine]
-        log_step = (now[mine] - before[mine]) / STEP_S
-        dt = STEP_S / SUBSTEPS
-        heading = None
-        for sub in range(SUBSTEPS):
-            share = sub / SUBSTEPS
-            other_xy = before[others] + share * (now[others] - before[others])
-            robot = robot_from_m + share * (robot_to_m - robot_from_m)
-            bodies = np.concatenate([xy, other_xy, robot[None]])
-            moving = np.concatenate([velocity, (now[others] - before[others]) / STEP_S,
-                                     ((robot_to_m - robot_from_m) / STEP_S)[None]])
-            to_log = now[mine] - xy
-            distance = np.linalg.norm(to_log, axis=1)
-            direction = np.where(distance[:, None] > 1e-6, to_log / np.maximum(distance, 1e-6)[:, None], 0.0)
-            limit = np.maximum(CATCH_UP_MPS, CATCH_UP_FACTOR * np.linalg.norm(log_step, axis=1))
-            speed = np.minimum(distance / (STEP_S * (1 - share)), limit)
-            preferred = np.r_[speed, np.zeros(n_others + 1)]
-            directions = np.concatenate([direction, np.zeros((n_others + 1, 2))])
-            fastest = float(np.sqrt((moving ** 2).sum(axis=1).max(initial=0.0)))
-            fastest = max(fastest, float(limit.max(initial=0.0)))
-            nb = Neighbours.within(bodies, radius, max(self.steering.agent_cutoff_m,
-                                                       pair_reach_m(2 * radius.max(), fastest, dt)))
-            walls = self.walls.near(bodies)
-            if heading is None:  # decide once per step, walk every substep (as the simulator does)
-                heading = speed_model.plan(moving, directions, preferred, radius, nb, walls, self.steering)
-            wanted = cap_speed(speed_model.walk(heading, moving, preferred, radius, nb, walls, self.steering, dt),
-                               np.r_[limit, np.full(n_others + 1, np.inf)])
-            wanted[n_mine:] = moving[n_mine:]  # the others move as logged, the robot as commanded
-            safe = keep_apart(wanted, radius, yielding, nb, walls, dt)
-            velocity = safe[:n_mine]
-            xy = xy + dt * velocity
-        return xy
 
-    def _clear_of_robot(self, xy: np.ndarray, rows: np.ndarray, robot_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Move the pedestrians of ``rows`` (A,) bool that stand within the robot's reach radially out of it; returns
-        the positions and which were moved."""
-        offset = xy - robot_m
-        distance = np.linalg.norm(np.nan_to_num(offset, nan=np.inf), axis=1)
-        reach = self.robot_radius_m + BODY_RADIUS_M
-        pushed = rows & (distance < reach)
-        if pushed.any():
-            unit = np.where(distance[pushed, None] > 1e-9, offset[pushed] / np.maximum(distance[pushed], 1e-9)[:, None],
-                            np.array([1.0, 0.0]))
-            xy = xy.copy()
-            xy[pushed] = robot_m + unit * reach
-        return xy, pushed
+def velocity(xy: np.ndarray, old_xy: np.ndarray, stays: np.ndarray) -> np.ndarray:
+    """(A, 2) velocity over the step [m/s] of the agents present before and after it (0 for the others)."""
+    return np.where(stays[:, None], np.nan_to_num(xy - old_xy) / STEP_S, 0.0)
+
+
+def run_bounds(present: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(F, A) int first and last frame of the run of consecutive presence that holds frame f (-1 where absent)."""
+    first, last = np.full(present.shape, -1), np.full(present.shape, -1)
+    first[0] = np.where(present[0], 0, -1)
+    for f in range(1, len(present)):
+        first[f] = np.where(present[f], np.where(present[f - 1], first[f - 1], f), -1)
+    last[-1] = np.where(present[-1], len(present) - 1, -1)
+    for f in range(len(present) - 2, -1, -1):
+        last[f] = np.where(present[f], np.where(present[f + 1], last[f + 1], f), -1)
+    return first, last
+
+
+def smoothed(tangent: np.ndarray, run_first: np.ndarray, run_last: np.ndarray) -> np.ndarray:
+    """(F, A, 2) unit directions averaged over ``TANGENT_WINDOW`` frames either side within each run, so that a side
+    offset turns smoothly round the log's corners."""
+    frames = np.arange(len(tangent))[:, None]
+    total = np.zeros_like(tangent)
+    for shift in range(-TANGENT_WINDOW, TANGENT_WINDOW + 1):
+        other = np.clip(frames + shift, 0, len(tangent) - 1)
+        same_run = (run_first <= frames + shift) & (frames + shift <= run_last)
+        total += np.where(same_run[..., None], np.take_along_axis(tangent, other[..., None].repeat(2, -1), 0), 0.0)
+    norm = np.linalg.norm(total, axis=-1, keepdims=True)
+    return np.where(norm > 1e-6, total / np.maximum(norm, 1e-12), tangent)
+
+
+def route_tangents(step: np.ndarray, usable: np.ndarray, present: np.ndarray) -> np.ndarray:
+    """(F, A, 2) unit direction of each log at every frame: its step to the next frame where that is at least
+    ``MIN_STEP_M`` long, else the nearest such step before it in its run, else after it, else +x (a log that never
+    moves)."""
+    frames, agents = present.shape
+    unit = np.zeros((frames, agents, 2))
+    known = np.zeros((frames, agents), bool)
+    unit[:-1][usable] = step[usable] / np.linalg.norm(step[usable], axis=-1, keepdims=True)
+    known[:-1] = usable
+    forward, backward = unit.copy(), unit.copy()
+    have_f, have_b = known.copy(), known.copy()
+    for f in range(1, frames):  # carry the last direction forward through a run
+        carry = ~have_f[f] & have_f[f - 1] & present[f] & present[f - 1]
+        forward[f][carry], have_f[f][carry] = forward[f - 1][carry], True
+    for f in range(frames - 2, -1, -1):  # and the next one backward, for a run that starts standing
+        carry = ~have_b[f] & have_b[f + 1] & present[f] & present[f + 1]
+        backward[f][carry], have_b[f][carry] = backward[f + 1][carry], True
+    return np.where(have_f[..., None], forward, np.where(have_b[..., None], backward, np.array([1.0, 0.0])))

@@ -164,7 +164,8 @@ class Plan:
             if self.rerun is not None:
                 base = Path(self.rerun)
                 rerun = str(base.with_name(f"{base.stem}_{task}_{scene}_seed{seed}.rrd"))
-            jobs.append(Job(f"evaluate/{task}/{scene}/seed{seed}", "st_sim.apps.evaluate:evaluate_job",
+            # the name says what is scored, so that a crash report names the plug-in or checkpoint
+            jobs.append(Job(f"evaluate/{task}/{scene}/seed{seed} ({source})", "st_sim.apps.evaluate:evaluate_job",
                             {"source": source, "task": task, "scene": scene, "seed": seed, "root": self.root,
                              "stream": self.stream,
                              "momentary_from_8": self.momentary_from_8, "rerun_path": rerun, "output": str(output)},

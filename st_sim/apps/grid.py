@@ -17,6 +17,7 @@ import importlib
 import os
 import socket
 import sys
+import threading
 import time
 import traceback
 from collections.abc import Callable, Sequence
@@ -32,6 +33,7 @@ from tqdm import tqdm
 EXECUTORS = ("local", "ray")
 MAX_ATTEMPTS = 3  # a job whose worker dies (killed, out of memory, node lost) is tried this often in all
 THREAD_VARS = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")
+PARENT_POLL_S = 1.0  # a local worker checks this often whether its driver is still alive [s]
 
 
 class GridError(RuntimeError):
@@ -181,6 +183,14 @@ def _init_local_worker(started: Any) -> None:
     global _started
     _one_thread()
     _started = started
+    threading.Thread(target=_exit_with_parent, args=(os.getppid(),), daemon=True).start()
+
+
+def _exit_with_parent(parent: int) -> None:
+    """End this worker once the driver that started it is gone (``kill -9`` of the driver leaves no orphans)."""
+    while os.getppid() == parent:
+        time.sleep(PARENT_POLL_S)
+    os._exit(1)
 
 
 def _execute_local(job: Job) -> JobReport:

@@ -1,0 +1,140 @@
+"""Do reactive replay pedestrians behave like people round a standing robot? Frozen, far from their logs, overlapping,
+in walls or off the image, measured against their own recordings.
+
+    export OMP_NUM_THREADS=1 STCROWD_DATA=$PWD/../shared/datasets/eth_ucy
+    python benchmarks/reactive_soundness.py --scenes univ zara1 --episodes 50 --busiest-episodes 30 --seed 1000
+
+Each episode starts from ``reset(seed=seed + i)`` of ``STCrowd-<Scene>-v0`` with ``pedestrians="reactive"`` and the
+robot commanded to stand still for up to 200 steps, either where the env spawned it (at least 1 m from everybody, the
+benchmark's own setting) or moved, right after the reset, to the busiest clear spot: the walkable point at least 1 m
+from everybody then that the most logged pedestrian-frames of the episode pass within 1 m of. Everything is measured
+from the observations (who is present where) against the recording:
+
+- frozen: a pedestrian that moves under 2 cm per step for 10 steps in a row while its log moves more than 1 m over
+  them (episodes with one);
+- leave far: a pedestrian that leaves the scene more than 1 m from where its log ends;
+- overlap: a pair of pedestrians closer than 0.3 m (bodies of 0.2 m overlapping by more than 10 cm) whose logs are
+  not that close at that frame (distinct pairs);
+- in a wall: pedestrian-steps on a non-walkable pixel where the log is walkable, and those more than 0.3 m deeper in
+  the non-walkable area than their log;
+- off the image: pedestrian-steps off the scene's image;
+- robot hit: pedestrian collisions of the standing robot (episodes).
+"""
+
+from __future__ import annotations
+
+import argparse
+from collections import defaultdict
+
+import gymnasium as gym
+import numpy as np
+from tqdm import tqdm
+
+import envs  # noqa: F401  (registers the ids)
+from envs.common.reactive import run_bounds
+from st_sim.sim.map_depth import MapDepth
+
+STEPS = 200
+FROZEN_STEP_M, FROZEN_STEPS, FROZEN_LOG_M = 0.02, 10, 1.0
+LEAVE_FAR_M = 1.0
+OVERLAP_M = 0.3  # centre distance of two 0.2 m bodies overlapping by 10 cm
+DEEP_M = 0.3
+
+
+def busiest_clear_spot(env: gym.Env) -> np.ndarray:
+    """The walkable arena point >= 1 m from everybody now that most logged pedestrian-frames of the next STEPS
+    frames pass within 1 m of."""
+    replay, index = env.unwrapped.replay, env.unwrapped.index
+    candidates = env.unwrapped.candidates_m
+    now = replay.xy_m[index][replay.present[index]]
+    clear = np.linalg.norm(candidates[:, None] - now[None], axis=-1).min(axis=1) >= 1.0 if len(now) else \
+        np.ones(len(candidates), bool)
+    logged = replay.xy_m[index:index + STEPS][replay.present[index:index + STEPS]]
+    traffic = (np.linalg.norm(candidates[clear][:, None] - logged[None], axis=-1) < 1.0).sum(axis=1)
+    return candidates[clear][np.argmax(traffic)].copy()
+
+
+def run_episode(env: gym.Env, seed: int, busiest: bool, depth: MapDepth) -> dict[str, float]:
+    _, info = env.reset(seed=seed)
+    unwrapped = env.unwrapped
+    if busiest:
+        unwrapped.ego_xy_m = busiest_clear_spot(env)
+    replay = unwrapped.replay
+    column = {agent: k for k, agent in enumerate(replay.agents.tolist())}
+    _, run_last = run_bounds(replay.present)  # (F, A): the last frame of the log's run of presence holding frame f
+    last_seen: dict[int, int] = {}  # agent -> the latest frame index at which its log was present
+    previous: dict[int, np.ndarray] = {}
+    still = defaultdict(list)  # agent -> (moved [m], log moved [m]) of the latest steps
+    counts = dict.fromkeys(["frozen", "leave_far", "overlap", "in_wall", "deep", "off_image", "hit"], 0)
+    overlapping: set[tuple[int, int]] = set()
+    for _ in range(STEPS):
+        index_before = unwrapped.index
+        obs, _, terminated, truncated, info = env.step(np.zeros(2))
+        index = unwrapped.index
+        present = info["agent_ids"] >= 0
+        ids = info["agent_ids"][present].tolist()
+        xy = obs["history"][present, -1].astype(np.float64)
+        here = dict(zip(ids, xy, strict=True))
+        cols = np.array([column[i] for i in ids], int)
+        for i, col in zip(ids, cols, strict=True):
+            if replay.present[index, col]:
+                last_seen[i] = index
+        ends = np.array([run_last[last_seen[i], col] for i, col in zip(ids, cols, strict=True)], int)
+        log = replay.xy_m[ends.clip(max=index), cols]  # the log now, or where it ended (one still on its way out)
+        for agent in set(previous) - set(here):  # left the scene
+            col = column[agent]
+            end = replay.xy_m[run_last[last_seen[agent], col], col]
+            counts["leave_far"] += bool(np.linalg.norm(previous[agent] - end) > LEAVE_FAR_M)
+        for k, agent in enumerate(ids):
+            if agent in previous:
+                col = column[agent]
+                log_step = replay.xy_m[index, col] - replay.xy_m[index_before, col]
+                log_moved = float(np.linalg.norm(np.nan_to_num(log_step)))
+                still[agent].append((float(np.linalg.norm(xy[k] - previous[agent])), log_moved))
+                latest = still[agent][-FROZEN_STEPS:]
+                if len(latest) == FROZEN_STEPS and max(m for m, _ in latest) < FROZEN_STEP_M and \
+                        sum(lm for _, lm in latest) > FROZEN_LOG_M:
+                    counts["frozen"] = 1
+        if len(xy) > 1:
+            gap = np.linalg.norm(xy[:, None] - xy[None], axis=-1)
+            log_gap = np.linalg.norm(log[:, None] - log[None], axis=-1)
+            for a, b in zip(*np.nonzero(np.triu((gap < OVERLAP_M) & (log_gap >= OVERLAP_M), 1)), strict=True):
+                overlapping.add((ids[a], ids[b]))
+        depth_now, depth_log = depth.at(xy), depth.at(log)
+        counts["off_image"] += int(np.isinf(depth_now).sum())
+        counts["in_wall"] += int(((depth_now > 0) & (depth_log == 0)).sum())
+        counts["deep"] += int((depth_now > np.maximum(depth_log, 0.0) + DEEP_M).sum())
+        previous = here
+        if terminated or truncated:
+            counts["hit"] = int(info["termination"] == "pedestrian_collision")
+            break
+    counts["overlap"] = len(overlapping)
+    return counts
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--scenes", nargs="+", default=["univ", "zara1"])
+    parser.add_argument("--episodes", type=int, default=50, help="episodes with the robot where it spawns")
+    parser.add_argument("--busiest-episodes", type=int, default=30, help="episodes at the busiest clear spot")
+    parser.add_argument("--seed", type=int, default=1000, help="episode i starts from reset(seed=seed + i)")
+    args = parser.parse_args()
+    print("| scene | robot stands | episodes | frozen (episodes) | leave > 1 m from log end | overlapping pairs "
+          "| steps in a wall (log walkable) | > 0.3 m deeper than log | off the image | robot hit (episodes) |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    for scene in args.scenes:
+        env = gym.make(f"STCrowd-{scene.capitalize()}-v0", predictor="cvm", pedestrians="reactive")
+        depth = MapDepth(env.unwrapped.scene)
+        for busiest, episodes in ((False, args.episodes), (True, args.busiest_episodes)):
+            total: dict[str, int] = defaultdict(int)
+            where = "busiest clear spot" if busiest else "at its spawn"
+            for i in tqdm(range(episodes), desc=f"{scene} {where}", leave=False):
+                for key, value in run_episode(env, args.seed + i, busiest, depth).items():
+                    total[key] += value
+            print(f"| {scene} | {where} | {episodes} | {total['frozen']} | {total['leave_far']} | {total['overlap']} | "
+                  f"{total['in_wall']} | {total['deep']} | {total['off_image']} | {total['hit']} |")
+        env.close()
+
+
+if __name__ == "__main__":
+    main()
