@@ -59,7 +59,7 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument("--scene", default=defaults.scene,
                        help=f"test scene (leave-one-out) or domain pair like A2B (default: {defaults.scene})")
     train.add_argument("--out", required=True, help="output folder for last.pt and best.pt")
-    train.add_argument("--epochs", type=int, help=f"training epochs (default: {defaults.epochs})")
+    train.add_argument("--epochs", type=int, help="training epochs (default: 16 for tasks with S > 1, 6 for S = 1)")
     train.add_argument("--lr-schedule", choices=["cosine", "step"],
                        help="learning rate after the warm-up: cosine decay to zero, or constant and multiplied by "
                             "--lr-gamma at each of --lr-stages equal parts of the run "

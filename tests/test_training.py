@@ -18,8 +18,9 @@ from predictor.baselines import ConstantVelocity
 from predictor.checkpoint import CheckpointError, content_hash, load, model_from_state, read_checkpoint
 from predictor.model import window_batches
 from predictor.refiner import linear_alpha_bar
-from predictor.train import TrainConfig, TrainingError, lr_factor, main
+from predictor.train import TrainConfig, TrainingError, lr_factor, main, with_task_defaults
 from replays import load_scene, load_windows
+from replays.constants import TASKS
 from st_sim.metrics import ade_fde
 
 SMALL = {"epochs": 2, "min_steps": 0, "dim": 64, "denoiser_dim": 64, "max_train_windows": 400, "batch_agents": 256,
@@ -314,3 +315,10 @@ def test_cosine_schedule_warms_up_then_falls_to_zero():
     rates = np.array([lr_factor(i, cfg, 10, 6) for i in range(60)])
     np.testing.assert_allclose(rates[:10], np.arange(1, 11) / 10)
     assert np.all(np.diff(rates[10:]) < 0) and rates[-1] < 0.01
+
+
+@pytest.mark.parametrize("task", list(TASKS))
+def test_epochs_default_to_16_with_several_samples_and_6_with_one(task):
+    cfg = TrainConfig(task=task, scene="A2B" if task.startswith("domain") else "zara1")
+    assert cfg.epochs is None and with_task_defaults(cfg).epochs == (6 if TASKS[task]["num_samples"] == 1 else 16)
+    assert with_task_defaults(replace(cfg, epochs=3)).epochs == 3
