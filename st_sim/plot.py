@@ -1,4 +1,4 @@
-"""Static PNG figures of predictions drawn over a scene photo with OpenCV (no matplotlib).
+"""Static PNG figures of predictions drawn over a scene photo with OpenCV (charts with axes: ``st_sim.charts``).
 
 One figure shows, per agent: the observed history (solid, agent colour), the S predicted futures
 (thin, semi-transparent, agent colour), the prototype anchors before adaptation (grey, dashed), the
