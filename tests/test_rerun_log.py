@@ -1,6 +1,8 @@
 from __future__ import annotations
 
 import importlib
+import os
+import subprocess
 import sys
 
 import numpy as np
@@ -206,3 +208,22 @@ def test_missing_rerun_gives_install_hint(monkeypatch):
     monkeypatch.delitem(sys.modules, "st_sim.rerun_log")
     with pytest.raises(ImportError, match="pip install rerun-sdk"):
         importlib.import_module("st_sim.rerun_log")
+
+
+QUIET_WRITER = """
+import os, sys
+import numpy as np
+from st_sim.rerun_log import RerunLogger
+assert "RUST_LOG" not in os.environ, "the log filter leaked into the environment"
+with RerunLogger(sys.argv[1], None) as log:
+    log.log_step(0, np.zeros((1, 2)), [0])
+"""
+
+
+def test_recording_prints_no_footer_warning_and_leaves_the_environment_alone(tmp_path) -> None:
+    env = {key: value for key, value in os.environ.items() if key != "RUST_LOG"}
+    proc = subprocess.run([sys.executable, "-c", QUIET_WRITER, str(tmp_path / "quiet.rrd")], env=env,
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert "write_footer" not in proc.stderr, proc.stderr[-2000:]
+    assert (tmp_path / "quiet.rrd").stat().st_size > 0
