@@ -35,6 +35,7 @@ from replays.atomic import try_lock
 
 FLUSH_TIMEOUT_S = 60.0  # a flush that has not reached the file by then is a failed write [s]
 COPY_BYTES = 1 << 20  # most bytes copied from the pipe to the file at once
+COPY_POLL_S = 0.1  # the copy thread checks this often whether the sink has finished [s]
 MAX_NUMBERED = 10_000  # most numbered siblings tried for a new recording name
 
 
@@ -106,6 +107,7 @@ class RecordingSink:
         self._copied = threading.Condition()  # held while bytes move from the pipe to the file
         self._file_bytes = 0  # bytes in the file
         self._write_error: OSError | None = None
+        self._stop = threading.Event()  # set by finish once the pipe is drained
         self._file = os.open(path, os.O_WRONLY | os.O_TRUNC)
         self._pipe, write_end = os.pipe()
         try:
@@ -121,9 +123,11 @@ class RecordingSink:
         self._thread.start()
 
     def _copy(self) -> None:
-        """Thread: pipe -> file until Rerun closes the pipe; after a failed write, drain and discard."""
-        while True:
-            select.select([self._pipe], [], [])
+        """Thread: pipe -> file until the sink finishes (or Rerun closes the pipe); after a failed write, drain and
+        discard. (A forked child may hold Rerun's end of the pipe open, so the end is not awaited as end of file.)"""
+        while not self._stop.is_set():
+            if not select.select([self._pipe], [], [], COPY_POLL_S)[0]:
+                continue
             with self._copied:
                 data = os.read(self._pipe, COPY_BYTES)
                 if data and self._write_error is None:
@@ -197,14 +201,16 @@ class RecordingSink:
             if self.error is None:
                 self.flush()
         finally:
-            self.recording.disconnect()  # the end-of-stream marker; Rerun then closes its end of the pipe
+            self.recording.disconnect()  # writes the end-of-stream marker into the pipe
             if self.path is not None:
-                self._thread.join(FLUSH_TIMEOUT_S)
-                os.close(self._pipe)
                 try:
+                    copied = self._wait_copied()
                     if self.error is None:
-                        self._check_written(self._file_bytes, self._write_error)
+                        self._check_written(*copied)
                 finally:
+                    self._stop.set()
+                    self._thread.join(FLUSH_TIMEOUT_S)
+                    os.close(self._pipe)
                     os.close(self._file)
             unlock(self.lock)
 

@@ -10,6 +10,7 @@ import resource
 import signal
 import subprocess
 import sys
+import threading
 from pathlib import Path
 
 import gymnasium as gym
@@ -20,6 +21,7 @@ from hypothesis import strategies as st
 from rrd_files import logged_steps
 
 import envs  # noqa: F401  (registers the ids)
+from st_sim.rerun_file import FLUSH_TIMEOUT_S
 from st_sim.rerun_log import RecordingPathError, RerunLogger
 
 
@@ -218,3 +220,22 @@ def test_navigate_names_the_recording_it_cannot_write(tmp_path: Path) -> None:
     assert proc.returncode == 1, proc.stderr[-2000:]
     assert f"error: {expected}: writing the Rerun recording failed: File too large" in proc.stderr, proc.stderr[-2000:]
     assert sorted(p.name for p in folder.iterdir()) == [], "a recording (or its lock) was left behind"
+
+
+def test_a_forked_child_holding_the_pipe_does_not_hold_up_close(tmp_path: Path, toy_scene) -> None:
+    log = RerunLogger(tmp_path / "forked.rrd", toy_scene)
+    log.log_step(0, np.zeros((1, 2)), [0])
+    child = os.fork()
+    if child == 0:  # inherits Rerun's end of the pipe and keeps it open until it is killed
+        signal.pause()
+        os._exit(0)
+    try:
+        log.log_step(1, np.ones((1, 2)), [0])
+        closer = threading.Thread(target=log.close)
+        closer.start()
+        closer.join(timeout=FLUSH_TIMEOUT_S / 2)  # waiting for the pipe's end would take FLUSH_TIMEOUT_S
+        assert not closer.is_alive(), "close waits for the forked child to let go of the pipe"
+    finally:
+        os.kill(child, signal.SIGKILL)
+        os.waitpid(child, 0)
+    assert logged_steps(tmp_path / "forked.rrd") == 2
