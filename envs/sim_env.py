@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -15,6 +16,7 @@ from envs.common.tracks import Frame
 from replays.scenes import SCENES
 from st_sim.sim import CrowdConfig, CrowdSim, EgoConfig, Layout, PopulationConfig
 from st_sim.sim import population_cap as sim_population_cap
+from st_sim.sim.crowd import step_crowds
 from st_sim.sim.sweep import Contact
 
 
@@ -100,15 +102,46 @@ class SimCrowdEnv(CrowdEnv):
         self.sim: CrowdSim | None = None
 
     def _reset_world(self, options: dict) -> list[Frame]:
-        ego_cfg = EgoConfig(radius_m=self.cfg.ego_radius_m, max_speed_mps=self.cfg.max_speed_mps,
-                            max_accel_mps2=self.ego_max_accel_mps2,
-                            pedestrians_see_ego=self.pedestrians_see_ego) if self.ego else None
-        self.sim = CrowdSim(self.layout, self.crowd_cfg, self.np_random, ego=ego_cfg)
-        frames = [self._sim_frame()]
-        for _ in range(self.t_obs - 1):  # warm-up: the ego stands still while the crowd gets going
-            self.sim.step(None)
-            frames.append(self._sim_frame())
-        self.goal_m = np.array(self.layout.ego_goal_m, dtype=np.float64)
+        return self._warm_up([self])[0]
+
+    @classmethod
+    def begin_reset_all(cls, envs: Sequence[SimCrowdEnv], seeds: Sequence[int | None], options: dict | None) -> None:
+        """``begin_reset`` of several envs: their new crowds warm up together (``step_crowds``)."""
+        if len({(id(env.layout), env.crowd_cfg) for env in envs}) > 1:
+            super().begin_reset_all(envs, seeds, options)
+            return
+        for env, seed in zip(envs, seeds, strict=True):
+            env.check_reset_seed(seed)
+            env.check_reset_options(options)
+        for env, seed in zip(envs, seeds, strict=True):
+            env._prepare_reset(seed, options)
+        for env, frames in zip(envs, cls._warm_up(envs), strict=True):
+            env._finish_reset(frames)
+
+    @classmethod
+    def advance_all(cls, envs: Sequence[SimCrowdEnv], velocities_mps: Sequence[np.ndarray | None]) -> None:
+        """``advance`` of several envs: one ``step_crowds`` call moves all their crowds."""
+        for env in envs:
+            env._previous_xy_m = env.ego_xy_m.copy()
+        step_crowds([env.sim for env in envs], velocities_mps)
+        for env in envs:
+            env._advanced(env._sim_frame())
+
+    @staticmethod
+    def _warm_up(envs: Sequence[SimCrowdEnv]) -> list[list[Frame]]:
+        """Fresh crowds (drawn from each env's ``np_random``) that walk T_obs - 1 steps together with the egos
+        standing; every env's frames, oldest first."""
+        for env in envs:
+            ego_cfg = EgoConfig(radius_m=env.cfg.ego_radius_m, max_speed_mps=env.cfg.max_speed_mps,
+                                max_accel_mps2=env.ego_max_accel_mps2,
+                                pedestrians_see_ego=env.pedestrians_see_ego) if env.ego else None
+            env.sim = CrowdSim(env.layout, env.crowd_cfg, env.np_random, ego=ego_cfg)
+            env.goal_m = np.array(env.layout.ego_goal_m, dtype=np.float64)
+        frames = [[env._sim_frame()] for env in envs]
+        for _ in range(envs[0].t_obs - 1 if envs else 0):  # warm-up: the egos stand while the crowds get going
+            step_crowds([env.sim for env in envs], [None] * len(envs))
+            for env, kept in zip(envs, frames, strict=True):
+                kept.append(env._sim_frame())
         return frames
 
     def _step_world(self, ego_velocity_mps: np.ndarray | None) -> Frame:

@@ -22,6 +22,7 @@ stable-baselines3 and CleanRL-style loops.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import numpy as np
@@ -31,6 +32,40 @@ from gymnasium.vector.utils import batch_space, concatenate, create_empty_array,
 from envs.common.crowd_env import CrowdEnv
 from envs.common.errors import EnvInputError
 from envs.common.predictors import Forecast, predict_futures
+
+
+@dataclass(eq=False)
+class StepParts:
+    """One vector step before batching: every sub-env's observation and info (lists), rewards, terminated and
+    truncated (num_envs,), and ``finals``: sub-env -> {"final_obs", "final_info"} of episodes that ended and were
+    reset at once (``AutoresetMode.SAME_STEP``)."""
+
+    observations: list[dict[str, np.ndarray]]
+    rewards: np.ndarray
+    terminated: np.ndarray
+    truncated: np.ndarray
+    infos: list[dict[str, Any]]
+    finals: dict[int, dict[str, Any]]
+
+
+def sub_env_seeds(seed: int | Sequence[int | None] | None, num_envs: int) -> list[int | None]:
+    """One seed per sub-env from ``reset``'s ``seed``: an int (sub-env i gets seed + i), a list, or None."""
+    if seed is None or (isinstance(seed, int | np.integer) and not isinstance(seed, bool)):
+        return [None if seed is None else int(seed) + i for i in range(num_envs)]
+    if isinstance(seed, Sequence) and not isinstance(seed, str) and len(seed) == num_envs:
+        return list(seed)
+    raise EnvInputError(f"seed={seed!r}: expected None, an int or a list of {num_envs} seeds")
+
+
+def batch_infos(vec: VectorEnv, infos: list[dict[str, Any]], finals: dict[int, dict[str, Any]]) -> dict[str, Any]:
+    """Sub-env infos batched as gymnasium's vector envs batch them (in ``SyncVectorEnv``'s order: a sub-env's
+    final entries, then its info)."""
+    batched: dict[str, Any] = {}
+    for i, info in enumerate(infos):
+        if i in finals:
+            batched = vec._add_info(batched, finals[i], i)
+        batched = vec._add_info(batched, info, i)
+    return batched
 
 
 class CrowdVectorEnv(VectorEnv):
@@ -65,6 +100,7 @@ class CrowdVectorEnv(VectorEnv):
                                                for _ in range(num_envs - 1)]
         self.num_envs, self.max_episode_steps = int(num_envs), max_episode_steps
         self.predictor, self.scene, self.num_samples = first.predictor, first.scene, first.num_samples
+        self._env_class = type(first)  # whose begin_reset_all / advance_all step the sub-envs together
         for env in self.envs[1:]:  # the same recording and predictor: forecasts kept by one serve all
             env.forecasts = first.forecasts
         self.render_mode = first.render_mode
@@ -77,30 +113,33 @@ class CrowdVectorEnv(VectorEnv):
     def reset(self, *, seed: int | Sequence[int | None] | None = None, options: dict | None = None):
         """Reset every sub-env: ``seed`` an int (sub-env i gets seed + i), a list of one per sub-env, or None.
         Every seed and the options are checked before any sub-env is reset."""
-        if seed is None or (isinstance(seed, int | np.integer) and not isinstance(seed, bool)):
-            seeds = [None if seed is None else int(seed) + i for i in range(self.num_envs)]
-        elif isinstance(seed, Sequence) and not isinstance(seed, str) and len(seed) == self.num_envs:
-            seeds = list(seed)
-        else:
-            raise EnvInputError(f"seed={seed!r}: expected None, an int or a list of {self.num_envs} seeds")
+        observations, infos = self.reset_parts(sub_env_seeds(seed, self.num_envs), options)
+        return self._batch(observations), batch_infos(self, infos, {})
+
+    def reset_parts(self, seeds: list[int | None], options: dict | None
+                    ) -> tuple[list[dict[str, np.ndarray]], list[dict[str, Any]]]:
+        """``reset`` with one seed per sub-env, unbatched: every sub-env's observation and info."""
         for i, env_seed in enumerate(seeds):
             if env_seed is not None and (isinstance(env_seed, bool | np.bool_) or
                                          not isinstance(env_seed, int | np.integer) or env_seed < 0):
                 raise EnvInputError(f"sub-env {i}: seed={env_seed!r}: expected None or an int >= 0; no sub-env "
                                     "was reset")
         self.envs[0].check_reset_options(options)
-        for env, env_seed in zip(self.envs, seeds, strict=True):
-            env.begin_reset(seed=env_seed, options=options)
+        self._env_class.begin_reset_all(self.envs, seeds, options)
         outputs = [env.end_reset(*prediction) for env, prediction in zip(self.envs, self._predict_all(), strict=True)]
         self._elapsed[:] = 0
         self._autoreset[:] = False
-        infos: dict[str, Any] = {}
-        for i, (_, info) in enumerate(outputs):
-            infos = self._add_info(infos, info, i)
-        return self._batch([obs for obs, _ in outputs]), infos
+        return [obs for obs, _ in outputs], [info for _, info in outputs]
 
     def step(self, actions: Any):
         """Step every sub-env (or reset those whose episode ended at the previous step) and forecast once."""
+        parts = self.step_parts(self.check_actions(actions))
+        return (self._batch(parts.observations), parts.rewards, parts.terminated, parts.truncated,
+                batch_infos(self, parts.infos, parts.finals))
+
+    def check_actions(self, actions: Any) -> list[np.ndarray | None]:
+        """Every sub-env's ego velocity (None where it resets or has no ego) after every check ``step`` makes
+        before anything moves; raises ``EnvInputError`` or ``NeedsResetError``."""
         try:
             actions = np.asarray(actions)
         except (ValueError, TypeError) as err:  # ragged nesting and the like
@@ -108,48 +147,41 @@ class CrowdVectorEnv(VectorEnv):
                                 f"a ragged {type(actions).__name__}") from err
         if actions.shape != self.action_space.shape:
             raise EnvInputError(f"actions must have shape {self.action_space.shape} (num_envs, 2), got {actions.shape}")
-        velocities = [None if self._autoreset[i] else env.check_step(action)  # every check before anything moves
-                      for i, (env, action) in enumerate(zip(self.envs, iterate(self.action_space, actions),
-                                                            strict=True))]
-        for i, env in enumerate(self.envs):
-            if self._autoreset[i]:
-                env.begin_reset()
-            else:
-                env.advance(velocities[i])
+        return [None if self._autoreset[i] else env.check_step(action)
+                for i, (env, action) in enumerate(zip(self.envs, iterate(self.action_space, actions), strict=True))]
+
+    def step_parts(self, velocities: list[np.ndarray | None]) -> StepParts:
+        """``step`` after ``check_actions``, unbatched."""
+        resetting = np.flatnonzero(self._autoreset)
+        stepping = np.flatnonzero(~self._autoreset)
+        self._env_class.begin_reset_all([self.envs[i] for i in resetting], [None] * len(resetting), None)
+        self._env_class.advance_all([self.envs[i] for i in stepping], [velocities[i] for i in stepping])
         forecasts = self._predict_all()
-        observations, step_infos = [], []
-        rewards = np.zeros(self.num_envs)
-        terminations = np.zeros(self.num_envs, bool)
-        truncations = np.zeros(self.num_envs, bool)
+        parts = StepParts([], np.zeros(self.num_envs), np.zeros(self.num_envs, bool), np.zeros(self.num_envs, bool),
+                          [], {})
         for i, (env, prediction) in enumerate(zip(self.envs, forecasts, strict=True)):
             if self._autoreset[i]:
                 obs, info = env.end_reset(*prediction)
                 self._elapsed[i] = 0
             else:
-                obs, rewards[i], terminations[i], truncations[i], info = env.end_step(*prediction)
+                obs, parts.rewards[i], parts.terminated[i], parts.truncated[i], info = env.end_step(*prediction)
                 self._elapsed[i] += 1
                 if self.max_episode_steps is not None and self._elapsed[i] >= self.max_episode_steps:
-                    truncations[i] = True
-            observations.append(obs)
-            step_infos.append(info)
-        ended = terminations | truncations
-        finals: dict[int, dict[str, Any]] = {}
+                    parts.truncated[i] = True
+            parts.observations.append(obs)
+            parts.infos.append(info)
+        ended = parts.terminated | parts.truncated
         if self.autoreset_mode == AutoresetMode.SAME_STEP:  # reset the ended sub-envs now, one forecast for them
             ended_ids = np.flatnonzero(ended)
             for i in ended_ids:
-                finals[i] = {"final_obs": observations[i], "final_info": step_infos[i]}
-                self.envs[i].begin_reset()
+                parts.finals[int(i)] = {"final_obs": parts.observations[i], "final_info": parts.infos[i]}
+            self._env_class.begin_reset_all([self.envs[i] for i in ended_ids], [None] * len(ended_ids), None)
             for i, prediction in zip(ended_ids, self._predict_all(ended_ids), strict=True):
-                observations[i], step_infos[i] = self.envs[i].end_reset(*prediction)
+                parts.observations[i], parts.infos[i] = self.envs[i].end_reset(*prediction)
                 self._elapsed[i] = 0
         else:
             self._autoreset = ended
-        infos: dict[str, Any] = {}
-        for i, info in enumerate(step_infos):  # in SyncVectorEnv's order: the final entries, then the info
-            if i in finals:
-                infos = self._add_info(infos, finals[i], i)
-            infos = self._add_info(infos, info, i)
-        return self._batch(observations), rewards, terminations, truncations, infos
+        return parts
 
     def render(self) -> tuple[np.ndarray | None, ...]:
         """Every sub-env's ``render()`` (an RGB array each with ``render_mode="rgb_array"``)."""
@@ -191,15 +223,30 @@ class CrowdVectorEnv(VectorEnv):
         return concatenate(self.single_observation_space, observations, out)
 
 
-def replay_vector_env(num_envs: int = 1, max_episode_steps: int | None = None, **kwargs: Any) -> CrowdVectorEnv:
-    """Vector entry point of the replay ids (``STCrowd-<Scene>-v0``)."""
-    from envs.replay_env import ReplayCrowdEnv
+def replay_vector_env(num_envs: int = 1, max_episode_steps: int | None = None, shards: int = 1,
+                      executor: str = "process", **kwargs: Any) -> VectorEnv:
+    """Vector entry point of the replay ids (``STCrowd-<Scene>-v0``); ``shards`` > 1 or ``executor="ray"``: a
+    ``envs.shards.ShardedVectorEnv`` stepping its shards in parallel."""
+    return _vector_env("envs.replay_env:ReplayCrowdEnv", num_envs, max_episode_steps, shards, executor, kwargs)
 
-    return CrowdVectorEnv(ReplayCrowdEnv, num_envs, max_episode_steps, **kwargs)
+
+def sim_vector_env(num_envs: int = 1, max_episode_steps: int | None = None, shards: int = 1,
+                   executor: str = "process", **kwargs: Any) -> VectorEnv:
+    """Vector entry point of the simulated ids (``STCrowd-Sim<Layout>-v1``); ``shards`` > 1 or ``executor="ray"``:
+    a ``envs.shards.ShardedVectorEnv`` stepping its shards in parallel."""
+    return _vector_env("envs.sim_env:SimCrowdEnv", num_envs, max_episode_steps, shards, executor, kwargs)
 
 
-def sim_vector_env(num_envs: int = 1, max_episode_steps: int | None = None, **kwargs: Any) -> CrowdVectorEnv:
-    """Vector entry point of the simulated ids (``STCrowd-Sim<Layout>-v1``)."""
-    from envs.sim_env import SimCrowdEnv
+def _vector_env(env_class_path: str, num_envs: int, max_episode_steps: int | None, shards: int, executor: str,
+                kwargs: dict[str, Any]) -> VectorEnv:
+    if shards == 1 and executor == "process":
+        module, _, name = env_class_path.partition(":")
+        return CrowdVectorEnv(getattr(__import__(module, fromlist=[name]), name), num_envs, max_episode_steps,
+                              **kwargs)
+    from envs.shards import ShardedVectorEnv
 
-    return CrowdVectorEnv(SimCrowdEnv, num_envs, max_episode_steps, **kwargs)
+    if isinstance(num_envs, bool) or not isinstance(num_envs, int | np.integer) or num_envs < 1:
+        raise EnvInputError(f"num_envs={num_envs!r}: expected an int >= 1")
+    if kwargs.get("rerun") is not None:
+        raise EnvInputError("rerun=: a vector env does not record; record one env made with gym.make(..., rerun=)")
+    return ShardedVectorEnv(env_class_path, num_envs, shards, executor, max_episode_steps, **kwargs)

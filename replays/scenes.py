@@ -184,8 +184,11 @@ class Scene:
 
 
 def apply_homography(H: np.ndarray, points: np.ndarray) -> np.ndarray:
-    """Apply a 3x3 projective map to (..., 2) points; returns (..., 2) float64."""
+    """Apply a 3x3 projective map to (..., 2) points; returns (..., 2) float64. An affine map (last row 0, 0, 1:
+    every synthetic layout's) skips the perspective division."""
     points = np.asarray(points, dtype=np.float64)
+    if H[2, 0] == 0.0 and H[2, 1] == 0.0 and H[2, 2] == 1.0:
+        return points @ H[:2, :2].T + H[:2, 2]
     mapped = points @ H[:, :2].T + H[:, 2]
     return mapped[..., :2] / mapped[..., 2:3]
 

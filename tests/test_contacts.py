@@ -9,6 +9,7 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 import envs  # noqa: F401  (registers the ids)
+from envs.common.ego import on_image
 from envs.common.fault import STOPPED_MPS, robot_at_fault
 from replays.constants import STEP_S
 from st_sim.sim import CrowdConfig, CrowdSim, EgoConfig, make_layout
@@ -114,6 +115,7 @@ def test_in_a_replay_a_robot_driving_head_on_into_a_walker_collides_at_fault(zar
     start = walker + ahead * direction
     others = np.delete(replay.xy_m[frame], agent, axis=0)
     assume(np.nan_to_num(np.linalg.norm(others - start, axis=1), nan=np.inf).min() > 1.5)
+    assume(on_image(unwrapped.scene, start))  # the robot can only start on the scene's image
     unwrapped.ego_xy_m = start
     _, _, terminated, _, info = env.step(-1.5 * direction)
     env.close()

@@ -19,6 +19,7 @@ from envs.common.errors import EnvInputError
 
 CASES = {  # id -> extra env arguments: SingularTrajectory in one (the batched call that matters), CVM-S elsewhere
     "STCrowd-SimCrossing-v1": {},
+    "STCrowd-SimZara1-v1": {"predictor": "cvm-s"},  # a real scene's geometry: crowds stepped together there too
     "STCrowd-Zara1-v0": {"predictor": "cvm-s"},
     "STCrowd-Univ-v0": {"pedestrians": "reactive", "predictor": "cvm-s"},
 }

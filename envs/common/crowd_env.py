@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -132,15 +132,43 @@ class CrowdEnv(gym.Env):
 
     def begin_reset(self, *, seed: int | None = None, options: dict | None = None) -> None:
         """First half of ``reset``: check the arguments, start the episode's world (no prediction yet)."""
-        options = self.check_reset_options(options)
+        self._finish_reset(self._reset_world(self._prepare_reset(seed, options)))
+
+    @classmethod
+    def begin_reset_all(cls, envs: Sequence[CrowdEnv], seeds: Sequence[int | None], options: dict | None) -> None:
+        """``begin_reset`` of several envs of this class (one batched world start where the class has one); every
+        argument is checked before any env is reset."""
+        for env, seed in zip(envs, seeds, strict=True):
+            env.check_reset_seed(seed)
+            env.check_reset_options(options)
+        for env, seed in zip(envs, seeds, strict=True):
+            env.begin_reset(seed=seed, options=options)
+
+    @classmethod
+    def advance_all(cls, envs: Sequence[CrowdEnv], velocities_mps: Sequence[np.ndarray | None]) -> None:
+        """``advance`` of several envs of this class (one batched world step where the class has one)."""
+        for env, velocity in zip(envs, velocities_mps, strict=True):
+            env.advance(velocity)
+
+    def check_reset_seed(self, seed: Any) -> None:
+        """Refuse a seed that is not None or an int >= 0 (``EnvInputError``); nothing changes."""
         if seed is not None and (isinstance(seed, bool | np.bool_) or not isinstance(seed, int | np.integer)
                                  or seed < 0):
             raise EnvInputError(f"{self.where}: seed={seed!r}: expected None or an int >= 0")
+
+    def _prepare_reset(self, seed: int | None, options: dict | None) -> dict[str, Any]:
+        """Check the arguments, seed ``np_random`` and clear the episode; returns the checked options."""
+        options = self.check_reset_options(options)
+        self.check_reset_seed(seed)
         super().reset(seed=None if seed is None else int(seed))
         self._obs, self._episode_over, self._interrupted = None, False, None
         self.tracks.clear()
         self.metrics.reset()
-        for frame in self._reset_world(options):
+        return options
+
+    def _finish_reset(self, frames: list[Frame]) -> None:
+        """Take the world's first frames (oldest first) after ``_prepare_reset``; check the ego's placement."""
+        for frame in frames:
             self.tracks.push(frame)
         if self.ego:
             require_on_map(self.scene, self.ego_xy_m, "the ego's start", walkable=True)
@@ -164,7 +192,11 @@ class CrowdEnv(gym.Env):
     def advance(self, velocity_mps: np.ndarray | None) -> None:
         """``begin_step`` after its checks: move the world 0.4 s with the ego at ``check_step``'s velocity."""
         self._previous_xy_m = self.ego_xy_m.copy()
-        self.tracks.push(self._step_world(velocity_mps))
+        self._advanced(self._step_world(velocity_mps))
+
+    def _advanced(self, frame: Frame) -> None:
+        """Take the world's frame after a step."""
+        self.tracks.push(frame)
         self._sense()
 
     def interrupt(self, reason: str) -> None:

@@ -13,6 +13,13 @@ SYNTHETIC_LAYOUTS: tuple[str, ...] = ("crossing", "corridor", "bottleneck")
 
 
 @cache
+def _synthetic_layout(name: str) -> Layout:
+    """A synthetic layout, built once per process: every env of it shares one object (and its navigation fields),
+    which is what lets a vector env step their crowds together."""
+    return make_layout(name)
+
+
+@cache
 def _scene_layout(name: str, root: os.PathLike) -> Layout:
     """A real scene's layout, built once per process (contour tracing is the slow part)."""
     return layout_from_scene(load_scene(name, root))
@@ -21,7 +28,7 @@ def _scene_layout(name: str, root: os.PathLike) -> Layout:
 def build_layout(name: str, root: str | os.PathLike | None = None) -> Layout:
     """Simulator layout by name: a synthetic one (no data needed) or an ETH/UCY scene's geometry."""
     if name in SYNTHETIC_LAYOUTS:
-        return make_layout(name)
+        return _synthetic_layout(name)
     if name in SCENES:
         return _scene_layout(name, data_root(root))
     raise ValueError(f"layout={name!r}: expected one of {', '.join(SYNTHETIC_LAYOUTS + tuple(SCENES))}")

@@ -23,7 +23,7 @@ and strays the least while
 The pedestrians off their log choose one after another, the one nearest the robot first, each seeing the choices
 already made. Once a pedestrian is within ``REJOIN_M`` of where its log is now and nothing is in its way, it is on
 its log again. A pedestrian whose log ends while it is behind walks on to where its log ends and leaves there (at most
-``MAX_LINGER_STEPS`` later; within ``LEAVE_BESIDE_ROBOT_M`` of it where the robot stands on that spot); one who
+``MAX_LINGER_STEPS`` later; within ``LEAVE_BLOCKED_M`` of it where the robot or others keep it away); one who
 appears where the robot (or a pedestrian off its log) stands starts beside its log, just clear of them. With the robot
 out of everyone's way, the replay is the recording exactly.
 """
@@ -53,7 +53,7 @@ PROGRESS_SHARES: Final[np.ndarray] = np.linspace(-0.5, 1.0, 25)  # progress alon
 OFFSETS_M: Final[np.ndarray] = np.linspace(-MAX_OFFSET_M, MAX_OFFSET_M, 13)  # side offsets it may choose [m]
 DEPTH_TOLERANCE_M: Final[float] = 0.0  # it may stand this much deeper in the non-walkable area than its log [m]
 MAX_LINGER_STEPS: Final[int] = 25  # a pedestrian behind its log leaves at most this many steps after the log ends
-LEAVE_BESIDE_ROBOT_M: Final[float] = 1.0  # where the robot stands on the end of a log, one leaves this close to it [m]
+LEAVE_BLOCKED_M: Final[float] = 0.9  # one who cannot get closer to where its log ends leaves this close to it [m]
 ANTICIPATION_STEPS: Final[int] = 3  # it keeps clear of where the others will be over this many steps [-]
 COMFORT_M: Final[float] = 0.3  # ... by this much beyond contact [m]
 LAG_COST: Final[float] = 1.0  # cost of a frame (0.4 s) of delay against its log [1/frame]
@@ -254,9 +254,8 @@ class ReactiveCrowd:
         cols = np.arange(len(tau))
         log_end = self.log_xy_m[self.run_last[np.clip(np.floor(tau), 0, None).astype(int), cols], cols]
         to_end = np.linalg.norm(np.nan_to_num(xy - log_end, nan=np.inf), axis=1)
-        end_taken = np.linalg.norm(np.nan_to_num(log_end - robot.to_m, nan=np.inf), axis=1) < self.robot_reach_m + \
-            REJOIN_M  # the robot stands where the log ends: leave as close to it as it lets one get
-        present &= ~(lingering & ((to_end <= REJOIN_M) | (end_taken & (to_end <= LEAVE_BESIDE_ROBOT_M))))
+        blocked = np.linalg.norm(np.nan_to_num(xy - start), axis=1) < STILL_M  # the robot or others stand there
+        present &= ~(lingering & ((to_end <= REJOIN_M) | (blocked & (to_end <= LEAVE_BLOCKED_M))))
         off_log &= present
         xy[~present] = np.nan
         still = off_log & (np.linalg.norm(np.nan_to_num(xy - start), axis=1) < STILL_M)

@@ -42,7 +42,8 @@ class TrackBuffer:
 
     An agent keeps its row while it is present in consecutive pushed frames; a newcomer takes the lowest
     free row. ``run`` counts consecutive pushed frames of presence up to now (1 = appeared this frame).
-    ``row_ids`` holds -1 in empty rows, so agent ids must be >= 0 (``push`` refuses others).
+    ``row_ids`` holds -1 in empty rows, so agent ids must be >= 0 (``push`` refuses others). Every row's positions
+    over the kept frames are also held by row in a ring of columns, so ``history`` is a copy, not a search.
     """
 
     def __init__(self, n_max: int, t_obs: int, where: str):
@@ -51,11 +52,16 @@ class TrackBuffer:
         self.frames: deque[Frame] = deque(maxlen=self.depth)
         self.row_ids = np.full(n_max, -1, np.int64)
         self._run = np.zeros(0, np.int64)  # aligned with the sorted ids of the newest frame
+        self._ring_xy = np.zeros((self.depth, n_max, 2))  # column pushes % depth: every row's position then [m]
+        self._ring_seen = np.zeros((self.depth, n_max), bool)
+        self._pushes = 0
 
     def clear(self) -> None:
         self.frames.clear()
         self.row_ids[:] = -1
         self._run = np.zeros(0, np.int64)
+        self._ring_seen[:] = False
+        self._pushes = 0
 
     def push(self, frame: Frame) -> None:
         """Append a frame (any id order).
@@ -89,8 +95,34 @@ class TrackBuffer:
         self._run = run
         self.row_ids[~np.isin(self.row_ids, ids)] = -1
         newcomers = ids[~np.isin(ids, self.row_ids)]
-        self.row_ids[np.flatnonzero(self.row_ids < 0)[:len(newcomers)]] = newcomers
+        new_rows = np.flatnonzero(self.row_ids < 0)[:len(newcomers)]
+        self.row_ids[new_rows] = newcomers
+        self._ring_seen[:, self.row_ids < 0] = False
+        self._take_history(new_rows, newcomers)
+        column = self._pushes % self.depth
+        self._ring_seen[column] = False
+        rows = self._rows_of(ids)
+        self._ring_xy[column, rows] = xy_m
+        self._ring_seen[column, rows] = True
+        self._pushes += 1
         self.frames.append(Frame(frame.frame, ids, xy_m))
+
+    def _rows_of(self, ids: np.ndarray) -> np.ndarray:
+        """(Q,) the rows of ``ids``, which hold rows."""
+        order = np.argsort(self.row_ids)
+        return order[np.searchsorted(self.row_ids, ids, sorter=order)]
+
+    def _take_history(self, rows: np.ndarray, ids: np.ndarray) -> None:
+        """Fill the ring of rows just given to agents ``ids`` with where the kept frames saw them (an agent may come
+        back within the kept frames, in another row)."""
+        self._ring_seen[:, rows] = False
+        for age, kept in enumerate(reversed(self.frames), start=1):
+            idx = lookup(kept.ids, ids)
+            seen = idx >= 0
+            if seen.any():
+                column = (self._pushes - age) % self.depth
+                self._ring_xy[column, rows[seen]] = kept.xy_m[idx[seen]]
+                self._ring_seen[column, rows[seen]] = True
 
     @property
     def now(self) -> Frame:
@@ -110,16 +142,11 @@ class TrackBuffer:
                 clipped to +-POSITION_LIMIT_M (the observation space's bound).
             mask: (N_max, T_obs) bool, True where the agent was present in that frame.
         """
-        xy = np.zeros((self.n_max, self.t_obs, 2), np.float32)
-        mask = np.zeros((self.n_max, self.t_obs), bool)
-        rows = np.flatnonzero(self.row_ids >= 0)
-        ids = self.row_ids[rows]
-        recent = list(self.frames)[-self.t_obs:]
-        for col, frame in enumerate(recent, start=self.t_obs - len(recent)):
-            idx = lookup(frame.ids, ids)
-            seen = idx >= 0
-            xy[rows[seen], col] = np.clip(frame.xy_m[idx[seen]], -POSITION_LIMIT_M, POSITION_LIMIT_M)
-            mask[rows[seen], col] = True
+        columns = (self._pushes - self.t_obs + np.arange(self.t_obs)) % self.depth
+        mask = self._ring_seen[columns].T.copy()
+        mask[:, : max(self.t_obs - self._pushes, 0)] = False  # before the first frame
+        xy = np.where(mask[..., None], np.clip(self._ring_xy[columns].transpose(1, 0, 2), -POSITION_LIMIT_M,
+                                               POSITION_LIMIT_M), 0.0).astype(np.float32)
         return xy, mask
 
     def predictable_rows(self) -> np.ndarray:
@@ -129,11 +156,8 @@ class TrackBuffer:
 
     def recent_path(self, ids: np.ndarray, steps: int) -> np.ndarray:
         """(Q, steps, 2) float64 positions of ``ids`` over the last ``steps`` frames; ids must be present in all."""
-        frames = list(self.frames)[-steps:]
-        assert len(frames) == steps, f"only {len(frames)} frames kept, {steps} asked"
-        path = np.empty((len(ids), steps, 2))
-        for col, frame in enumerate(frames):
-            idx = lookup(frame.ids, ids)
-            assert (idx >= 0).all(), "recent_path asked for an agent absent from a kept frame"
-            path[:, col] = frame.xy_m[idx]
-        return path
+        assert len(self.frames) >= steps, f"only {len(self.frames)} frames kept, {steps} asked"
+        rows = self._rows_of(ids)
+        columns = (self._pushes - steps + np.arange(steps)) % self.depth
+        assert self._ring_seen[columns][:, rows].all(), "recent_path asked for an agent absent from a kept frame"
+        return self._ring_xy[columns][:, rows].transpose(1, 0, 2).copy()

@@ -152,7 +152,8 @@ class Constraints:
             frozen = np.zeros(n + 1, bool)
             while (stuck := closing() > no_closer).any():
                 newly = bodies.reshape(-1, 2)[stuck].ravel()[slot_gives[stuck][:, ::2].ravel()]
-                if frozen[newly].all():
+                newly = newly[~frozen[newly]]
+                if not newly.size:
                     break  # only bodies that may not be slowed (the ego) still close: outside the guarantee
                 frozen[newly] = True
                 v[np.concatenate([frozen, frozen])] = 0.0
@@ -160,7 +161,7 @@ class Constraints:
 
 
 def keep_apart(velocity_mps: np.ndarray, radius_m: np.ndarray, yielding: np.ndarray, nb: Neighbours,
-               walls: NearbyWalls, dt_s: float, give_m: float = 0.0) -> np.ndarray:
+               walls: NearbyWalls, dt_s: float, give_m: float = 0.0, crowd: np.ndarray | None = None) -> np.ndarray:
     """Velocities (N, 2) [m/s] trimmed so that no pair and no body-wall gap closes beyond contact within dt_s.
 
     Two bodies share a correction in proportion to how readily each yields: a walker (1) and a standing
@@ -180,6 +181,8 @@ def keep_apart(velocity_mps: np.ndarray, radius_m: np.ndarray, yielding: np.ndar
         nb: pairs, any superset of those that can touch within dt_s.  walls: the walls near every body.
         give_m: two yielding bodies may overlap this much before they stop closing (soft bodies) [m]; walls and
             the ego stay hard.
+        crowd: (N,) int, the crowd of each body when several crowds that never touch are solved at once (no pair
+            joins two crowds); each crowd gets the velocities it would get alone. None: one crowd.
     """
     yielding = np.asarray(yielding, dtype=np.float64)
     speed = np.sqrt(dot(velocity_mps, velocity_mps))
@@ -189,11 +192,14 @@ def keep_apart(velocity_mps: np.ndarray, radius_m: np.ndarray, yielding: np.ndar
     reach_mps = speed.copy()
     np.maximum.at(reach_mps, nb.i[touching], speed[nb.j[touching]])
     np.maximum.at(reach_mps, nb.j[touching], speed[nb.i[touching]])
+    crowd = np.zeros(len(speed), np.int64) if crowd is None else np.asarray(crowd)
     for _ in range(GROW_ROUNDS):
         system = Constraints.of(reach_mps, radius_m, yielding, nb, walls, dt_s, give_m)
         safe = system.settle(velocity_mps, yielding)
         speed = np.sqrt(dot(safe, safe))
-        if (speed <= REACH_FACTOR * reach_mps + SKIN_M / (2 * dt_s)).all():
+        outgrown = speed > REACH_FACTOR * reach_mps + SKIN_M / (2 * dt_s)
+        if not outgrown.any():
             break  # no pair or wall left out of the constraints can be reached at these speeds
-        reach_mps = np.maximum(reach_mps, speed)
+        again = np.isin(crowd, crowd[outgrown])  # only those crowds choose their constraints again
+        reach_mps = np.where(again, np.maximum(reach_mps, speed), reach_mps)
     return safe

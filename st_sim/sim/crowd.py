@@ -13,6 +13,8 @@ pedestrians that reached their exit leave, those stuck for ``patience_s`` pick a
 from __future__ import annotations
 
 import os
+from collections.abc import Sequence
+from dataclasses import dataclass
 from itertools import pairwise
 from pathlib import Path
 
@@ -40,7 +42,7 @@ from st_sim.sim.pairs import Neighbours, cap_speed
 from st_sim.sim.population import PROGRESS_M, PopulationError, Roster, choose_exits
 from st_sim.sim.spawning import Arrivals, initial_crowd, place_arrivals
 from st_sim.sim.stops import start_standing
-from st_sim.sim.sweep import Contact, closest_approach, first_contact
+from st_sim.sim.sweep import Contact, closest_approach, first_contact, first_touch
 from st_sim.sim.walls import WallGrid
 
 CONTACT_TOLERANCE_M = 0.01  # the ego counts as touching a wall this close [m]
@@ -48,6 +50,7 @@ NAV_SLACK_M = 0.05  # routes keep this much more than body + wall radius off the
 BODY_GIVE_M = 0.03  # two pedestrians may press this far into each other (soft bodies; pymunk's discs are smaller) [m]
 STANDING_YIELD = 0.1  # a standing pedestrian takes this share of a contact correction relative to a walker [-]
 STEERING = {SpeedModelConfig: speed_model, SocialForceConfig: social_force}  # modules with plan() and walk()
+GROUP_STRIDE = 1 << 40  # group ids of crowd k are offset by k x this when crowds step together
 
 
 def population_cap(cfg: CrowdConfig, layout: Layout) -> int:
@@ -63,6 +66,141 @@ def population_cap(cfg: CrowdConfig, layout: Layout) -> int:
         raise PopulationError(f"CrowdConfig.density_per_m2 = {cfg.density_per_m2} asks for {cap} pedestrians in "
                               f"layout {layout.name}; the simulator holds at most {MAX_POPULATION}")
     return cap
+
+
+@dataclass(frozen=True, eq=False)
+class StepPlan:
+    """What one crowd holds fixed over a step: the ego's target velocity (2,) [m/s], and per body (K,) whether it is a
+    pedestrian, its mass [kg], its walking speed [m/s] (0 while standing) and how readily it gives way [-]."""
+
+    ego_target_mps: np.ndarray
+    movable: np.ndarray
+    mass_kg: np.ndarray
+    walk_mps: np.ndarray
+    yielding: np.ndarray
+
+
+def step_crowds(sims: Sequence[CrowdSim], ego_velocities_mps: Sequence[np.ndarray | None]) -> None:
+    """Advance crowds of one layout and one config by one 0.4 s step together, as one set of arrays.
+
+    Per substep: every crowd's bodies are read (one batched pymunk call each) and stacked; one neighbour search
+    (crowds apart, ``Neighbours.within(tile=...)``), one wall lookup, one steering call, one contact pass
+    (``keep_apart(crowd=...)``) for them all; then each crowd's pymunk space takes its substep. Pairs come in a
+    canonical order and no computation mixes crowds, so each crowd moves exactly as it would stepped alone.
+
+    Args:
+        sims: the crowds (the same ``Layout`` object and an equal ``CrowdConfig``).
+        ego_velocities_mps: one commanded ego velocity (2,) [m/s] per crowd (None: stop), as ``CrowdSim.step``.
+    """
+    if len(sims) != len(ego_velocities_mps):
+        raise ValueError(f"step_crowds: {len(sims)} crowds but {len(ego_velocities_mps)} ego velocities")
+    if not sims:
+        return
+    first = sims[0]
+    if any(sim.layout is not first.layout or sim.cfg != first.cfg for sim in sims):
+        raise ValueError("step_crowds: every crowd must share one layout and one config")
+    cfg, dt_s, period = first.cfg, first._dt_s, first.layout.period
+    plans = [sim._begin_step(v) for sim, v in zip(sims, ego_velocities_mps, strict=True)]
+    sizes = np.array([len(sim._roster) for sim in sims])
+    crowd = np.repeat(np.arange(len(sims)), sizes)  # (M,) which crowd each body belongs to
+    bounds = np.r_[0, np.cumsum(sizes)]
+    rosters = [sim._roster for sim in sims]
+    radius_m = np.concatenate([r.radius_m for r in rosters])
+    exit_idx = np.concatenate([r.exit_idx for r in rosters])
+    group = np.concatenate([np.where(r.group >= 0, r.group + k * GROUP_STRIDE, -1) for k, r in enumerate(rosters)])
+    movable, mass_kg, walk_mps, yielding = (np.concatenate([getattr(p, name) for p in plans])
+                                            for name in ("movable", "mass_kg", "walk_mps", "yielding"))
+    sees_ego = np.array([sim._ego_seen for sim in sims])[crowd]
+    widest_m = np.array([sim._widest_m for sim in sims])
+    ego_rows = np.array([bounds[k] + sim._ego_slot for k, sim in enumerate(sims) if sim._ego_slot is not None], int)
+    egos = [sim for sim in sims if sim._ego_slot is not None]
+    ego_target = np.array([plan.ego_target_mps for sim, plan in zip(sims, plans, strict=True)
+                           if sim._ego_slot is not None]).reshape(-1, 2)
+    ego_accel = np.array([sim.ego_cfg.max_accel_mps2 * dt_s for sim in egos])
+    model, walls_grid, nav = first._model, first._walls, first.nav
+    marks = []  # (M, 2) positions of all crowds at the start of every substep, then at the end of the step
+    for substep in range(cfg.n_substeps):
+        states = [sim._read() for sim in sims]
+        xy_m = np.concatenate([xy for xy, _ in states]).reshape(-1, 2)
+        marks.append(xy_m)
+        v_mps = np.concatenate([v for _, v in states]).reshape(-1, 2)
+        speed2 = v_mps[:, 0] ** 2 + v_mps[:, 1] ** 2
+        fastest_mps = np.sqrt(np.array([speed2[a:b].max(initial=0.0) for a, b in pairwise(bounds)]))
+        cutoff_m = np.maximum(cfg.steering.agent_cutoff_m, pair_reach_m(2 * widest_m, fastest_mps, dt_s))
+        nb = Neighbours.within(xy_m, radius_m, cutoff_m[crowd], period, tile=crowd)
+        walls = walls_grid.near(xy_m)
+        seen = nb.take(sees_ego[nb.i] | (movable[nb.i] & movable[nb.j]))
+        if substep == 0:  # decide once per step; walk every substep
+            direction, speed_mps = cohesion(xy_m, nav.direction_at(exit_idx, xy_m), walk_mps, group, period)
+            heading = model.plan(v_mps, direction, speed_mps, radius_m, seen, walls, cfg.steering)
+        wanted_v = cap_speed(model.walk(heading, v_mps, speed_mps, radius_m, seen, walls, cfg.steering, dt_s),
+                             cfg.max_speed_factor * speed_mps)
+        if egos:
+            command = np.array([sim._ego_command_mps for sim in egos]).reshape(-1, 2)
+            command = command + cap_speed(ego_target - command, ego_accel)
+            for sim, c in zip(egos, command, strict=True):
+                sim._ego_command_mps = c
+            wanted_v[ego_rows] = v_mps[ego_rows] = command
+        safe_v = keep_apart(v_mps, radius_m, yielding, seen, walls, dt_s, BODY_GIVE_M, crowd=crowd)
+        force_n = mass_kg[:, None] * (wanted_v - safe_v) / dt_s
+        for k, sim in enumerate(sims):
+            rows = slice(bounds[k], bounds[k + 1])
+            sim._batch.write(safe_v[rows], force_n[rows])
+            sim.space.step(dt_s)
+            sim._roster.moved_mps[:] = safe_v[rows]
+        if egos:
+            ego_xy = np.array([sim._ego_body.position for sim in egos], np.float64).reshape(-1, 2)
+            touched = walls_grid.distance_m(ego_xy) - np.array([sim.ego_cfg.radius_m for sim in egos]) \
+                - WALL_RADIUS_M < CONTACT_TOLERANCE_M
+            for sim, t in zip(egos, touched, strict=True):
+                sim._ego_touched_wall |= bool(t)
+    xy_m = np.concatenate([sim._read()[0] for sim in sims]).reshape(-1, 2)
+    marks.append(xy_m)
+    sweep_egos(sims, marks, bounds, movable, dt_s)
+    at_exit = np.zeros(len(xy_m), bool)
+    for e, region in enumerate(first.layout.exits):
+        heading_there = movable & (exit_idx == e)
+        at_exit[heading_there] = region.contains(xy_m[heading_there])
+    iy, ix = nav.cells(xy_m)
+    to_exit_m = nav.distance_m[exit_idx, iy, ix]
+    for k, sim in enumerate(sims):
+        rows = slice(bounds[k], bounds[k + 1])
+        sim._end_step(xy_m[rows], at_exit[rows], to_exit_m[rows])
+
+
+def sweep_egos(sims: Sequence[CrowdSim], marks: list[np.ndarray], bounds: np.ndarray, pedestrian: np.ndarray,
+               dt_s: float) -> None:
+    """Each crowd's ego: its first pedestrian contact and least pedestrian distance over the step (``ego_contact``,
+    ``ego_nearest_m``), every body moving in a straight line within a substep.
+
+    Args:
+        marks: (M, 2) positions of all crowds' bodies at every substep boundary [m].  bounds: (S + 1,) the rows of
+            crowd k are bounds[k]:bounds[k + 1].  pedestrian: (M,) bool.
+    """
+    crowd = np.repeat(np.arange(len(sims)), np.diff(bounds))
+    ego_row = np.array([-1 if sim._ego_slot is None else bounds[k] + sim._ego_slot for k, sim in enumerate(sims)])
+    for sim in sims:
+        sim._ego_contact, sim._ego_nearest_m = None, np.inf
+    peds = np.flatnonzero(pedestrian & (ego_row[crowd] >= 0))
+    if not peds.size:
+        return
+    mine = ego_row[crowd[peds]]  # each pedestrian's ego
+    reach_m = np.array([sim.ego_cfg.radius_m + sim.cfg.radius_m if sim.ego_cfg else 0.0 for sim in sims])[crowd[peds]]
+    nearest = np.full(len(sims), np.inf)
+    first = sims[0]
+    for substep, (start, end) in enumerate(pairwise(marks)):
+        rel_from, rel_to = first._offset(start[peds] - start[mine]), first._offset(end[peds] - end[mine])
+        np.minimum.at(nearest, crowd[peds], closest_approach(rel_from, rel_to)[0])
+        touching = np.flatnonzero(~np.isnan(first_touch(rel_from, rel_to, reach_m)))
+        for k in np.unique(crowd[peds[touching]]).tolist():
+            sim = sims[k]
+            if sim._ego_contact is None:
+                own, ego = crowd[peds] == k, ego_row[k]
+                sim._ego_contact = first_contact(start[ego], end[ego], start[ego] + rel_from[own],
+                                                 end[ego] + rel_to[own], sim._roster.ped_id[peds[own] - bounds[k]],
+                                                 reach_m[own][0], dt_s, substep * dt_s)
+    for sim, value in zip(sims, nearest.tolist(), strict=True):
+        sim._ego_nearest_m = value
 
 
 class CrowdSim:
@@ -127,7 +265,6 @@ class CrowdSim:
             keep_clear_m = start[None]
         self.add(initial_crowd(self.nav, layout, cfg, n_initial, keep_clear_m,
                                 self._roster.radius_m.max(initial=0.0), self._next_group, rng, start_region))
-        self._settle_order()
         self._history: list[tuple[np.ndarray, np.ndarray]] = [(self.ids, self.positions_m)]
 
     def _top_speed_mps(self) -> float:
@@ -229,59 +366,50 @@ class CrowdSim:
 
     # ---------------------------------------------------------------- stepping
     def step(self, ego_velocity_mps: np.ndarray | None = None) -> None:
-        """Advance one 0.4 s step.
+        """Advance one 0.4 s step (``step_crowds`` with this crowd alone).
 
         Args:
             ego_velocity_mps: (2,) commanded ego velocity [m/s], clipped to the ego's max speed; the ego's
                 velocity moves toward it by at most max_accel_mps2 per second. None = stop (command zero).
         """
+        step_crowds([self], [ego_velocity_mps])
+
+    def _begin_step(self, ego_velocity_mps: np.ndarray | None) -> StepPlan:
+        """What the coming step holds fixed: the ego's target velocity and every body's mass, walking speed and
+        readiness to give way (standing pedestrians yield little, the ego not at all)."""
         target = np.zeros(2)
         if self._ego_body is not None and ego_velocity_mps is not None:
             target = cap_speed(np.asarray(ego_velocity_mps, dtype=np.float64).reshape(1, 2),
                                np.array([self.ego_cfg.max_speed_mps]))[0]
         self._ego_touched_wall = False
-        roster, period = self._roster, self.layout.period
+        roster = self._roster
         movable = roster.ped_id >= 0
-        mass_kg = np.where(movable, PED_MASS_KG, EGO_MASS_KG)[:, None]
         standing = roster.standing(self.step_count)
-        walk_mps = np.where(standing, 0.0, roster.speed_mps)
-        yielding = np.where(movable, np.where(standing, STANDING_YIELD, 1.0), 0.0)
-        marks = []  # positions at the start of every substep, then at the end of the step
-        for substep in range(self.cfg.n_substeps):
-            xy_m, v_mps = self._read()
-            marks.append(xy_m)
-            fastest_mps = float(np.sqrt(np.max(v_mps[:, 0] ** 2 + v_mps[:, 1] ** 2, initial=0.0)))
-            cutoff_m = max(self.cfg.steering.agent_cutoff_m, pair_reach_m(2 * self._widest_m, fastest_mps, self._dt_s))
-            nb = Neighbours.within(xy_m, roster.radius_m, cutoff_m, period)
-            walls = self._walls.near(xy_m)
-            seen = nb if self._ego_seen else nb.take(movable[nb.i] & movable[nb.j])
-            if substep == 0:  # decide once per step; walk every substep
-                direction, speed_mps = cohesion(xy_m, self.nav.direction_at(roster.exit_idx, xy_m), walk_mps,
-                                                roster.group, period)
-                heading = self._model.plan(v_mps, direction, speed_mps, roster.radius_m, seen, walls,
-                                           self.cfg.steering)
-            wanted_v = cap_speed(self._model.walk(heading, v_mps, speed_mps, roster.radius_m, seen, walls,
-                                                  self.cfg.steering, self._dt_s), self.cfg.max_speed_factor * speed_mps)
-            if self._ego_slot is not None:
-                self._ego_command_mps = self._ego_command_mps + cap_speed(
-                    (target - self._ego_command_mps)[None], np.array([self.ego_cfg.max_accel_mps2 * self._dt_s]))[0]
-                wanted_v[self._ego_slot] = v_mps[self._ego_slot] = self._ego_command_mps
-            safe_v = keep_apart(v_mps, roster.radius_m, yielding, seen, walls, self._dt_s, BODY_GIVE_M)
-            self._batch.write(safe_v, mass_kg * (wanted_v - safe_v) / self._dt_s)
-            self.space.step(self._dt_s)
-            self._ego_touched_wall |= self._ego_touches_wall()
-            roster.moved_mps[:] = safe_v
+        return StepPlan(target, movable, np.where(movable, PED_MASS_KG, EGO_MASS_KG),
+                        np.where(standing, 0.0, roster.speed_mps),
+                        np.where(movable, np.where(standing, STANDING_YIELD, 1.0), 0.0))
+
+    def _end_step(self, xy_m: np.ndarray, at_exit: np.ndarray, to_exit_m: np.ndarray) -> None:
+        """After the substeps, at the bodies' positions ``xy_m`` (K, 2) [m]: planned stops, rerouting, arrivals at the
+        exits and new arrivals (``at_exit`` (K,): inside the exit one heads to; ``to_exit_m`` (K,): walking distance
+        to it [m])."""
         self.step_count += 1
-        xy_m, _ = self._read()  # rows follow the roster: nothing was added or removed during the step
-        marks.append(xy_m)
-        self._sweep_ego(marks)
+        roster = self._roster
         if (roster.stop_step >= 0).any():
             start_standing(roster, self.step_count, self._in_gate(xy_m), self.cfg.population, self.rng)
-        if period is None:
-            self._reroute_stuck(xy_m)
-            stay = self._remove_arrived(xy_m)
-            self._spawn(xy_m[stay])
-        self._settle_order()
+        settled = False  # ``add`` aligns the roster with pymunk's new body order
+        if self.layout.period is None:
+            rerouted = self._reroute_stuck(xy_m, to_exit_m)
+            if rerouted.size:  # they head for another exit now
+                at_exit = at_exit.copy()
+                at_exit[rerouted] = self._inside_own_exit(xy_m[rerouted], roster.exit_idx[rerouted])
+            stay = self._remove_arrived(at_exit)
+            settled = self._spawn(xy_m[stay])
+            if not stay.all() and not settled:
+                self._settle_order()
+                settled = True
+        if not settled:  # pymunk's body order is unchanged: only the positions are new
+            self._xy_m = xy_m
         self._history.append((self.ids, self.positions_m))
 
     @property
@@ -306,36 +434,9 @@ class CrowdSim:
             inside |= region.contains(xy_m)
         return inside
 
-    def _sweep_ego(self, marks: list[np.ndarray]) -> None:
-        """The ego's first pedestrian contact and least pedestrian distance over the step, from the bodies' positions
-        (K, 2) at every substep boundary in ``marks`` (each body moving in a straight line within a substep)."""
-        self._ego_contact, self._ego_nearest_m = None, np.inf
-        slot = self._ego_slot
-        peds = np.flatnonzero(self._roster.ped_id >= 0)
-        if slot is None or not peds.size:
-            return
-        reach_m = self.ego_cfg.radius_m + self.cfg.radius_m
-        ids = self._roster.ped_id[peds]
-        for k, (start, end) in enumerate(pairwise(marks)):
-            peds_from = start[slot] + self._offset(start[peds] - start[slot])
-            peds_to = end[slot] + self._offset(end[peds] - end[slot])
-            nearest, _ = closest_approach(peds_from - start[slot], peds_to - end[slot])
-            self._ego_nearest_m = min(self._ego_nearest_m, float(nearest.min()))
-            if self._ego_contact is None:
-                self._ego_contact = first_contact(start[slot], end[slot], peds_from, peds_to, ids, reach_m,
-                                                  self._dt_s, k * self._dt_s)
-
     def _offset(self, offset_m: np.ndarray) -> np.ndarray:
         """(M, 2) offsets [m] as nearest images in a periodic layout (unchanged otherwise)."""
         return offset_m if self.layout.period is None else self.layout.period.nearest_image(offset_m)
-
-    def _ego_touches_wall(self) -> bool:
-        """Walls stop the ego speculatively (no pymunk contact), so wall contact is a distance check."""
-        if self._ego_body is None:
-            return False
-        xy = np.array([self._ego_body.position], dtype=np.float64)
-        gap = self._walls.distance_m(xy)[0] - self.ego_cfg.radius_m - WALL_RADIUS_M
-        return bool(gap < CONTACT_TOLERANCE_M)
 
     # ---------------------------------------------------------------- population
     def _admit(self, rows: Roster, bodies: list[pymunk.Body]) -> None:
@@ -344,7 +445,8 @@ class CrowdSim:
 
     def add(self, new: Arrivals) -> None:
         """Add the pedestrians of new (positions, exits, speeds, groups, stop plans) now, walking at their preferred
-        speed or standing; the caller makes sure that they do not overlap anybody. Their ids are fresh."""
+        speed or standing; the caller makes sure that they do not overlap anybody. Their ids are fresh. The roster
+        follows pymunk's new body order afterwards."""
         n = len(new.xy_m)
         walking = (new.go_step <= self.step_count)[:, None]
         velocity = new.speed_mps[:, None] * self.nav.direction_at(new.exit_idx, new.xy_m) * walking
@@ -356,62 +458,71 @@ class CrowdSim:
         self._admit(Roster.of([b.id for b in bodies], ped_id, new.exit_idx, new.speed_mps,
                               np.full(n, self.cfg.radius_m), velocity, self.step_count, new.group, new.stop_step,
                               new.go_step), bodies)
+        self._settle_order()
 
-    def _reroute_stuck(self, xy_m: np.ndarray) -> None:
+    def _reroute_stuck(self, xy_m: np.ndarray, to_exit_m: np.ndarray) -> np.ndarray:
         """Walking pedestrians that came no closer to their exit for cfg.patience_s head for another exit.
 
         Args:
-            xy_m: (K, 2) positions of the roster's bodies [m].
+            xy_m: (K, 2) positions of the roster's bodies [m].  to_exit_m: (K,) their walking distance to their exit.
+
+        Returns:
+            (R,) rows that now head for another exit.
         """
         rows = self._roster
-        iy, ix = self.nav.cells(xy_m)
-        to_exit = self.nav.distance_m[rows.exit_idx, iy, ix]
-        better = (to_exit < rows.best_to_exit_m - PROGRESS_M) | rows.standing(self.step_count)
-        rows.best_to_exit_m[better] = to_exit[better]
+        better = (to_exit_m < rows.best_to_exit_m - PROGRESS_M) | rows.standing(self.step_count)
+        rows.best_to_exit_m[better] = to_exit_m[better]
         rows.progress_step[better] = self.step_count
         stuck = np.flatnonzero((rows.ped_id >= 0)
                                & (self.step_count - rows.progress_step > self.cfg.patience_s / STEP_S))
-        if stuck.size:
-            exit_idx, ok = choose_exits(self.nav, xy_m[stuck], np.ones(len(self.layout.exits), bool), self.rng)
-            rows.exit_idx[stuck[ok]] = exit_idx[ok]
-            rows.best_to_exit_m[stuck] = np.inf
-            rows.progress_step[stuck] = self.step_count
+        if not stuck.size:
+            return stuck
+        exit_idx, ok = choose_exits(self.nav, xy_m[stuck], np.ones(len(self.layout.exits), bool), self.rng)
+        rows.exit_idx[stuck[ok]] = exit_idx[ok]
+        rows.best_to_exit_m[stuck] = np.inf
+        rows.progress_step[stuck] = self.step_count
+        return stuck[ok]
 
-    def _remove_arrived(self, xy_m: np.ndarray) -> np.ndarray:
-        """Remove pedestrians standing inside the exit they head to.
+    def _inside_own_exit(self, xy_m: np.ndarray, exit_idx: np.ndarray) -> np.ndarray:
+        """(N,) bool: each point (N, 2) [m] lies inside exit ``exit_idx`` (N,)."""
+        inside = np.zeros(len(xy_m), bool)
+        for e in np.unique(exit_idx):
+            mine = exit_idx == e
+            inside[mine] = self.layout.exits[e].contains(xy_m[mine])
+        return inside
 
-        Args:
-            xy_m: (K, 2) positions of the roster's bodies [m].
+    def _remove_arrived(self, at_exit: np.ndarray) -> np.ndarray:
+        """Remove the pedestrians standing inside the exit they head to (``at_exit`` (K,) bool, per body).
 
         Returns:
             (K,) bool, True for the bodies that stay (the roster keeps only those, in the same order).
         """
         rows = self._roster
-        gone = np.zeros(len(rows), bool)
-        is_ped = rows.ped_id >= 0
-        for e in np.unique(rows.exit_idx[is_ped]):
-            mine = is_ped & (rows.exit_idx == e)
-            gone[mine] = self.layout.exits[e].contains(xy_m[mine])
+        gone = at_exit & (rows.ped_id >= 0)
         for body_id in rows.body_id[gone].tolist():
             body = self._bodies.pop(body_id)
             self.space.remove(body, *body.shapes)
         self._roster = rows.take(~gone)
         return ~gone
 
-    def _spawn(self, xy_m: np.ndarray) -> None:
+    def _spawn(self, xy_m: np.ndarray) -> bool:
         """Poisson arrivals (pedestrians alone or in groups) at every entry, while below the cap and where there
         is room.
 
         Args:
             xy_m: (K, 2) positions of the roster's bodies [m].
+
+        Returns:
+            True if anybody arrived.
         """
         counts = self.rng.poisson(self.cfg.spawn_rate_hz * STEP_S, len(self.layout.entries))
         room = self.max_pedestrians - int(np.count_nonzero(self._roster.ped_id >= 0))
         if room <= 0 or not counts.any():
-            return
+            return False
         arrivals = place_arrivals(self.nav, self.layout, self.cfg, counts, room, xy_m, self._roster, self.step_count,
                                   self._next_group, self.rng)
         self.add(arrivals)
+        return len(arrivals.xy_m) > 0
 
     def _settle_order(self) -> None:
         """Align the roster with pymunk's body order and cache positions, velocities and the id order."""

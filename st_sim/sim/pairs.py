@@ -48,21 +48,37 @@ class Neighbours:
     contact_m: np.ndarray
 
     @classmethod
-    def within(cls, xy_m: np.ndarray, radius_m: np.ndarray, cutoff_m: float,
-               period: Period | None = None) -> Neighbours:
-        """All pairs of the discs at xy_m (N, 2) [m] with radii radius_m (N,) [m] whose centres are closer
-        than cutoff_m [m] (k-d tree search; across the seam of a periodic layout)."""
+    def within(cls, xy_m: np.ndarray, radius_m: np.ndarray, cutoff_m: float | np.ndarray,
+               period: Period | None = None, tile: np.ndarray | None = None) -> Neighbours:
+        """All pairs of the discs at xy_m (N, 2) [m] with radii radius_m (N,) [m] whose centres are closer than
+        cutoff_m [m] (one value, or (N,) one per disc: a pair is kept when closer than its first disc's), sorted by
+        i then j (k-d tree search; across the seam of a periodic layout).
+
+        With ``tile`` (N,) int, discs of different tiles never pair: one search serves many crowds laid side by side
+        (each tile is moved apart in y for the search only), and each crowd gets the pairs, in the order, that a
+        search of its own discs would give.
+        """
+        cutoff = np.broadcast_to(np.asarray(cutoff_m, np.float64), (len(xy_m),))
+        reach = float(cutoff.max(initial=0.0))
+        coordinates = xy_m
+        if tile is not None and len(xy_m):
+            span = float(np.ptp(xy_m[:, 1])) + 2 * reach + 1.0
+            coordinates = xy_m + np.stack([np.zeros(len(xy_m)), np.asarray(tile, np.float64) * span], axis=-1)
+        search = reach * (1 + 1e-9) + 1e-9  # the tree's rounding must not drop a pair that the exact test keeps
         if period is None:
-            tree = cKDTree(xy_m, balanced_tree=False, compact_nodes=False)  # quicker to build for a few hundred
+            tree = cKDTree(coordinates, balanced_tree=False, compact_nodes=False)  # quicker to build for a few hundred
         else:
-            coordinates, boxsize = period.tree_input(xy_m, cutoff_m)
+            coordinates, boxsize = period.tree_input(coordinates, search)
             tree = cKDTree(coordinates, balanced_tree=False, compact_nodes=False, boxsize=boxsize)
-        pairs = tree.query_pairs(cutoff_m, output_type="ndarray").reshape(-1, 2)
+        pairs = tree.query_pairs(search, output_type="ndarray").reshape(-1, 2)
+        pairs = pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))]
         i, j = pairs[:, 0], pairs[:, 1]
         offset = xy_m[j] - xy_m[i]
         if period is not None:
             offset = period.nearest_image(offset)
         dist = np.sqrt(dot(offset, offset))
+        keep = dist < cutoff[i]
+        i, j, offset, dist = i[keep], j[keep], offset[keep], dist[keep]
         return cls(i, j, offset, dist, offset / np.maximum(dist, 1e-9)[:, None], radius_m[i] + radius_m[j])
 
     def take(self, keep: np.ndarray) -> Neighbours:
