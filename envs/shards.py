@@ -59,6 +59,12 @@ class Shard:
     def close(self) -> None:
         self.vec.close()
 
+    def node_id(self) -> str:
+        """The Ray node this shard runs on (Ray actors only)."""
+        import ray
+
+        return ray.get_runtime_context().get_node_id()
+
 
 class ShardedVectorEnv(VectorEnv):
     """``num_envs`` sub-envs of one STCrowd id in ``shards`` parallel shards (see the module docstring).

@@ -3,7 +3,9 @@ step by step and through autoresets, with one batched forecast per step."""
 
 from __future__ import annotations
 
+import os
 from collections.abc import Mapping
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
@@ -124,3 +126,52 @@ def test_every_id_has_a_native_vector_entry_point(env_id: str) -> None:
 def test_vector_env_arguments_are_checked(kwargs: dict, match: str) -> None:
     with pytest.raises(EnvInputError, match=match):
         gym.make_vec("STCrowd-SimCrossing-v1", vectorization_mode="vector_entry_point", predictor="cvm", **kwargs)
+
+
+def run_both(ours, theirs, steps: int, seed: int, where: str) -> None:
+    """Reset both vector envs alike and step them with the same random actions, comparing every step."""
+    assert_same_nested(ours.reset(seed=seed)[0], theirs.reset(seed=seed)[0], f"{where}, reset")
+    rng = np.random.default_rng(seed)
+    for t in range(steps):
+        actions = rng.uniform(-1.6, 1.6, ours.action_space.shape).astype(np.float32)
+        assert_same_step(ours.step(actions), theirs.step(actions), f"{where}, step {t}")
+
+
+@pytest.mark.parametrize("autoreset_mode", [AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP])
+def test_a_vector_env_in_worker_processes_equals_the_one_process_vector_env(autoreset_mode: AutoresetMode) -> None:
+    kwargs = {"num_envs": 5, "max_episode_steps": SHORT, "autoreset_mode": autoreset_mode}
+    local = gym.make_vec("STCrowd-SimCrossing-v1", **kwargs)
+    sharded = gym.make_vec("STCrowd-SimCrossing-v1", shards=2, **kwargs)
+    try:
+        assert sharded.sizes == [3, 2]
+        run_both(sharded, local, 2 * SHORT, 4, "2 shards")
+        bad = np.zeros((5, 2), np.float32)
+        bad[4, 1] = np.inf
+        with pytest.raises(EnvInputError, match="finite"):  # refused before any shard moves
+            sharded.step(bad)
+        good = np.full((5, 2), 0.3, np.float32)
+        assert_same_step(sharded.step(good), local.step(good), "after a refused action")
+    finally:
+        sharded.close(), local.close()
+
+
+def test_a_vector_env_on_two_ray_nodes_equals_the_one_process_vector_env() -> None:
+    import ray
+    from ray.cluster_utils import Cluster
+
+    paths = os.pathsep.join([str(Path(__file__).parents[1]), os.environ.get("PYTHONPATH", "")])
+    cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": 1})
+    cluster.add_node(num_cpus=1)
+    ray.init(address=cluster.address, include_dashboard=False, log_to_driver=False, runtime_env={"env_vars": {
+        "STCROWD_DATA": str(Path(os.environ["STCROWD_DATA"]).resolve()), "PYTHONPATH": paths}})
+    try:
+        kwargs = {"num_envs": 4, "max_episode_steps": SHORT, "predictor": "cvm-s"}
+        local = gym.make_vec("STCrowd-SimCrossing-v1", **kwargs)
+        on_ray = gym.make_vec("STCrowd-SimCrossing-v1", shards=2, executor="ray", **kwargs)
+        nodes = {ray.get(shard.actor.node_id.remote()) for shard in on_ray._shards}
+        assert len(nodes) == 2, "each shard should sit on a node of its own (one CPU each)"
+        run_both(on_ray, local, SHORT + 3, 7, "Ray shards")
+        on_ray.close(), local.close()
+    finally:
+        ray.shutdown()
+        cluster.shutdown()
