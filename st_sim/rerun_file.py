@@ -118,7 +118,7 @@ class RecordingSink:
             path.unlink(missing_ok=True)
             raise
         finally:
-            os.close(write_end)  # Rerun holds its own descriptor: the pipe ends when Rerun disconnects
+            os.close(write_end)  # Rerun opened its own descriptor of the pipe
         self._thread = threading.Thread(target=self._copy, name=f"rerun {path.name}", daemon=True)
         self._thread.start()
 
@@ -164,10 +164,10 @@ class RecordingSink:
         """Wait until the pipe is empty; returns (bytes in the file, the write error or None) at that moment."""
         deadline = time.monotonic() + FLUSH_TIMEOUT_S
         with self._copied:
-            while _unread_bytes(self._pipe) and self._thread.is_alive():
-                if not self._copied.wait(timeout=max(0.0, deadline - time.monotonic())):
-                    self.error = RecordingWriteError(f"{self.path}: the recording did not reach the file within "
-                                                     f"{FLUSH_TIMEOUT_S:g} s")
+            while _unread_bytes(self._pipe):
+                if not self._thread.is_alive() or not self._copied.wait(max(0.0, deadline - time.monotonic())):
+                    self.error = RecordingWriteError(f"{self.path}: the recording did not reach the file (its copy "
+                                                     f"thread stopped, or took over {FLUSH_TIMEOUT_S:g} s)")
                     raise self.error
             return self._file_bytes, self._write_error
 
