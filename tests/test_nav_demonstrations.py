@@ -126,6 +126,24 @@ def test_a_stopped_training_continues_from_its_saved_state(tmp_path: Path) -> No
     assert curve[-1]["timesteps"] == 512
     with pytest.raises(ValueError, match=r"resume\.zip: saved by a run with other settings \(seed\)"):
         main(parse_args([*args, "--timesteps", "768", "--seed", "1"]))
+    with pytest.raises(ValueError, match=r"holds a run of 512 env steps; --timesteps 256 cannot shrink it"):
+        main(parse_args([*args, "--timesteps", "256"]))
+    assert json.loads((tmp_path / "run" / "training.json").read_text())["config"]["timesteps"] == 512
+
+
+@pytest.mark.parametrize("damage", ["missing", "garbage", "list"])
+def test_a_saved_run_without_readable_settings_is_one_error_line(tmp_path: Path, damage: str,
+                                                                 capsys: pytest.CaptureFixture) -> None:
+    from st_sim.apps.navigation.train_ppo import cli
+
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "resume.zip").write_bytes(b"PK")
+    if damage != "missing":
+        (run / "resume.json").write_text("{not json" if damage == "garbage" else "[1, 2]")
+    assert cli(["--no-predictions", "--num-envs", "2", "--timesteps", "256", "--out", str(run), "--quiet"]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith(f"error: {run}/resume") and err.count("\n") == 1, err
 
 
 def test_dropping_the_prediction_columns_gives_the_features_without_predictions() -> None:

@@ -171,7 +171,16 @@ def resumable_state(cfg: TrainConfig) -> tuple[Path, list[dict]] | None:
     out = Path(cfg.out)
     if not (out / "resume.zip").is_file():
         return None
-    saved = json.loads((out / "resume.json").read_text())
+    try:
+        saved = json.loads((out / "resume.json").read_text())
+    except FileNotFoundError:
+        raise ValueError(f"{out}/resume.zip has no resume.json beside it (the settings it was saved with); use "
+                         "another --out, or delete resume.zip to start afresh") from None
+    except (OSError, ValueError) as err:
+        raise ValueError(f"{out}/resume.json: cannot read the settings of the saved run ({err}); use another --out, "
+                         "or delete resume.zip and resume.json to start afresh") from None
+    if not isinstance(saved, dict):
+        raise ValueError(f"{out}/resume.json: expected the saved run's settings as a JSON object")
     wanted = json.loads(json.dumps({k: asdict(cfg)[k] for k in RESUMABLE}, default=str))
     differing = sorted(k for k in RESUMABLE if saved.get(k) != wanted[k])
     if differing:
@@ -238,6 +247,10 @@ def main(cfg: TrainConfig) -> Path:
     if saved is not None:
         model = PPO.load(saved[0], env=vec, device="cpu")
         resumed_from, curve = int(model.num_timesteps), saved[1]
+        if resumed_from > cfg.timesteps:
+            vec.close()
+            raise ValueError(f"{out} holds a run of {resumed_from} env steps; --timesteps {cfg.timesteps} cannot "
+                             "shrink it (ask for more to extend it, or use another --out)")
         print(f"resuming {saved[0]} at {resumed_from} env steps")
     elif cfg.demo_steps > 0:
         demos = load_or_collect(DemoSpec(cfg.env_id, cfg.demo_steps), cfg.demos, cfg.progress)
@@ -329,5 +342,16 @@ def parse_args(argv: list[str] | None = None) -> TrainConfig:
                        save_every=args.save_every, out=args.out, ship_as=args.ship, progress=not args.quiet)
 
 
+def cli(argv: list[str] | None = None) -> int:
+    """The command: train, or print one ``error: ...`` line and return 1 for a run it cannot start or resume."""
+    cfg = parse_args(argv)
+    try:
+        main(cfg)
+    except ValueError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 1
+    return 0
+
+
 if __name__ == "__main__":
-    main(parse_args())
+    sys.exit(cli())
