@@ -22,6 +22,7 @@ the grid runner (resumable, ``--executor ray``). Writes ``OUT/study.json`` and t
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import os
 import sys
@@ -71,16 +72,22 @@ def stream_job(spec: str, seeds: int, steps: int, output: str) -> None:
     write_text_atomic(output, json.dumps({"spec": spec, "per_seed": per_seed}))
 
 
+def cell_key(label: str) -> str:
+    """A predictor's name in the cells' file names: its label and a digest of its spec, so that a label given to
+    another spec (``--plugin mine=...`` changed) makes new cells instead of reusing the old spec's results."""
+    return f"{label}-{hashlib.sha256(PREDICTORS[label].encode()).hexdigest()[:10]}"
+
+
 def open_loop_of(env: str, label: str, out: Path) -> tuple[Job, Path]:
     """The job scoring a predictor open loop in an env, and its output."""
     spec = PREDICTORS[label]
     if env == "sim":
-        output = out / "open" / f"sim__{label}.json"
+        output = out / "open" / f"sim__{cell_key(label)}.json"
         return Job(f"open/sim/{label}", "open_closed_loop:stream_job",
                    {"spec": spec, "seeds": STREAM_SEEDS, "steps": STREAM_STEPS, "output": str(output)},
                    str(output)), output
     source = f"shipped:stochastic/{env}" if spec == "singular" else spec
-    output = out / "open" / f"{env}__{label}.json"
+    output = out / "open" / f"{env}__{cell_key(label)}.json"
     return Job(f"open/{env}/{label}", "st_sim.apps.evaluate:evaluate_job",
                {"source": source, "task": "stochastic", "scene": env, "root": None, "stream": False,
                 "momentary_from_8": False, "rerun_path": None, "output": str(output)}, str(output)), output
@@ -207,7 +214,7 @@ def main() -> None:
     for env, label in cells:
         env_id, mode = ENVS[env]
         run = NavRun(env_id, "mpc", PREDICTORS[label], args.episodes, 0, pedestrians=mode)
-        output = out / "closed" / f"{env}__{label}__{args.episodes}ep.json"
+        output = out / "closed" / f"{env}__{cell_key(label)}__{args.episodes}ep.json"
         closed_jobs[env, label] = grid_job(f"closed/{env}/{label}", run, output)
     jobs = [job for job, _ in open_jobs.values()] + list(closed_jobs.values())
     raise_on_failure(run_jobs(jobs, desc="cells", **grid))
