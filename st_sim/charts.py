@@ -17,7 +17,7 @@ import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from scipy.ndimage import uniform_filter1d
@@ -31,7 +31,7 @@ if TYPE_CHECKING:
 DPI = 150  # pixels per inch of the written PNGs
 PANEL_IN = (6.0, 3.2)  # width, height of one panel [inches]
 MARKERS = "osD^v<>"  # marker of each measured series in ``band_chart``, in turn
-LABEL_RINGS = (1, 2, 3, 4)  # distances of the candidate label positions, in multiples of the nearest ring
+LABEL_RINGS = (1, 2, 3, 4)  # candidate label positions lie on these rings, in multiples of the innermost
 LABEL_OFFSETS_PT = [(dx * r, dy * r) for r in LABEL_RINGS for dx, dy in  # candidate label positions [points]
                     ((6, 6), (6, -10), (-6, 6), (-6, -10), (8, -2), (-8, -2), (0, 10), (0, -14))]
 
@@ -50,8 +50,9 @@ class ScatterPoint:
     y_interval: tuple[float, float] | None = None
 
 
-def new_figure(**kwargs) -> Figure:
-    """A matplotlib ``Figure`` on its own Agg canvas (no pyplot state, no window), laid out by constrained layout.
+def new_figure(**kwargs: Any) -> Figure:
+    """A matplotlib ``Figure`` on its own Agg canvas (no pyplot state, no window), laid out by constrained layout;
+    ``kwargs`` go to ``Figure`` (``figsize`` in inches).
 
     Raises:
         ImportError: matplotlib is not installed; the message gives the command that installs it.
