@@ -69,6 +69,10 @@ class RewardWeights:
     discomfort: float = 0.0
     """per metre that the nearest pedestrian's body is inside ``EnvConfig.discomfort_m`` of the ego's body, per step
     (CrowdNav's discomfort term; its setting, factor 10 over a 0.4 s step, is -4.0; 0: off)"""
+    prediction: float = 0.0
+    """per step, times 0.5^(k - 1) for the soonest future step k at which the ego's course (held at its velocity)
+    meets a pedestrian's mean predicted position (part ``predicted_collision``; CrowdNav++'s prediction-aware term;
+    0: off)"""
 
     def __post_init__(self) -> None:
         check_fields(self, {f.name: Interval(-WEIGHT_LIMIT, WEIGHT_LIMIT) for f in fields(self)})

@@ -50,8 +50,10 @@ from replays.scenes import Scene
 from st_sim.sim.sweep import Contact, closest_approach, first_contact
 
 EGO_FIELDS = ("x_m", "y_m", "vx_mps", "vy_mps", "goal_x_m", "goal_y_m")  # layout of obs["ego"]
-REWARD_PARTS = ("progress", "goal", "pedestrian_collision", "wall_collision", "off_map", "time", "discomfort")
-WEIGHT_OF: dict[str, str] = {"pedestrian_collision": "collision", "wall_collision": "collision"}
+REWARD_PARTS = ("progress", "goal", "pedestrian_collision", "wall_collision", "off_map", "time", "discomfort",
+                "predicted_collision")
+WEIGHT_OF: dict[str, str] = {"pedestrian_collision": "collision", "wall_collision": "collision",
+                              "predicted_collision": "prediction"}
 """reward parts weighted by a ``RewardWeights`` field of another name (both collision kinds share its weight)"""
 TERMINATIONS: tuple[str, ...] = ("pedestrian_collision", "wall_collision", "goal")
 """values of ``info["termination"]`` besides None, by precedence (the first part that is 1 names the end)"""
@@ -387,9 +389,23 @@ class CrowdEnv(gym.Env):
                  "goal": float(distance_m <= self.cfg.goal_radius_m),
                  "pedestrian_collision": float(pedestrian), "wall_collision": float(wall and not pedestrian),
                  "off_map": float(not walkable), "time": 1.0,
-                 "discomfort": float(max(0.0, self.cfg.discomfort_m - gap_m))}
+                 "discomfort": float(max(0.0, self.cfg.discomfort_m - gap_m)),
+                 "predicted_collision": self._predicted_collision()}
         self.metrics.update_ego(pedestrian or wall, closest_m)
         return parts
+
+    def _predicted_collision(self) -> float:
+        """0.5^(k - 1) for the soonest future step k (1..12) at which the ego, held at its velocity, would be within
+        the contact distance of a pedestrian's mean predicted position (over the S samples of the newest forecast);
+        0 if never (CrowdNav++'s prediction-aware term)."""
+        predicted = self._obs["futures_mask"]
+        if not predicted.any():
+            return 0.0
+        mean = self._obs["futures"][predicted].mean(axis=1)  # (P, 12, 2)
+        ahead = STEP_S * np.arange(1, T_PRED + 1)[:, None] * self.ego_velocity_mps  # (12, 2)
+        reach = self.cfg.ego_radius_m + self.cfg.pedestrian_radius_m
+        meets = (np.linalg.norm(mean - (self.ego_xy_m + ahead), axis=-1) < reach).any(axis=0)  # (12,)
+        return float(0.5 ** np.argmax(meets)) if meets.any() else 0.0
 
     def _nearest_now_m(self) -> float:
         """Centre distance from the ego to the nearest pedestrian of the newest frame [m] (inf: nobody)."""

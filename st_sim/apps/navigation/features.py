@@ -7,7 +7,9 @@ left. Features, all scaled to about [-1, 1]:
 - pedestrians (6 nearest within the sensor range, by distance; absent slots all zero): present flag, position / 5 m
   and velocity / speed limit relative to the ego (5 each); with predictions also the mean predicted position over the
   samples 0.8, 1.6 and 3.2 s ahead / 5 m (6) and the samples' spread (root mean square distance from that
-  mean) 1.6 and 3.2 s ahead / 2 m (2).
+  mean) 1.6 and 3.2 s ahead / 2 m (2); with ``closest_approach`` also the forecast's summary for the robot: the least
+  distance between the mean predicted path and the robot's course held at its velocity over the 4.8 s forecast / 5 m,
+  and when / 4.8 s (2).
 The action (2,) in [-1, 1] is the velocity along x and y in speed limits.
 """
 
@@ -20,6 +22,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from replays.constants import STEP_S, T_PRED
 from st_sim.apps.navigation.pedestrians import pedestrians_of
 from st_sim.apps.navigation.world import NavWorld, world_of
 
@@ -43,12 +46,20 @@ class FeatureConfig:
     sensor_range_m: float = math.inf
     """pedestrians whose centre is farther from the ego's are left out [m] (train in an env with the same
     ``EnvConfig.sensor_range_m``, which then forecasts only the ones the policy sees)"""
+    closest_approach: bool = False
+    """with predictions, also each pedestrian's predicted closest approach to the robot's course and its time"""
 
     @property
     def size(self) -> int:
         """Length of the feature vector."""
-        per_pedestrian = 5 + (2 * len(PREDICTED_STEPS) + len(SPREAD_STEPS) if self.use_predictions else 0)
-        return 3 + RAY_COUNT + NEAREST * per_pedestrian
+        return 3 + RAY_COUNT + NEAREST * self.slot_size
+
+    @property
+    def slot_size(self) -> int:
+        """Features per pedestrian slot."""
+        if not self.use_predictions:
+            return 5
+        return 5 + 2 * len(PREDICTED_STEPS) + len(SPREAD_STEPS) + (2 if self.closest_approach else 0)
 
 
 def path_frame(obs: dict[str, np.ndarray], world: NavWorld) -> np.ndarray:
@@ -73,9 +84,9 @@ def encode(obs: dict[str, np.ndarray], world: NavWorld, cfg: FeatureConfig, fram
     blocked = world.terrain.clearance_at(ego_xy + rays[:, None] * reach[:, None]) <= world.wall_clearance_m  # (R, D)
     free_m = np.where(blocked.any(axis=1), reach[np.argmax(blocked, axis=1)] - RAY_STEP_M, RAY_RANGE_M)
 
-    peds = pedestrians_of(obs, max(PREDICTED_STEPS), cfg.use_predictions)
-    per_pedestrian = (cfg.size - 3 - RAY_COUNT) // NEAREST
-    slots = np.zeros((NEAREST, per_pedestrian))
+    horizon = T_PRED if cfg.use_predictions and cfg.closest_approach else max(PREDICTED_STEPS)
+    peds = pedestrians_of(obs, horizon, cfg.use_predictions)
+    slots = np.zeros((NEAREST, cfg.slot_size))
     distance_m = np.linalg.norm(peds.xy_m - ego_xy, axis=1)
     nearest = np.argsort(distance_m)[:NEAREST]
     nearest = nearest[distance_m[nearest] <= cfg.sensor_range_m]
@@ -88,15 +99,18 @@ def encode(obs: dict[str, np.ndarray], world: NavWorld, cfg: FeatureConfig, fram
             spread = np.sqrt(((samples - mean) ** 2).sum(axis=-1).mean(axis=0))  # (H,)
             row += [*(((mean[[s - 1 for s in PREDICTED_STEPS]] - ego_xy) @ frame.T) / POSITION_SCALE_M).ravel(),
                     *(spread[[s - 1 for s in SPREAD_STEPS]] / SPREAD_SCALE_M)]
+            if cfg.closest_approach:
+                course = ego_xy + STEP_S * np.arange(1, len(mean) + 1)[:, None] * ego_v  # (H, 2)
+                gap = np.linalg.norm(mean - course, axis=-1)
+                row += [gap.min() / POSITION_SCALE_M, (np.argmin(gap) + 1) / len(mean)]
         slots[slot] = row
     return np.concatenate([ego, free_m / RAY_RANGE_M, slots.ravel()]).astype(np.float32)
 
 
-def drop_predictions(features: np.ndarray) -> np.ndarray:
-    """(..., FeatureConfig(True).size) features -> (..., FeatureConfig(False).size): the same observation's
+def drop_predictions(features: np.ndarray, cfg: FeatureConfig = FeatureConfig(True)) -> np.ndarray:
+    """(..., cfg.size) features with predictions -> (..., FeatureConfig(False).size): the same observation's
     features without the prediction columns (each pedestrian slot keeps its first 5 values)."""
-    per_pedestrian = (FeatureConfig(True).size - 3 - RAY_COUNT) // NEAREST
-    slots = features[..., 3 + RAY_COUNT:].reshape(*features.shape[:-1], NEAREST, per_pedestrian)[..., :5]
+    slots = features[..., 3 + RAY_COUNT:].reshape(*features.shape[:-1], NEAREST, cfg.slot_size)[..., :5]
     return np.concatenate([features[..., :3 + RAY_COUNT], slots.reshape(*features.shape[:-1], -1)], axis=-1)
 
 

@@ -32,24 +32,42 @@ class PolicyFileError(ValueError):
     """A policy file is missing, truncated, foreign, or does not match its manifest."""
 
 
-def build_policy(cfg: FeatureConfig, net_arch: list[int]) -> Any:
-    """A fresh stable-baselines3 actor-critic (tanh MLP) for ``cfg``'s features and path-frame actions."""
+EXTRACTORS: tuple[str, ...] = ("flat", "attention")
+"""how the actor-critic reads the features: the flat vector, or ``attention.PedestrianAttention``"""
+
+
+def policy_kwargs(cfg: FeatureConfig, net_arch: list[int], extractor: str = "flat") -> dict[str, Any]:
+    """stable-baselines3 ``policy_kwargs`` of the actor-critic: tanh layers ``net_arch`` for actor and critic, on the
+    flat features or on ``PedestrianAttention`` of them."""
     import torch
+
+    if extractor not in EXTRACTORS:
+        raise ValueError(f"extractor={extractor!r}: expected one of {', '.join(EXTRACTORS)}")
+    kwargs: dict[str, Any] = {"net_arch": dict(pi=list(net_arch), vf=list(net_arch)), "activation_fn": torch.nn.Tanh}
+    if extractor == "attention":
+        from st_sim.apps.navigation.attention import PedestrianAttention
+
+        kwargs |= {"features_extractor_class": PedestrianAttention, "features_extractor_kwargs": {"config": cfg}}
+    return kwargs
+
+
+def build_policy(cfg: FeatureConfig, net_arch: list[int], extractor: str = "flat") -> Any:
+    """A fresh stable-baselines3 actor-critic for ``cfg``'s features and path-frame actions (``policy_kwargs``)."""
     from gymnasium import spaces
     from stable_baselines3.common.policies import ActorCriticPolicy
 
     return ActorCriticPolicy(spaces.Box(-np.inf, np.inf, (cfg.size,), np.float32),
                              spaces.Box(-1.0, 1.0, (2,), np.float32), lambda _: 0.0,
-                             net_arch=dict(pi=list(net_arch), vf=list(net_arch)), activation_fn=torch.nn.Tanh)
+                             **policy_kwargs(cfg, net_arch, extractor))
 
 
-def save_policy(policy: Any, cfg: FeatureConfig, net_arch: list[int], path: str | Path) -> str:
+def save_policy(policy: Any, cfg: FeatureConfig, net_arch: list[int], path: str | Path, extractor: str = "flat") -> str:
     """Write the policy's weights and settings atomically; returns the file's SHA-256."""
     import torch
 
     from replays.atomic import atomic_path
 
-    state = {"format": FORMAT, "features": asdict(cfg), "net_arch": list(net_arch),
+    state = {"format": FORMAT, "features": asdict(cfg), "net_arch": list(net_arch), "extractor": extractor,
              "weights": {k: v.detach().cpu().clone() for k, v in policy.state_dict().items()}}
     with atomic_path(path) as tmp:
         torch.save(state, tmp)
@@ -81,11 +99,11 @@ def load_policy(name_or_path: str | Path) -> tuple[Any, FeatureConfig]:
         raise PolicyFileError(f"{path}: not a readable policy file (truncated or not a torch file): {err}") from err
     if not isinstance(state, dict) or state.get("format") != FORMAT:
         raise PolicyFileError(f"{path}: not an STCrowd navigation policy (expected format {FORMAT})")
-    cfg = FeatureConfig(**state["features"])
-    policy = build_policy(cfg, state["net_arch"])
     try:
+        cfg = FeatureConfig(**state["features"])
+        policy = build_policy(cfg, state["net_arch"], state.get("extractor", "flat"))  # files before 2026-11-26: flat
         policy.load_state_dict(state["weights"])
-    except RuntimeError as err:
+    except (RuntimeError, TypeError, ValueError, KeyError) as err:
         raise PolicyFileError(f"{path}: weights do not fit the recorded network: {err}") from err
     return policy.eval(), cfg
 

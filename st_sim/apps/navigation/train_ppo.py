@@ -30,7 +30,7 @@ import shutil
 import sys
 import time
 from collections import deque
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -42,12 +42,12 @@ from envs.common.config import EnvConfig, RewardWeights
 from replays.atomic import atomic_path, write_text_atomic
 from st_sim.apps.navigation.demonstrations import DemoSpec, behaviour_clone, load_or_collect
 from st_sim.apps.navigation.features import FeatureConfig
-from st_sim.apps.navigation.ppo import PRETRAINED_DIR, build_policy, save_policy
+from st_sim.apps.navigation.ppo import EXTRACTORS, PRETRAINED_DIR, build_policy, policy_kwargs, save_policy
 
 CURVE_WINDOW = 100  # training episodes averaged per learning-curve point [-]
 RESUMABLE = ("use_predictions", "env_id", "num_envs", "sensor_range_m", "reward", "seed", "n_steps", "batch_size",
              "n_epochs", "learning_rate", "gamma", "net_arch", "log_std_init", "initial_forward", "demo_steps",
-             "demos", "bc_epochs")
+             "demos", "bc_epochs", "extractor", "closest_approach", "shards")
 """settings a run must share with the saved state to continue it (the budget and output options may differ)"""
 
 
@@ -81,6 +81,15 @@ class TrainConfig:
     """discount per 0.4 s step"""
     net_arch: tuple[int, ...] = (128, 128)
     """hidden layers of the actor and of the critic"""
+    extractor: str = "flat"
+    """how the actor-critic reads the features: "flat" (the vector as it is) or "attention" (each pedestrian encoded
+    alone, then attended over: ``attention.PedestrianAttention``)"""
+    closest_approach: bool = False
+    """with predictions, add each pedestrian's predicted closest approach to the robot's course to its features"""
+    shards: int = 1
+    """worker processes the training envs are split into (``envs.shards``; 1: this process)"""
+    tensorboard: str | None = None
+    """also log SB3's training figures to TensorBoard in this folder (``pip install tensorboard``)"""
     log_std_init: float = -0.5
     """initial log standard deviation of the Gaussian actions (std 0.61 of the speed limit)"""
     initial_forward: float = 0.7
@@ -105,7 +114,7 @@ class TrainConfig:
     @property
     def features(self) -> FeatureConfig:
         """What the policy sees: derived from ``use_predictions`` and ``sensor_range_m``."""
-        return FeatureConfig(self.use_predictions, self.sensor_range_m)
+        return FeatureConfig(self.use_predictions, self.sensor_range_m, self.closest_approach and self.use_predictions)
 
 
 def outcome(info: dict) -> str:
@@ -230,15 +239,15 @@ def main(cfg: TrainConfig) -> Path:
     print(f"{run_name}: {json.dumps(asdict(cfg), default=str)}")
 
     # envs: one native vector env of num_envs sub-envs (one batched forecast per step), seen through the features
-    vec = VecMonitor(FeatureVecEnv(cfg.env_id, cfg.num_envs, cfg.features, EnvConfig(reward=cfg.reward)))
+    vec = VecMonitor(FeatureVecEnv(cfg.env_id, cfg.num_envs, cfg.features, EnvConfig(reward=cfg.reward), cfg.shards))
     vec.seed(cfg.seed)
 
-    # model: PPO with a tanh MLP actor-critic (same network for both variants)
+    # model: PPO with a tanh actor-critic on the flat features or on their attention encoding (same for both variants)
     net_arch = list(cfg.net_arch)
     model = PPO("MlpPolicy", vec, n_steps=cfg.n_steps, batch_size=cfg.batch_size, n_epochs=cfg.n_epochs,
                 learning_rate=cfg.learning_rate, gamma=cfg.gamma, seed=cfg.seed, device="cpu", verbose=0,
-                policy_kwargs=dict(net_arch=dict(pi=net_arch, vf=net_arch), activation_fn=torch.nn.Tanh,
-                                   log_std_init=cfg.log_std_init))
+                tensorboard_log=cfg.tensorboard, policy_kwargs={**policy_kwargs(cfg.features, net_arch, cfg.extractor),
+                                                                "log_std_init": cfg.log_std_init})
 
     # start: continue a saved run, clone the teacher (same demonstrations for both variants), or walk the path
     start = time.perf_counter()
@@ -262,20 +271,23 @@ def main(cfg: TrainConfig) -> Path:
             model.policy.action_net.bias.copy_(torch.tensor([cfg.initial_forward, 0.0]))
 
     # loop: rollouts -> PPO updates, a curve point per rollout, the resumable state every save_every rollouts
+    learning = time.perf_counter()
     model.learn(total_timesteps=max(cfg.timesteps - resumed_from, 0), callback=curve_callback(cfg, curve),
-                reset_num_timesteps=resumed_from == 0)
+                reset_num_timesteps=resumed_from == 0, tb_log_name=run_name)
+    steps_per_s = (model.num_timesteps - resumed_from) / max(time.perf_counter() - learning, 1e-9)
     save_resumable(model, cfg, curve)
     wall_time_s = time.perf_counter() - start
     vec.close()
+    print(f"{model.num_timesteps - resumed_from} env steps learnt at {steps_per_s:.0f} env steps/s")
 
     # checkpoint: the actor-critic alone, as plain tensors (atomic write), then the curve and the record
-    policy = build_policy(cfg.features, net_arch)
+    policy = build_policy(cfg.features, net_arch, cfg.extractor)
     policy.load_state_dict(model.policy.state_dict())
-    sha256 = save_policy(policy, cfg.features, net_arch, out / "policy.pt")
+    sha256 = save_policy(policy, cfg.features, net_arch, out / "policy.pt", cfg.extractor)
     write_text_atomic(out / "curve.json", json.dumps(curve, indent=1))
     plot_curve({run_name: curve}, out / "curve.png", run_name)
     record = {"run": run_name, "config": asdict(cfg), "wall_time_s": wall_time_s, "cloning": cloning,
-              "resumed_from": resumed_from, "sha256": sha256,
+              "resumed_from": resumed_from, "sha256": sha256, "env_steps_per_s": steps_per_s,
               "final": curve[-1] if curve else None, "command": "python -m st_sim.apps.navigation.train_ppo "
               + " ".join(sys.argv[1:])}
     write_text_atomic(out / "training.json", json.dumps(record, indent=1, default=str))
@@ -323,10 +335,21 @@ def parse_args(argv: list[str] | None = None) -> TrainConfig:
                         help=f"rollouts between saves of the resumable state (default: {d.save_every})")
     parser.add_argument("--out", default=d.out, help=f"output folder (default: {d.out})")
     parser.add_argument("--ship", default=None, help="also copy the policy into pretrained/ under this name")
+    parser.add_argument("--extractor", choices=EXTRACTORS, default=d.extractor,
+                        help=f"how the policy reads the features (default: {d.extractor})")
+    parser.add_argument("--closest-approach", action="store_true",
+                        help="add each pedestrian's predicted closest approach to the robot's course to its features")
+    parser.add_argument("--prediction-reward", type=float, default=0.0, metavar="W",
+                        help="weight of the prediction-aware reward part predicted_collision (default: 0, off)")
+    parser.add_argument("--shards", type=int, default=d.shards,
+                        help=f"worker processes the training envs are split into (default: {d.shards})")
+    parser.add_argument("--tensorboard", default=None, metavar="DIR",
+                        help="also log training figures to TensorBoard in DIR (pip install tensorboard)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     args = parser.parse_args(argv)
     for flag, value, least in (("--timesteps", args.timesteps, 1), ("--num-envs", args.num_envs, 1),
-                               ("--demo-steps", args.demo_steps, 0), ("--save-every", args.save_every, 1)):
+                               ("--demo-steps", args.demo_steps, 0), ("--save-every", args.save_every, 1),
+                               ("--shards", args.shards, 1)):
         if value < least:
             parser.error(f"{flag}={value}: expected an integer >= {least}")
     if not args.sensor_range > 0:  # also refuses NaN
@@ -336,8 +359,12 @@ def parse_args(argv: list[str] | None = None) -> TrainConfig:
     if args.demo_steps > 0 and args.sensor_range != float("inf"):
         parser.error("--demo-steps: the teacher's demonstrations see every pedestrian; add --sensor-range inf")
     use_predictions = not args.no_predictions
+    if not np.isfinite(args.prediction_reward):
+        parser.error(f"--prediction-reward={args.prediction_reward}: expected a finite weight")
     return TrainConfig(use_predictions=use_predictions, env_id=args.env_id, timesteps=args.timesteps,
                        num_envs=args.num_envs, sensor_range_m=args.sensor_range, seed=args.seed,
+                       reward=replace(d.reward, prediction=args.prediction_reward), extractor=args.extractor,
+                       closest_approach=args.closest_approach, shards=args.shards, tensorboard=args.tensorboard,
                        demo_steps=args.demo_steps, demos=args.demos, minutes=args.minutes,
                        save_every=args.save_every, out=args.out, ship_as=args.ship, progress=not args.quiet)
 

@@ -46,15 +46,20 @@ class FeatureVecEnv(VecEnv):
         features: what the policy sees; with ``use_predictions`` the env runs SingularTrajectory, without it no
             predictor. Its ``sensor_range_m`` is also the env's, so only sensed pedestrians are forecast.
         config: the env's settings (its ``sensor_range_m`` is replaced by the features'); None: defaults.
+        shards: worker processes the sub-envs are split into (``envs.shards``; 1: this process).
     """
 
-    def __init__(self, env_id: str, num_envs: int, features: FeatureConfig, config: EnvConfig | None = None):
+    def __init__(self, env_id: str, num_envs: int, features: FeatureConfig, config: EnvConfig | None = None,
+                 shards: int = 1):
         config = replace(config or EnvConfig(), sensor_range_m=features.sensor_range_m)
         self.vector = gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point",
-                                   autoreset_mode=AutoresetMode.SAME_STEP, config=config,
+                                   autoreset_mode=AutoresetMode.SAME_STEP, config=config, shards=shards,
                                    predictor=env_predictor("singular" if features.use_predictions else "none"))
         self.features = features
-        self.worlds = [world_of(env) for env in self.vector.envs]
+        if shards == 1:
+            self.worlds = [world_of(env) for env in self.vector.envs]
+        else:  # the sub-envs live elsewhere; every sub-env of an id has the same world
+            self.worlds = [world_of(gym.make(env_id, predictor="cvm", config=config))] * num_envs
         self._obs: list[dict[str, np.ndarray]] = []
         self._frames: list[np.ndarray] = []  # path_frame of each sub-env's observation, for its next action
         self._velocities = np.zeros((num_envs, 2), np.float32)
