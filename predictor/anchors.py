@@ -115,10 +115,24 @@ def onto_walkable(paths_m: np.ndarray, scene: Scene, tolerance_m: float = 0.0) -
     """Move every point of ``paths_m`` (..., 2) world metres that lies more than ``tolerance_m`` from a walkable pixel
     of ``scene`` (on a wall, or off the image) to the centre of its nearest walkable pixel; returns the points and
     which moved (...). A small tolerance leaves alone the band along the walls where annotated people walk too."""
-    target_px, off_map = _end_targets(scene.world_to_pixel(paths_m), scene, "pull")
-    target_m = scene.pixel_to_world(target_px)
-    moved = off_map & (np.linalg.norm(target_m - paths_m, axis=-1) > tolerance_m)
-    return np.where(moved[..., None], target_m, paths_m), moved
+    uv = scene.world_to_pixel(paths_m)
+    off_map = ~_on_walkable_pixel(uv, scene)
+    out, moved = np.array(paths_m, dtype=np.float64), np.zeros(off_map.shape, bool)
+    if off_map.any():  # most points of most forecasts are on the map: look up targets for the others only
+        target_m = scene.pixel_to_world(_end_targets(uv[off_map], scene, "pull")[0])
+        far = np.linalg.norm(target_m - out[off_map], axis=-1) > tolerance_m
+        moved[off_map] = far
+        out[moved] = target_m[far]
+    return out, moved
+
+
+def _on_walkable_pixel(uv: np.ndarray, scene: Scene) -> np.ndarray:
+    """(...) bool: the pixel (..., 2) (column, row), rounded, is on the image and walkable."""
+    height, width = scene.walkable.shape
+    uv = np.rint(np.nan_to_num(uv, nan=-1.0, posinf=-1.0, neginf=-1.0))
+    inside = (uv[..., 0] >= 0) & (uv[..., 0] < width) & (uv[..., 1] >= 0) & (uv[..., 1] < height)
+    return inside & scene.walkable[np.where(inside, uv[..., 1], 0).astype(np.intp),
+                                   np.where(inside, uv[..., 0], 0).astype(np.intp)]
 
 
 def adaptive_anchors(anchors: np.ndarray, frames: AgentFrame, space_of: list[SingularSpace],
