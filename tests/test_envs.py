@@ -132,3 +132,24 @@ def test_every_ego_spawn_candidate_is_on_the_image_and_walkable(scene_name: str)
     assert len(candidates) > 100
     assert on_image(scene, candidates).all()
     assert all(scene.is_walkable(xy) for xy in candidates)
+
+
+def test_forecasts_run_with_one_torch_thread_and_leave_the_setting_as_it_was() -> None:
+    import torch
+
+    from envs.common.predictors import predict_futures
+
+    class Recorder:
+        threads: list[int] = []
+
+        def predict(self, obs, group, scene, num_samples):
+            self.threads.append(torch.get_num_threads())
+            return np.zeros((len(obs), num_samples, 12, 2), np.float32)
+
+    before = torch.get_num_threads()
+    torch.set_num_threads(2)
+    try:
+        predict_futures(Recorder(), np.zeros((3, 8, 2), np.float32), None, 4)
+        assert Recorder.threads == [1] and torch.get_num_threads() == 2
+    finally:
+        torch.set_num_threads(before)

@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import os
+import sys
 from collections import OrderedDict
-from collections.abc import Hashable
+from collections.abc import Hashable, Iterator
+from contextlib import contextmanager
 from typing import Any
 
 import numpy as np
@@ -109,13 +111,30 @@ def predict_futures(model: Any, history_m: np.ndarray, scene: Scene | None, num_
         return np.zeros((0, num_samples, T_PRED, 2), np.float32), None
     group = np.zeros(len(history_m), np.int64) if group is None else np.asarray(group, np.int64)
     anchors = None
-    if callable(getattr(model, "predict_detailed", None)):
-        detail = model.predict_detailed(history_m, group, scene, num_samples)
-        futures, anchors = detail.futures, (detail.prototype_anchors, detail.adapted_anchors)
-    else:
-        futures = model.predict(history_m, group, scene, num_samples)
+    with one_torch_thread():
+        if callable(getattr(model, "predict_detailed", None)):
+            detail = model.predict_detailed(history_m, group, scene, num_samples)
+            futures, anchors = detail.futures, (detail.prototype_anchors, detail.adapted_anchors)
+        else:
+            futures = model.predict(history_m, group, scene, num_samples)
     futures = check_futures(futures, len(history_m), num_samples, getattr(model, "name", type(model).__name__))
     return futures, anchors
+
+
+@contextmanager
+def one_torch_thread() -> Iterator[None]:
+    """Run the block with one torch thread (restored after): an env's forecasts are small batches, which torch's
+    thread pool slows down (a second thread costs more than it saves, and far more on a busy machine). More cores
+    serve a vector env through its shards (``envs.shards``)."""
+    torch = sys.modules.get("torch")  # never imported here: a predictor without torch skips it
+    threads = torch.get_num_threads() if torch is not None else 1
+    if threads > 1:
+        torch.set_num_threads(1)
+    try:
+        yield
+    finally:
+        if threads > 1:
+            torch.set_num_threads(threads)
 
 
 Forecast = tuple[np.ndarray, tuple[np.ndarray, np.ndarray] | None]
