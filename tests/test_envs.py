@@ -139,17 +139,17 @@ def test_forecasts_run_with_one_torch_thread_and_leave_the_setting_as_it_was() -
 
     from envs.common.predictors import predict_futures
 
-    class Recorder:
-        threads: list[int] = []
+    seen: list[int] = []
 
+    class Recorder:
         def predict(self, obs, group, scene, num_samples):
-            self.threads.append(torch.get_num_threads())
+            seen.append(torch.get_num_threads())
             return np.zeros((len(obs), num_samples, 12, 2), np.float32)
 
     before = torch.get_num_threads()
     torch.set_num_threads(2)
     try:
         predict_futures(Recorder(), np.zeros((3, 8, 2), np.float32), None, 4)
-        assert Recorder.threads == [1] and torch.get_num_threads() == 2
+        assert seen == [1] and torch.get_num_threads() == 2
     finally:
         torch.set_num_threads(before)
