@@ -12,6 +12,7 @@ present and their mean speed.
     OMP_NUM_THREADS=1 python benchmarks/bench_sim.py                       # 50, 200, 500 pedestrians, 2 repeats
     OMP_NUM_THREADS=1 python benchmarks/bench_sim.py --sizes 200 --steps 300 --no-psf
     OMP_NUM_THREADS=1 python benchmarks/bench_sim.py --periodic            # STCrowd without spawning and exits
+    OMP_NUM_THREADS=1 python benchmarks/bench_sim.py --batched 1 16 64 256 --steps 2560   # the batched engine
 
 With --periodic, STCrowd runs the same corridor with its ends joined (a two-way periodic corridor, the same
 head count for ever: steering and contacts only, no spawning or leaving); PySocialForce, which has no periodic
@@ -34,6 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from st_sim.sim import CrowdConfig, CrowdSim, Layout, PopulationError, make_layout
+from st_sim.sim.crowd import step_crowds
 from st_sim.sim.diagnostics import escaped, max_overlap_m, wall_penetration_m
 from st_sim.sim.layouts import periodic_corridor
 
@@ -142,6 +144,19 @@ def bench_pysocialforce(n: int, steps: int, seed: int) -> Figures | None:
     return meter.figures("pysocialforce", n)
 
 
+def bench_batched(crowds: int, steps: int, warmup: int, seed: int) -> tuple[float, float]:
+    """(sub-env steps per CPU second, per wall second) of ``crowds`` 40-pedestrian crossings stepped together
+    (``step_crowds``, no ego), after ``warmup`` untimed steps."""
+    layout = make_layout("crossing")
+    sims = [CrowdSim(layout, CrowdConfig(), np.random.default_rng(seed + k)) for k in range(crowds)]
+    for _ in range(warmup):
+        step_crowds(sims, [None] * crowds)
+    wall, cpu = time.perf_counter(), time.process_time()
+    for _ in range(steps):
+        step_crowds(sims, [None] * crowds)
+    return crowds * steps / (time.process_time() - cpu), crowds * steps / (time.perf_counter() - wall)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sizes", type=int, nargs="+", default=[50, 200, 500],
@@ -154,7 +169,17 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--periodic", action="store_true",
                         help="STCrowd in the corridor with its ends joined (no spawning or exits)")
     parser.add_argument("--seed", type=int, default=0, help="crowd seed (default: 0)")
+    parser.add_argument("--batched", type=int, nargs="+", default=[], metavar="K",
+                        help="instead: K crossings of 40 pedestrians stepped together by the batched engine, for each "
+                        "K (sub-env steps per second)")
     args = parser.parse_args(argv)
+    if args.batched:
+        print("| crowds stepped together | 40-pedestrian crossing sub-env steps / CPU s | / wall s |\n|---|---|---|")
+        for crowds in args.batched:
+            for _ in range(args.repeats):
+                cpu_rate, wall_rate = bench_batched(crowds, max(1, args.steps // crowds), args.warmup, args.seed)
+                print(f"| {crowds} | {cpu_rate:.0f} | {wall_rate:.0f} |", flush=True)
+        return 0
 
     print("corridor 20 m x 8 m, bidirectional; 0.4 s steps; CPU = process time; lead = STCrowd's CPU steps/s over "
           "PySocialForce's in the same repeat")
