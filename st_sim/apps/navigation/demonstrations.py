@@ -48,6 +48,8 @@ class DemoSpec:
     """planner that drives (with the "singular" predictor)"""
     workers: int = 2
     """processes that collect in parallel (worker w seeds seed + w * 100000 + episode) [-]"""
+    closest_approach: bool = False
+    """the features with predictions also hold each pedestrian's predicted closest approach (``FeatureConfig``)"""
 
 
 @dataclass(frozen=True, eq=False)
@@ -136,8 +138,9 @@ def _collect_share(job: tuple[DemoSpec, int, int]) -> tuple[np.ndarray, ...]:
         while not done and len(rows) < share:
             velocity = teacher.act(obs)
             action = np.clip(path_frame(obs, world) @ velocity / world.max_speed_mps, -1.0, 1.0)
-            features_with = encode(obs, world, FeatureConfig(True))  # rays and slots once for both variants
-            features = (features_with, drop_predictions(features_with))
+            with_predictions = FeatureConfig(True, closest_approach=spec.closest_approach)
+            features_with = encode(obs, world, with_predictions)  # rays and slots once for both variants
+            features = (features_with, drop_predictions(features_with, with_predictions))
             obs, reward, terminated, truncated, _ = env.step(velocity)
             done = terminated or truncated
             rows.append((*features, action.astype(np.float32), np.float32(reward), done))

@@ -262,7 +262,8 @@ def main(cfg: TrainConfig) -> Path:
                              "shrink it (ask for more to extend it, or use another --out)")
         print(f"resuming {saved[0]} at {resumed_from} env steps")
     elif cfg.demo_steps > 0:
-        demos = load_or_collect(DemoSpec(cfg.env_id, cfg.demo_steps), cfg.demos, cfg.progress)
+        demos = load_or_collect(DemoSpec(cfg.env_id, cfg.demo_steps, closest_approach=cfg.features.closest_approach),
+                                cfg.demos, cfg.progress)
         cloning = behaviour_clone(model.policy, demos, cfg.use_predictions, cfg.gamma, cfg.bc_epochs, seed=cfg.seed)
         cloning["demo_collection_s"] = demos.wall_time_s
         print(f"behaviour cloning on {len(demos.actions)} teacher steps: {cloning}")
