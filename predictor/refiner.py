@@ -94,7 +94,7 @@ class Refiner(nn.Module):
         self.embed_step = nn.Linear(d, h)
         self.denoise = nn.Sequential(nn.SiLU(), nn.Linear(h, h), nn.SiLU(), nn.Linear(h, h), nn.SiLU(),
                                      nn.Linear(h, sk))
-        if cfg.zero_start:  # the untrained refiner predicts a zero residual: the futures are the anchors
+        if cfg.zero_start:  # the untrained network outputs zero (x0 = 0 or epsilon = 0: see RefinerConfig.zero_start)
             nn.init.zeros_(self.denoise[-1].weight)
             nn.init.zeros_(self.denoise[-1].bias)
         alpha_bar = cosine_alpha_bar(cfg.steps) if cfg.sampler == "x0-cosine" else linear_alpha_bar(cfg.steps)
