@@ -13,6 +13,10 @@ MIN_AGENTS_PER_WINDOW: Final[int] = 2  # Social-GAN's min_ped = 1 with a strict 
 FEWSHOT_EVERY: Final[int] = 10  # few-shot keeps every 10th training window
 COORD_DECIMALS: Final[int] = 4  # Social-GAN rounds positions to 4 decimals before windowing
 POSITION_LIMIT_M: Final[float] = 1000.0  # |x| and |y| of every recorded and observed position [m]
+FORECAST_LIMIT_M: Final[float] = POSITION_LIMIT_M * (1 + 2 * T_PRED)
+"""|x| and |y| of every forecast position [m]: the farthest a straight extrapolation of recorded positions reaches
+(25 km: a step of up to 2 x 1000 m, T_PRED steps on from |x| = 1000 m), so a constant-velocity forecast of any valid
+recording fits and a future kilometres beyond it is a broken predictor."""
 ID_LIMIT: Final[int] = 2**53  # frame and agent ids are whole numbers in [0, 2^53): float64 holds them exactly
 
 TASKS: Final[dict[str, dict]] = {

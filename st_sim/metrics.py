@@ -12,22 +12,23 @@ from typing import Any
 
 import numpy as np
 
-from replays.constants import POSITION_LIMIT_M, T_PRED
+from replays.constants import FORECAST_LIMIT_M, T_PRED
 from replays.scenes import Scene
 
 COLLISION_DISTANCE_M = 0.2  # TrajNet++-style: two predicted agents closer than this at one step collide
 
 
 class PredictionError(ValueError):
-    """A predictor returned something other than (N, S, 12, 2) finite float positions within +-POSITION_LIMIT_M."""
+    """A predictor returned something other than (N, S, 12, 2) finite float positions within +-FORECAST_LIMIT_M."""
 
 
 def check_futures(futures: Any, num_agents: int, num_samples: int, name: str) -> np.ndarray:
     """A predictor's output as (N, S, 12, 2) float32 metres; ``PredictionError`` names ``name`` and the expected shape.
 
     Refused: anything but a NumPy array (a list, None), a non-float dtype, another shape (another S), NaN or inf
-    (also after the cast to float32), and positions beyond +-POSITION_LIMIT_M (1000 m), the bound every recording
-    obeys: a future kilometres away is a broken predictor, not a bad forecast to average into the ADE.
+    (also after the cast to float32), and positions beyond +-FORECAST_LIMIT_M (25 km), the farthest a straight
+    extrapolation of any valid recording reaches: a future beyond it is a broken predictor, not a bad forecast to
+    average into the ADE.
     """
     expected = (num_agents, num_samples, T_PRED, 2)
     if not isinstance(futures, np.ndarray):
@@ -41,9 +42,9 @@ def check_futures(futures: Any, num_agents: int, num_samples: int, name: str) ->
             futures = futures.astype(np.float32, copy=False)
         if not np.isfinite(futures).all():
             problem = "NaN or inf positions"
-        elif np.abs(futures).max(initial=0.0) > POSITION_LIMIT_M:
+        elif np.abs(futures).max(initial=0.0) > FORECAST_LIMIT_M:
             problem = (f"a position {float(np.abs(futures).max()):.4g} m from the origin, beyond the "
-                       f"+-{POSITION_LIMIT_M:g} m bound of every recording")
+                       f"+-{FORECAST_LIMIT_M:g} m bound of every forecast")
         else:
             return futures
     raise PredictionError(f"predictor {name!r}: predict returned {problem}; expected a float array of shape "

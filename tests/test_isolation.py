@@ -23,7 +23,7 @@ import envs  # noqa: F401  (registers the ids)
 from envs.common.errors import EnvInputError, NeedsResetError
 from envs.common.predictors import predict_futures
 from predictor.plugins import PluginError, load_plugin
-from replays.constants import POSITION_LIMIT_M
+from replays.constants import FORECAST_LIMIT_M
 from replays.data_root import data_root
 from replays.scenes import Scene, load_scene, scene_info
 from st_sim.apps.cli import main
@@ -96,14 +96,14 @@ def _scores(path: Path) -> dict:
 
 
 @PLUGIN_CASES
-@given(value=st.sampled_from(["3e4", "-1001.0", "1e30", "-1e30", f"{POSITION_LIMIT_M * 1.0001}"]),
+@given(value=st.sampled_from(["3e4", "-3e4", "1e30", "-1e30", f"{FORECAST_LIMIT_M * 1.0001}"]),
        where=st.integers(0, 10**6))
 def test_futures_beyond_the_recordings_bound_are_refused_naming_the_plugin(plugin_dir: Path, value: str,
                                                                              where: int) -> None:
     spec = write_plugin(plugin_dir, PREDICTOR_TEMPLATE.format(
         body=f"out = good.astype(np.float64); out.flat[{where} % out.size] = {value}; return out"))
     model = load_plugin(spec, *LIGHT)
-    with pytest.raises(PluginError, match=repr(spec).replace("(", r"\(") + ".*1000 m bound"):
+    with pytest.raises(PluginError, match=repr(spec).replace("(", r"\(") + f".*{FORECAST_LIMIT_M:g} m bound"):
         predict_futures(model, np.ones((2, 8, 2), np.float32), None, 20)
 
 

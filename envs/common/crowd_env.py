@@ -45,7 +45,7 @@ from envs.common.fault import robot_at_fault
 from envs.common.predictors import Forecast, ForecastCache, predict_futures, resolve_predictor, task_sizes
 from envs.common.running_metrics import RunningMetrics
 from envs.common.tracks import Frame, TrackBuffer, lookup
-from replays.constants import POSITION_LIMIT_M, STEP_S, T_PRED
+from replays.constants import FORECAST_LIMIT_M, POSITION_LIMIT_M, STEP_S, T_PRED
 from replays.scenes import Scene
 from st_sim.sim.sweep import Contact, closest_approach, first_contact
 
@@ -89,13 +89,13 @@ class CrowdEnv(gym.Env):
         self.tracks = TrackBuffer(n_max, self.t_obs, where)
         self.metrics = RunningMetrics(scene)
 
-        limit, speed = POSITION_LIMIT_M, self.cfg.max_speed_mps
+        limit, reach, speed = POSITION_LIMIT_M, FORECAST_LIMIT_M, self.cfg.max_speed_mps
         self._ego_high = np.array([limit, limit, speed, speed, limit, limit], np.float32)  # see EGO_FIELDS
         self.observation_space = spaces.Dict({
             "ego": spaces.Box(-self._ego_high, self._ego_high, dtype=np.float32),
             "history": spaces.Box(-limit, limit, (n_max, self.t_obs, 2), np.float32),
             "history_mask": spaces.Box(0, 1, (n_max, self.t_obs), np.bool_),
-            "futures": spaces.Box(-limit, limit, (n_max, self.num_samples, T_PRED, 2), np.float32),
+            "futures": spaces.Box(-reach, reach, (n_max, self.num_samples, T_PRED, 2), np.float32),
             "futures_mask": spaces.Box(0, 1, (n_max,), np.bool_),
         })
         self.action_space = spaces.Box(-speed, speed, (2,), np.float32)

@@ -99,12 +99,12 @@ def predict_futures(model: Any, history_m: np.ndarray, scene: Scene | None, num_
         group: (P,) int64 scene moment of each agent (agents interact only within one); None: all in one.
 
     Returns:
-        futures: (P, S, 12, 2) float32 metres, within +-POSITION_LIMIT_M.
+        futures: (P, S, 12, 2) float32 metres, within +-FORECAST_LIMIT_M.
         anchors: (prototype, adapted), each (P, S, 12, 2) metres, for predictors with
             ``predict_detailed`` (SingularTrajectory); None otherwise.
 
     Raises:
-        ValueError: the predictor returned anything but (P, S, 12, 2) finite floats within +-POSITION_LIMIT_M
+        ValueError: the predictor returned anything but (P, S, 12, 2) finite floats within +-FORECAST_LIMIT_M
             (``st_sim.metrics.PredictionError``; ``predictor.plugins.PluginError`` from a plug-in).
     """
     if len(history_m) == 0:
