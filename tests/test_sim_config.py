@@ -120,6 +120,15 @@ def test_layout_builds_or_names_the_bad_parameter(name: str, data: st.DataObject
     assert layout.walkable_area_m2() > 0
 
 
+@pytest.mark.parametrize("build", [lambda: corridor(4.0, 0.5), lambda: crossing(4.0, 0.5), lambda: crossing(4.0, 3.99),
+                                   lambda: bottleneck(4.0, 0.05, 0.5, 0.01), lambda: corner(4.0, 2.5),
+                                   lambda: periodic_corridor(4.0, 0.5)],
+                         ids=["corridor", "crossing_narrow", "crossing_wide", "bottleneck", "corner", "periodic"])
+def test_the_smallest_layouts_have_a_route_from_every_entry(build) -> None:
+    layout = build()  # a 3 m corridor had none (its gates' centres 1.5 m apart): refused since, found in CI
+    assert layout.walkable_area_m2() > 0 and all(layout.routes)
+
+
 def test_a_huge_layout_is_refused_before_it_is_allocated() -> None:
     with pytest.raises(LayoutTooLargeError, match="memory budget"):
         corridor(1e5, 8.0)

@@ -16,7 +16,9 @@ from st_sim.sim.layout import Layout, Period, Region, rasterise
 GATE_DEPTH_M = 1.5  # depth of the entry/exit strips at the open ends of a layout [m]
 MARGIN_M = 0.5  # raster margin around the walls [m]
 PERIODIC_PAD_M = 2.0  # a periodic corridor's walls reach this far beyond both ends of the period [m]
-LENGTH = Bounds(3.0, 100_000.0, "m")  # lengths of corridors, arms and rooms (the memory budget bounds them first)
+LENGTH = Bounds(4.0, 100_000.0, "m")
+"""lengths of corridors, arms and rooms: the memory budget bounds them first; below 4 m an entry gate lies within
+MIN_ROUTE_M of every exit gate and nobody has anywhere to go"""
 WIDTH = Bounds(0.5, 1_000.0, "m")  # widths of corridors and arms
 
 
@@ -43,7 +45,7 @@ def corridor(length_m: float = 20.0, width_m: float = 8.0) -> Layout:
     """Closed corridor with a gate strip at each end; pedestrians walk to the opposite end (two flows).
 
     Args:
-        length_m: 3 to 100 000 m (within the memory budget).  width_m: 0.5 to 1000 m.
+        length_m: 4 to 100 000 m (within the memory budget).  width_m: 0.5 to 1000 m.
     """
     _check("corridor", length_m=(length_m, LENGTH), width_m=(width_m, WIDTH))
     gates = [Region("west", _box(0.0, 0.0, GATE_DEPTH_M, width_m)),
@@ -56,7 +58,7 @@ def crossing(size_m: float = 20.0, arm_width_m: float = 6.0) -> Layout:
     """Two corridors crossing at right angles (a plus sign); pedestrians go from any arm to any other.
 
     Args:
-        size_m: 3 to 100 000 m, end to end.  arm_width_m: from 0.5 m to less than size_m.
+        size_m: 4 to 100 000 m, end to end.  arm_width_m: from 0.5 m to less than size_m.
     """
     arm = Bounds(WIDTH.low, size_m, f"m (below crossing.size_m = {size_m!r})", open_high=True)
     _check("crossing", size_m=(size_m, LENGTH), arm_width_m=(arm_width_m, arm))
@@ -73,7 +75,7 @@ def bottleneck(room_m: float = 8.5, wall_m: float = 1.0, height_m: float = 8.0, 
     """Two rooms joined by a door in a thick wall; everybody walks from the west room to the east room.
 
     Args:
-        room_m: depth of each room, 3 to 100 000 m.  wall_m: thickness of the wall, 0.05 to 100 m.
+        room_m: depth of each room, 4 to 100 000 m.  wall_m: thickness of the wall, 0.05 to 100 m.
         height_m: 0.5 to 1000 m.  door_m: door width, more than 0 and less than height_m [m].
     """
     door = Bounds(0.0, height_m, f"m (below bottleneck.height_m = {height_m!r})", open_low=True, open_high=True)
@@ -93,7 +95,7 @@ def corner(arm_m: float = 12.0, width_m: float = 2.0) -> Layout:
     """A corridor that turns left by 90 degrees (RiMEA test 6): walk in from the west end, out at the north end.
 
     Args:
-        arm_m: length of each arm, outer side, 3 to 100 000 m.  width_m: 0.5 m to arm_m - GATE_DEPTH_M.
+        arm_m: length of each arm, outer side, 4 to 100 000 m.  width_m: 0.5 m to arm_m - GATE_DEPTH_M.
     """
     width = Bounds(WIDTH.low, arm_m - GATE_DEPTH_M, f"m (corner.arm_m = {arm_m!r} minus {GATE_DEPTH_M:g} m)")
     _check("corner", arm_m=(arm_m, LENGTH), width_m=(width_m, width))
@@ -112,7 +114,7 @@ def periodic_corridor(length_m: float = 20.0, width_m: float = 4.0, two_way: boo
     of the period [0, length_m).
 
     Args:
-        length_m: period, 3 to 100 000 m.  width_m: 0.5 to 1000 m.
+        length_m: period, 4 to 100 000 m.  width_m: 0.5 to 1000 m.
     """
     _check("periodic_corridor", length_m=(length_m, LENGTH), width_m=(width_m, WIDTH))
     pad, name = PERIODIC_PAD_M, "periodic_corridor"
