@@ -19,7 +19,7 @@ from replays.scenes import SCENE_NAMES
 from st_sim.apps.evaluate import DOMAIN_PAIRS
 n = 0
 for task in TASKS:
-    for scene in (DOMAIN_PAIRS if task == "domain" else SCENE_NAMES):
+    for scene in (DOMAIN_PAIRS if task.startswith("domain") else SCENE_NAMES):
         for split in SPLITS:
             n += len(load_windows(task, scene, split))
 print(f"{time.perf_counter() - t:.3f} {n}")
@@ -29,13 +29,15 @@ print(f"{time.perf_counter() - t:.3f} {n}")
 def timed_run(cache: str) -> tuple[float, int]:
     """Run the loading in a fresh interpreter (nothing in memory); returns (seconds, samples)."""
     env = dict(os.environ, STCROWD_CACHE=cache, OMP_NUM_THREADS="1")
-    out = subprocess.run([sys.executable, "-c", CHILD], env=env, capture_output=True, text=True, check=True)
+    out = subprocess.run([sys.executable, "-c", CHILD], env=env, capture_output=True, text=True)
+    if out.returncode:
+        sys.exit(f"bench_load: loading failed:\n{out.stderr}")
     seconds, samples = out.stdout.split()
     return float(seconds), int(samples)
 
 
 def main() -> None:
-    print("all windows of 5 tasks x (5 scenes | 20 domain pairs) x 3 splits, fresh interpreter each run")
+    print("all windows of the tasks x (5 scenes | 20 domain pairs) x 3 splits, fresh interpreter each run")
     for repeat in range(3):
         with tempfile.TemporaryDirectory() as cache:
             cold, samples = timed_run(cache)
