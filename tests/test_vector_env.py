@@ -138,7 +138,9 @@ def run_both(ours, theirs, steps: int, seed: int, where: str) -> None:
 
 
 @pytest.mark.parametrize("autoreset_mode", [AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP])
-def test_a_vector_env_in_worker_processes_equals_the_one_process_vector_env(autoreset_mode: AutoresetMode) -> None:
+def test_a_vector_env_in_worker_processes_equals_the_one_process_vector_env(autoreset_mode: AutoresetMode,
+                                                                            monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.undo()  # --perturb patches this process only: both sides must run the same arithmetic (one CPU)
     kwargs = {"num_envs": 5, "max_episode_steps": SHORT, "autoreset_mode": autoreset_mode}
     local = gym.make_vec("STCrowd-SimCrossing-v1", **kwargs)
     sharded = gym.make_vec("STCrowd-SimCrossing-v1", shards=2, **kwargs)
@@ -155,7 +157,8 @@ def test_a_vector_env_in_worker_processes_equals_the_one_process_vector_env(auto
         sharded.close(), local.close()
 
 
-def test_a_vector_env_on_two_ray_nodes_equals_the_one_process_vector_env() -> None:
+def test_a_vector_env_on_two_ray_nodes_equals_the_one_process_vector_env(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.undo()  # as above: the Ray workers run unpatched code
     import ray
     from ray.cluster_utils import Cluster
 
