@@ -35,8 +35,9 @@ def run_evaluate(args: argparse.Namespace) -> int:
         if args.no_train:
             raise CliError(f"{len(missing)} checkpoints are missing ({names}); drop --no-train to train them")
         workers = args.workers or os.cpu_count() or 1
+        estimate_s = sum(TRAIN_ESTIMATE_S[TASKS[job.kwargs["task"]]["num_samples"] > 1] for job in missing)
         print(f"training {len(missing)} missing models into {args.runs}/ ({names}); about "
-              f"{len(missing) * TRAIN_ESTIMATE_S / 60 / min(workers, len(missing)):.0f} min with {workers} workers")
+              f"{estimate_s / 60 / min(workers, len(missing)):.0f} min with {workers} workers")
         reports += run_jobs(missing, desc="train", **grid)
         raise_on_job_failure(reports)
     jobs = {plan.predictor: plan.evaluation_jobs() for plan in plans}

@@ -37,7 +37,9 @@ DOMAIN_PAIRS: tuple[str, ...] = tuple(
     f"{scene_info(a).letter}2{scene_info(b).letter}" for a in SCENE_NAMES for b in SCENE_NAMES if a != b
 )
 STREAM_TOLERANCE_M = 1e-6  # stream and offline ADE/FDE must agree to this
-TRAIN_ESTIMATE_S = 45.0  # one model with one thread on this project's 2-core machine, two jobs at a time [s]
+TRAIN_ESTIMATE_S: dict[bool, float] = {False: 45.0, True: 200.0}
+"""one model with one thread on this project's 2-core machine, two jobs at a time, by multi-sample task (16 epochs
+since a8ba1f1; single-sample: 6) [s]"""
 BOOTSTRAP_RESAMPLES = 2000  # draws of the windows behind a paired comparison's interval
 BOOTSTRAP_SEED = 0  # seed of those draws
 SAMPLE_KEYS = ("sample_ade", "sample_fde", "window_sizes")  # per-sample fields of a cell, kept out of the tables
