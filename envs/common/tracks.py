@@ -93,8 +93,8 @@ class TrackBuffer:
         run = np.ones(len(ids), np.int64)
         run[before >= 0] += self._run[before[before >= 0]]
         self._run = run
-        self.row_ids[~np.isin(self.row_ids, ids)] = -1
-        newcomers = ids[~np.isin(ids, self.row_ids)]
+        self.row_ids[lookup(ids, self.row_ids) < 0] = -1  # ids sorted; -1 (empty) is never among them
+        newcomers = ids[lookup(np.sort(self.row_ids), ids) < 0]
         new_rows = np.flatnonzero(self.row_ids < 0)[:len(newcomers)]
         self.row_ids[new_rows] = newcomers
         self._ring_seen[:, self.row_ids < 0] = False
