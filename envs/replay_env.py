@@ -232,7 +232,7 @@ class ReplayCrowdEnv(CrowdEnv):
 
     def _step_world(self, ego_velocity_mps: np.ndarray | None) -> Frame:
         self.index += 1  # the base class refuses a step once the recording has ended
-        start_m = self.ego_xy_m.copy()
+        start_m, seen_mps = self.ego_xy_m.copy(), self.ego_velocity_mps.copy()
         if ego_velocity_mps is not None:
             moved = move_within(self.scene, self.ego_xy_m, ego_velocity_mps, STEP_S, self.arena_low_m,
                                 self.arena_high_m)
@@ -240,7 +240,9 @@ class ReplayCrowdEnv(CrowdEnv):
             self.ego_xy_m = moved
         if self.reactive is None:
             return self.replay.frame(self.index)
-        robot = (start_m, self.ego_xy_m) if self.ego else (None, None)
+        # Pedestrians see where the robot is and how it moved in the last step, not its command for this one: they
+        # expect it to keep that velocity over the step (a robot that turns into them can still hit them).
+        robot = (start_m, start_m + seen_mps * STEP_S) if self.ego else (None, None)
         xy = self.reactive.step(self.index, *robot)
         cols = np.flatnonzero(self.reactive.state.present)
         return Frame(int(self.replay.frames[self.index]), self.replay.agents[cols], xy[cols])

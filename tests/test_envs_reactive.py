@@ -97,6 +97,22 @@ def test_a_pedestrian_walks_round_a_robot_standing_on_its_path() -> None:
     assert CONTACT_M < least < 1.2, f"the walker passed {least:.2f} m from the robot's centre"
 
 
+@settings(max_examples=6, deadline=None)
+@given(warm=st.integers(0, 2), turn=st.floats(-np.pi, np.pi))
+def test_pedestrians_see_the_robots_last_move_not_its_command(warm: int, turn: float) -> None:
+    """Two robots standing on a walker's path, told different things in one step: the pedestrians move alike (they
+    expect each robot to hold its last velocity, zero), and only the robots differ."""
+    pair = [_walker_and_robot("reactive")[0] for _ in range(2)]
+    for _ in range(warm):
+        for env in pair:
+            env.step(np.zeros(2, np.float32))
+    commands = [np.zeros(2, np.float32), 1.5 * np.array([np.cos(turn), np.sin(turn)], np.float32)]
+    for env, command in zip(pair, commands, strict=True):
+        env.step(command)
+    now = [env.unwrapped.tracks.now for env in pair]
+    assert np.array_equal(now[0].ids, now[1].ids) and np.array_equal(now[0].xy_m, now[1].xy_m)
+
+
 def test_in_log_mode_the_same_pedestrian_walks_into_the_robot() -> None:
     env, _, steps = _walker_and_robot("log")
     ends = []
