@@ -205,9 +205,10 @@ class ReactiveCrowd:
         return np.linalg.norm(self.state.xy_m[cols] - self.log_xy_m[frames, cols], axis=1)
 
     def step(self, index: int, robot_from_m: np.ndarray | None, robot_to_m: np.ndarray | None) -> np.ndarray:
-        """Advance from frame ``index - 1`` to ``index`` while the robot moves from ``robot_from_m`` to
-        ``robot_to_m`` (2,) [m] (None: no robot); returns the (A, 2) positions at ``index`` (NaN: absent; who is
-        present is ``state.present``)."""
+        """Advance from frame ``index - 1`` to ``index`` while, as the pedestrians expect, the robot moves from
+        ``robot_from_m`` to ``robot_to_m`` (2,) [m] (None: no robot; the replay env passes the robot's last velocity
+        held, not its command); returns the (A, 2) positions at ``index`` (NaN: absent; who is present is
+        ``state.present``)."""
         old = self.state
         logged, log_now = self.present[index], self.log_xy_m[index]
         if robot_to_m is None:
