@@ -147,7 +147,24 @@ class ShardedVectorEnv(VectorEnv):
         return concatenate(self.single_observation_space, observations, out)
 
 
-class ProcessShard:
+class ShardHandle:
+    """The driver's end of a shard: ``send`` a call, ``receive`` its ("ok" | "error", value); ``call`` does both."""
+
+    def send(self, method: str, *args: Any) -> None:
+        raise NotImplementedError
+
+    def receive(self) -> tuple[str, Any]:
+        raise NotImplementedError
+
+    def call(self, method: str, *args: Any) -> Any:
+        self.send(method, *args)
+        outcome, value = self.receive()
+        if outcome == "error":
+            raise value
+        return value
+
+
+class ProcessShard(ShardHandle):
     """A ``Shard`` in a worker process of this machine (a fresh interpreter: no forked thread pools, and the caller's
     script needs no ``if __name__ == "__main__"`` guard), spoken to through a local socket."""
 
@@ -173,13 +190,6 @@ class ProcessShard:
         except EOFError:
             return "error", RuntimeError(f"a shard's worker process (pid {self.process.pid}) died "
                                          f"(exit code {self.process.poll()})")
-
-    def call(self, method: str, *args: Any) -> Any:
-        self.send(method, *args)
-        outcome, value = self.receive()
-        if outcome == "error":
-            raise value
-        return value
 
     def close(self) -> None:
         if self.process.poll() is None:
@@ -216,7 +226,7 @@ def _exit_with_parent(parent: int) -> None:
     os._exit(1)
 
 
-class RayShard:
+class RayShard(ShardHandle):
     """A ``Shard`` as a Ray actor (one CPU), wherever the connected cluster places it."""
 
     def __init__(self, *args: Any):
@@ -236,13 +246,6 @@ class RayShard:
             return "error", err.as_instanceof_cause()
         except self._ray.exceptions.RayActorError as err:
             return "error", RuntimeError(f"a shard's Ray actor died: {err}")
-
-    def call(self, method: str, *args: Any) -> Any:
-        self.send(method, *args)
-        outcome, value = self.receive()
-        if outcome == "error":
-            raise value
-        return value
 
     def close(self) -> None:
         self.send("close")
