@@ -11,6 +11,9 @@ from envs.common.errors import ActionError, EgoPlacementError
 from replays.scenes import Scene
 
 CANDIDATE_STRIDE_PX = 4  # spawn candidates: every 4th walkable pixel in each direction
+# A pixel on the image's border, mapped to metres and back, lands up to ~1e-13 px outside it, and by a different
+# amount when one point is mapped than when many are: "on the image" allows this much.
+ROUND_TRIP_TOLERANCE_PX = 1e-6
 NUMBER_KINDS = "iuf"  # numpy dtype kinds an action may have: signed, unsigned, float (not bool, complex, text)
 
 
@@ -54,9 +57,9 @@ def on_image(scene: Scene, xy_m: np.ndarray) -> np.ndarray:
     xy_m = np.asarray(xy_m, dtype=np.float64)
     with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
         uv = scene.world_to_pixel(xy_m)
-    height, width = scene.walkable.shape
-    return (np.isfinite(xy_m).all(-1) & (uv[..., 0] >= 0) & (uv[..., 0] <= width - 1)
-            & (uv[..., 1] >= 0) & (uv[..., 1] <= height - 1))
+    low, (height, width) = -ROUND_TRIP_TOLERANCE_PX, scene.walkable.shape
+    return (np.isfinite(xy_m).all(-1) & (uv[..., 0] >= low) & (uv[..., 0] <= width - 1 - low)
+            & (uv[..., 1] >= low) & (uv[..., 1] <= height - 1 - low))
 
 
 def require_on_map(scene: Scene, xy_m: np.ndarray, what: str, walkable: bool) -> None:
@@ -84,8 +87,7 @@ def move_within(scene: Scene, xy_m: np.ndarray, velocity_mps: np.ndarray, dt_s: 
 def walkable_points(scene: Scene, bounds_m: tuple[float, float, float, float]) -> np.ndarray:
     """(M, 2) world metres of walkable map pixels (every ``CANDIDATE_STRIDE_PX``-th) inside ``bounds_m``.
 
-    Pixels on the image's edge whose round trip through the homography lands a hair outside the image
-    are left out, so every point returned passes ``on_image``.
+    Every point returned passes ``on_image``, mapped alone or with the others.
 
     Args:
         bounds_m: (xmin, ymin, xmax, ymax) metres.
