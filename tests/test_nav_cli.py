@@ -105,3 +105,35 @@ def test_a_sensor_range_reaches_the_env_and_bad_ranges_are_refused(capsys: pytes
     for bad in ("0", "-1", "nan"):
         with pytest.raises(SystemExit, match="--sensor-range"):
             main(["navigate", "--policy", "straight", "--predictor", "none", "--sensor-range", bad, "--quiet"])
+
+
+def test_a_trained_policy_file_drives_ppo_and_other_planners_refuse_it(tmp_path: Path,
+                                                                       capsys: pytest.CaptureFixture) -> None:
+    """``--policy-file`` swaps the shipped policy for one's own: its episodes are its own (not the shipped one's)."""
+    from st_sim.apps.navigation.features import FeatureConfig
+    from st_sim.apps.navigation.ppo import build_policy, save_policy
+
+    cfg = FeatureConfig(False)
+    policy = build_policy(cfg, [8])
+    for parameter in policy.parameters():  # a policy that walks backwards, away from the goal
+        parameter.data.zero_()
+    policy.action_net.bias.data[:] = torch_tensor([-1.0, 0.0])
+    save_policy(policy, cfg, [8], tmp_path / "backwards.pt")
+    args = ["navigate", "--env", "STCrowd-SimCorridor-v1", "--policy", "ppo", "--predictor", "none", "--episodes",
+            "2", "--quiet"]
+    main([*args, "--policy-file", str(tmp_path / "backwards.pt"), "--json", str(tmp_path / "own.json")])
+    main([*args, "--json", str(tmp_path / "shipped.json")])
+    own, shipped = (json.loads((tmp_path / f"{name}.json").read_text()) for name in ("own", "shipped"))
+    assert own["policy_file"].endswith("backwards.pt") and shipped["policy_file"] is None
+    assert own["summary"]["success"]["value"] == 0.0, "walking away from the goal never reaches it"
+    assert own["episodes"] != shipped["episodes"]
+    with pytest.raises(SystemExit, match=r"error: a policy file .* given for the straight planner"):
+        main(["navigate", "--policy", "straight", "--predictor", "none", "--policy-file", "x.pt", "--quiet"])
+    with pytest.raises(SystemExit, match=r"error: .*nothing\.pt: no such policy file"):
+        main([*args, "--policy-file", str(tmp_path / "nothing.pt")])
+
+
+def torch_tensor(values: list[float]):  # noqa: ANN201  (torch is imported lazily, as in the package)
+    import torch
+
+    return torch.tensor(values)

@@ -90,12 +90,45 @@ def test_train_ppo_writes_a_loadable_policy_curve_and_record(tmp_path: Path, dem
     assert record["config"]["timesteps"] == 256 and (tmp_path / "run" / "curve.png").stat().st_size > 0
     assert (record["cloning"] is None) == (demo_steps == 0)
     if demo_steps:
-        assert record["cloning"]["action_mse"] >= 0 and (tmp_path / "demos.npz").exists()
+        assert record["cloning"]["rounds"][0]["action_mse"] >= 0 and (tmp_path / "demos.npz").exists()
 
 
-@pytest.mark.parametrize(("flag", "value"), [("--timesteps", "0"), ("--num-envs", "0"), ("--demo-steps", "-1"),
+def test_dagger_rounds_let_the_clone_drive_and_the_teacher_label(tmp_path: Path) -> None:
+    """Each round adds the clone's own steps, labelled by the teacher, to the labels the next fit sees; the clone's
+    episodes are its own (they differ from the teacher's on the same seeds)."""
+    from st_sim.apps.navigation.train_ppo import main, parse_args
+
+    out = tmp_path / "run"
+    main(parse_args(["--timesteps", "0", "--demo-steps", "24", "--dagger-rounds", "2", "--dagger-steps", "12",
+                     "--bc-epochs", "2", "--sensor-range", "inf", "--closest-approach", "--demos",
+                     str(tmp_path / "demos.npz"), "--out", str(out), "--quiet"]))
+    rounds = json.loads((out / "training.json").read_text())["cloning"]["rounds"]
+    assert [r["labelled_steps"] for r in rounds] == [24, 36, 48]
+    teacher = load_or_collect(DemoSpec(steps=24, closest_approach=True), tmp_path / "demos.npz")
+    for round_ in (1, 2):
+        spec = DemoSpec(steps=12, seed=DemoSpec().seed + 10_000 * round_, closest_approach=True,
+                        student=str(out / f"dagger-{round_}.pt"))
+        labelled = load_or_collect(spec, out / f"dagger-{round_}.npz")
+        assert labelled.features_with.shape == (12, FeatureConfig(True, closest_approach=True).size)
+        assert np.abs(labelled.actions).max() <= 1.0
+        assert not np.array_equal(labelled.features_with, teacher.features_with[:12])
+
+
+def test_a_student_that_reads_other_features_is_refused_by_file(tmp_path: Path) -> None:
+    from st_sim.apps.navigation.demonstrations import load_student
+    from st_sim.apps.navigation.ppo import build_policy, save_policy
+
+    cfg = FeatureConfig(True, closest_approach=False)
+    save_policy(build_policy(cfg, [8]), cfg, [8], tmp_path / "student.pt")
+    with pytest.raises(DemoFileError, match=r"student\.pt: the student reads .* but the demonstrations hold"):
+        load_student(DemoSpec(closest_approach=True, student=str(tmp_path / "student.pt")))
+    assert load_student(DemoSpec(closest_approach=False, student=str(tmp_path / "student.pt")))[1] == cfg
+
+
+@pytest.mark.parametrize(("flag", "value"), [("--timesteps", "-1"), ("--num-envs", "0"), ("--demo-steps", "-1"),
                                              ("--timesteps", "many"), ("--sensor-range", "nan"), ("--minutes", "0"),
-                                             ("--demo-steps", "100")])
+                                             ("--demo-steps", "100"), ("--dagger-rounds", "1"),
+                                             ("--log-std-init", "nan")])
 def test_train_ppo_refuses_bad_budgets_by_flag(flag: str, value: str, capsys: pytest.CaptureFixture) -> None:
     from st_sim.apps.navigation.train_ppo import parse_args
 

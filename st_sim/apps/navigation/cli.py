@@ -39,6 +39,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
     nav.add_argument("--sensor-range", type=float, default=None,
                      help="the robot senses, and the env forecasts, only the pedestrians within this many metres "
                           "(default: inf, everyone)")
+    nav.add_argument("--policy-file", default=None, metavar="PATH",
+                     help="with --policy ppo: a trained policy (train_ppo's policy.pt) instead of the shipped one")
     nav.add_argument("--json", default=None, help="write settings, per-episode figures and the summary here")
     nav.add_argument("--rerun", default=None, help="write one Rerun recording per episode into this folder")
     nav.add_argument("--data-root", default=None, help="ETH/UCY folder (default: $STCROWD_DATA or the cache)")
@@ -58,8 +60,11 @@ def run(args: argparse.Namespace) -> int:
     nav_run = NavRun(env_id=args.env, policy=args.policy, predictor=args.predictor, episodes=args.episodes,
                      seed=args.seed, pedestrians_see_ego=SEE_EGO_CHOICES[args.pedestrians_see_ego],
                      pedestrians=args.pedestrians, sensor_range_m=args.sensor_range,
-                     rerun_dir=args.rerun, data_root=args.data_root)
-    result = run_navigation(nav_run, progress=not args.quiet)
+                     rerun_dir=args.rerun, data_root=args.data_root, policy_file=args.policy_file)
+    try:
+        result = run_navigation(nav_run, progress=not args.quiet)
+    except ValueError as err:  # a planner option for another planner, an unreadable policy file
+        raise SystemExit(f"error: {err}") from None
     print(summary_text(result))
     if args.json:
         write_text_atomic(Path(args.json), json.dumps(result, indent=1))

@@ -2,6 +2,9 @@
 
     demos = load_or_collect(DemoSpec("STCrowd-SimCrossing-v1", steps=16_000), "runs/nav/demos.npz")
     behaviour_clone(model.policy, demos, use_predictions=True)   # before model.learn(...)
+    # DAgger: the clone drives, the teacher labels the states the clone reaches; clone again on both
+    more = load_or_collect(DemoSpec(steps=8_000, seed=70_000, student="runs/nav/clone.pt"), "runs/nav/dagger-1.npz")
+    behaviour_clone(model.policy, concatenate([demos, more]), use_predictions=True)
 
 A teacher (the sampling MPC with SingularTrajectory, the table's best planner) drives the ego; every step
 keeps the features both policy variants would see (with and without the predicted futures), the teacher's
@@ -24,7 +27,8 @@ import numpy as np
 from tqdm import tqdm
 
 from replays.atomic import atomic_path
-from st_sim.apps.navigation.features import FeatureConfig, drop_predictions, encode, path_frame
+from st_sim.apps.navigation.features import FeatureConfig, drop_predictions, encode, path_frame, to_velocity
+from st_sim.apps.navigation.ppo import load_policy
 
 FORMAT = "stcrowd-nav-demos/1"
 ARRAYS = ("features_with", "features_without", "actions", "rewards", "episode_ends")  # the arrays of ``Demos``
@@ -50,6 +54,9 @@ class DemoSpec:
     """processes that collect in parallel (worker w seeds seed + w * 100000 + episode) [-]"""
     closest_approach: bool = False
     """the features with predictions also hold each pedestrian's predicted closest approach (``FeatureConfig``)"""
+    student: str | None = None
+    """a policy file (``ppo.save_policy``) that drives instead of the teacher, which then only labels the states
+    the student reaches (a DAgger round); None: the teacher drives"""
 
 
 @dataclass(frozen=True, eq=False)
@@ -82,6 +89,12 @@ class Demos:
             running = self.rewards[t] + (0.0 if self.episode_ends[t] else gamma * running)
             out[t] = running
         return out
+
+
+def concatenate(parts: list[Demos]) -> Demos:
+    """The steps of several collections one after another (their episodes stay whole); wall times add up."""
+    return Demos(*(np.concatenate([getattr(part, name) for part in parts]) for name in ARRAYS),
+                 wall_time_s=sum(part.wall_time_s for part in parts))
 
 
 def collect(spec: DemoSpec, progress: bool = True) -> Demos:
@@ -128,6 +141,8 @@ def _collect_share(job: tuple[DemoSpec, int, int]) -> tuple[np.ndarray, ...]:
     env = gym.make(spec.env_id, predictor=env_predictor("singular"))
     world = world_of(env)
     teacher = make_planner(spec.teacher, world, "singular")
+    with_predictions = FeatureConfig(True, closest_approach=spec.closest_approach)
+    student, student_cfg = load_student(spec) if spec.student is not None else (None, None)
     rows: list[tuple[np.ndarray, ...]] = []
     episode = 0
     while len(rows) < share:
@@ -136,11 +151,13 @@ def _collect_share(job: tuple[DemoSpec, int, int]) -> tuple[np.ndarray, ...]:
         episode += 1
         done = False
         while not done and len(rows) < share:
-            velocity = teacher.act(obs)
-            action = np.clip(path_frame(obs, world) @ velocity / world.max_speed_mps, -1.0, 1.0)
-            with_predictions = FeatureConfig(True, closest_approach=spec.closest_approach)
-            features_with = encode(obs, world, with_predictions)  # rays and slots once for both variants
+            velocity, frame = teacher.act(obs), path_frame(obs, world)
+            action = np.clip(frame @ velocity / world.max_speed_mps, -1.0, 1.0)
+            features_with = encode(obs, world, with_predictions, frame)  # rays and slots once for both variants
             features = (features_with, drop_predictions(features_with, with_predictions))
+            if student is not None:
+                own, _ = student.predict(features[0 if student_cfg.use_predictions else 1], deterministic=True)
+                velocity = to_velocity(own, obs, world, frame)
             obs, reward, terminated, truncated, _ = env.step(velocity)
             done = terminated or truncated
             rows.append((*features, action.astype(np.float32), np.float32(reward), done))
@@ -151,6 +168,19 @@ def _collect_share(job: tuple[DemoSpec, int, int]) -> tuple[np.ndarray, ...]:
             rows[-1] = (*rows[-1][:4], True)
     env.close()
     return tuple(np.stack([row[i] for row in rows]) for i in range(5))
+
+
+def load_student(spec: DemoSpec) -> tuple[Any, FeatureConfig]:
+    """(actor-critic, its FeatureConfig) of ``spec.student``, checked to read the features collected for ``spec``.
+
+    Raises:
+        DemoFileError: the student sees other features (a sensor range, or another closest-approach setting).
+    """
+    policy, cfg = load_policy(spec.student)
+    collected = FeatureConfig(cfg.use_predictions, closest_approach=spec.closest_approach and cfg.use_predictions)
+    if cfg != collected:
+        raise DemoFileError(f"{spec.student}: the student reads {cfg}, but the demonstrations hold {collected}")
+    return policy, cfg
 
 
 def save(demos: Demos, spec: DemoSpec, path: str | Path) -> None:

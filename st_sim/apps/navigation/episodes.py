@@ -58,6 +58,8 @@ class NavRun:
     """ETH/UCY data root for replays (default: $STCROWD_DATA or the cache)"""
     mpc: MpcConfig | None = None
     """tunables of the MPC planner (None: the defaults); other planners take none"""
+    policy_file: str | None = None
+    """the PPO planner: a policy file (``train_ppo``'s policy.pt) instead of the shipped policy"""
 
 
 def accepts_keyword(env_id: str, name: str) -> bool:
@@ -121,6 +123,19 @@ def run_episode(env: gym.Env, planner: Planner, world: NavWorld, seed: int) -> t
     return trace, thinking_s
 
 
+def planner_options(run: NavRun) -> dict[str, Any]:
+    """Keyword options of ``run``'s planner class: the MPC's ``cfg``, the PPO planner's ``policy`` file.
+
+    Raises:
+        ValueError: options given for a planner that takes none of them.
+    """
+    if run.mpc is not None and run.policy != "mpc":
+        raise ValueError(f"MPC settings given for the {run.policy} planner; they are the mpc planner's")
+    if run.policy_file is not None and run.policy != "ppo":
+        raise ValueError(f"a policy file ({run.policy_file}) given for the {run.policy} planner; only ppo reads one")
+    return {"cfg": run.mpc} if run.mpc is not None else {"policy": run.policy_file} if run.policy_file else {}
+
+
 def run_navigation(run: NavRun, progress: bool = True) -> dict[str, Any]:
     """Run the episodes of ``run``; returns {run settings, planner_config, episodes: [seed + metrics], summary,
     speed}.
@@ -132,7 +147,7 @@ def run_navigation(run: NavRun, progress: bool = True) -> dict[str, Any]:
     see_ego = run.pedestrians_see_ego if accepts_keyword(run.env_id, SEE_EGO_KWARG) else None
     env = make_nav_env(run)
     world = world_of(env)
-    planner = make_planner(run.policy, world, run.predictor, **({} if run.mpc is None else {"cfg": run.mpc}))
+    planner = make_planner(run.policy, world, run.predictor, **planner_options(run))
     episodes, thinking_s, decisions = [], 0.0, 0
     start = time.perf_counter()
     for i in tqdm(range(run.episodes), desc=f"{run.policy}/{run.predictor} {run.env_id}", disable=not progress,

@@ -8,7 +8,10 @@ SingularTrajectory call per step for all of them, only for the pedestrians withi
 robot). PPO starts from scratch; ``--demo-steps N`` instead starts from a teacher: N steps of the sampling MPC
 with SingularTrajectory are collected once into ``--demos`` (reused by the other variant) and cloned into the
 actor-critic (``demonstrations``; its features see every pedestrian, so it needs ``--sensor-range inf``).
-``--minutes`` stops the run after that much wall time (then writes everything as at the end of the budget).
+``--dagger-rounds K`` then runs K DAgger rounds: the clone drives ``--dagger-steps`` steps, the teacher labels every
+state it reaches, and the clone is fitted again on all labels so far (each round's steps are kept in --out).
+``--timesteps 0`` stops there (a clone without PPO). ``--minutes`` stops the run after that much wall time (then
+writes everything as at the end of the budget).
 
 Writes into --out: ``policy.pt`` (loadable with ``ppo.load_policy``), ``curve.png`` and ``curve.json`` (the
 learning curve: success, collision and return over the last 100 training episodes against env steps) and
@@ -40,14 +43,15 @@ from tqdm import tqdm
 
 from envs.common.config import EnvConfig, RewardWeights
 from replays.atomic import atomic_path, write_text_atomic
-from st_sim.apps.navigation.demonstrations import DemoSpec, behaviour_clone, load_or_collect
+from st_sim.apps.navigation.demonstrations import DemoSpec, behaviour_clone, concatenate, load_or_collect
 from st_sim.apps.navigation.features import FeatureConfig
 from st_sim.apps.navigation.ppo import EXTRACTORS, PRETRAINED_DIR, build_policy, policy_kwargs, save_policy
 
 CURVE_WINDOW = 100  # training episodes averaged per learning-curve point [-]
+DAGGER_SEED_STRIDE = 10_000  # episode seeds between two DAgger rounds (a worker's share is far fewer episodes) [-]
 RESUMABLE = ("use_predictions", "env_id", "num_envs", "sensor_range_m", "reward", "seed", "n_steps", "batch_size",
              "n_epochs", "learning_rate", "gamma", "net_arch", "log_std_init", "initial_forward", "demo_steps",
-             "demos", "bc_epochs", "extractor", "closest_approach", "shards")
+             "demos", "bc_epochs", "dagger_rounds", "dagger_steps", "extractor", "closest_approach", "shards")
 """settings a run must share with the saved state to continue it (the budget and output options may differ)"""
 
 
@@ -100,6 +104,10 @@ class TrainConfig:
     """demonstrations file, shared by both variants (collected when missing or collected with other settings)"""
     bc_epochs: int = 30
     """passes of behaviour cloning over the demonstrations"""
+    dagger_rounds: int = 0
+    """after cloning: rounds in which the clone drives and the teacher labels the states it reaches (DAgger)"""
+    dagger_steps: int = 8_000
+    """env steps the clone drives in each DAgger round"""
     minutes: float = float("inf")
     """wall-time budget: learning stops after this long, and the run is written as if the budget was reached"""
     save_every: int = 10
@@ -199,6 +207,30 @@ def resumable_state(cfg: TrainConfig) -> tuple[Path, list[dict]] | None:
     return out / "resume.zip", json.loads(curve_path.read_text()) if curve_path.exists() else []
 
 
+def clone_teacher(policy: Any, cfg: TrainConfig, net_arch: list[int]) -> dict[str, Any]:
+    """Clone ``cfg.demo_steps`` teacher steps (the file ``cfg.demos``, shared by both variants) into the actor-critic
+    ``policy``, then run ``cfg.dagger_rounds`` DAgger rounds; returns the record (fit and steps after each round).
+
+    Round r saves the clone to ``dagger-r.pt`` in ``cfg.out``, lets it drive ``cfg.dagger_steps`` steps from episode
+    seeds of its own (``DemoSpec().seed + r * DAGGER_SEED_STRIDE``...) with the teacher labelling (``dagger-r.npz``,
+    reused by a run restarted with the same settings), and fits the clone again on every label so far.
+    """
+    demos = load_or_collect(DemoSpec(cfg.env_id, cfg.demo_steps, closest_approach=cfg.closest_approach), cfg.demos,
+                            cfg.progress)
+    record: dict[str, Any] = {"demo_collection_s": demos.wall_time_s, "rounds": []}
+    for round_ in range(cfg.dagger_rounds + 1):
+        if round_ > 0:
+            student = Path(cfg.out) / f"dagger-{round_}.pt"
+            save_policy(policy, cfg.features, net_arch, student, cfg.extractor)
+            spec = DemoSpec(cfg.env_id, cfg.dagger_steps, seed=DemoSpec().seed + round_ * DAGGER_SEED_STRIDE,
+                            closest_approach=cfg.closest_approach, student=str(student))
+            demos = concatenate([demos, load_or_collect(spec, student.with_suffix(".npz"), cfg.progress)])
+        fit = behaviour_clone(policy, demos, cfg.use_predictions, cfg.gamma, cfg.bc_epochs, seed=cfg.seed + round_)
+        record["rounds"].append({"labelled_steps": len(demos.actions), "wall_s": round(demos.wall_time_s, 1), **fit})
+        print(f"behaviour cloning, round {round_} ({len(demos.actions)} labelled steps): {fit}")
+    return record
+
+
 def plot_curve(curves: dict[str, list[dict] | list[list[dict]]], path: Path, title: str) -> Path | None:
     """Learning-curve PNG of one or more runs: success rate (top) and mean return (bottom) of the last
     ``CURVE_WINDOW`` training episodes against env steps, one colour per label. A label holds one run's
@@ -262,19 +294,16 @@ def main(cfg: TrainConfig) -> Path:
                              "shrink it (ask for more to extend it, or use another --out)")
         print(f"resuming {saved[0]} at {resumed_from} env steps")
     elif cfg.demo_steps > 0:
-        demos = load_or_collect(DemoSpec(cfg.env_id, cfg.demo_steps, closest_approach=cfg.features.closest_approach),
-                                cfg.demos, cfg.progress)
-        cloning = behaviour_clone(model.policy, demos, cfg.use_predictions, cfg.gamma, cfg.bc_epochs, seed=cfg.seed)
-        cloning["demo_collection_s"] = demos.wall_time_s
-        print(f"behaviour cloning on {len(demos.actions)} teacher steps: {cloning}")
+        cloning = clone_teacher(model.policy, cfg, net_arch)
     else:
         with torch.no_grad():  # exploration then learns when to deviate from the path
             model.policy.action_net.bias.copy_(torch.tensor([cfg.initial_forward, 0.0]))
 
     # loop: rollouts -> PPO updates, a curve point per rollout, the resumable state every save_every rollouts
     learning = time.perf_counter()
-    model.learn(total_timesteps=max(cfg.timesteps - resumed_from, 0), callback=curve_callback(cfg, curve),
-                reset_num_timesteps=resumed_from == 0, tb_log_name=run_name)
+    if cfg.timesteps > resumed_from:
+        model.learn(total_timesteps=cfg.timesteps - resumed_from, callback=curve_callback(cfg, curve),
+                    reset_num_timesteps=resumed_from == 0, tb_log_name=run_name)
     steps_per_s = (model.num_timesteps - resumed_from) / max(time.perf_counter() - learning, 1e-9)
     save_resumable(model, cfg, curve)
     wall_time_s = time.perf_counter() - start
@@ -320,7 +349,8 @@ def parse_args(argv: list[str] | None = None) -> TrainConfig:
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--no-predictions", action="store_true", help="train without the predicted futures")
     parser.add_argument("--env-id", default=d.env_id, help=f"training env (default: {d.env_id})")
-    parser.add_argument("--timesteps", type=int, default=d.timesteps, help=f"env steps (default: {d.timesteps})")
+    parser.add_argument("--timesteps", type=int, default=d.timesteps,
+                        help=f"PPO env steps, 0: stop after cloning (default: {d.timesteps})")
     parser.add_argument("--num-envs", type=int, default=d.num_envs, help=f"parallel envs (default: {d.num_envs})")
     parser.add_argument("--sensor-range", type=float, default=d.sensor_range_m,
                         help=f"pedestrians sensed and forecast within this distance [m], inf: all (default: "
@@ -330,6 +360,15 @@ def parse_args(argv: list[str] | None = None) -> TrainConfig:
     parser.add_argument("--seed", type=int, default=d.seed, help=f"seed (default: {d.seed})")
     parser.add_argument("--demo-steps", type=int, default=d.demo_steps,
                         help=f"teacher steps cloned before PPO, 0 for none (default: {d.demo_steps})")
+    parser.add_argument("--bc-epochs", type=int, default=d.bc_epochs,
+                        help=f"passes of behaviour cloning over the labels, per round (default: {d.bc_epochs})")
+    parser.add_argument("--dagger-rounds", type=int, default=d.dagger_rounds,
+                        help=f"DAgger rounds after cloning, with --demo-steps (default: {d.dagger_rounds})")
+    parser.add_argument("--dagger-steps", type=int, default=d.dagger_steps,
+                        help=f"env steps the clone drives per DAgger round (default: {d.dagger_steps})")
+    parser.add_argument("--log-std-init", type=float, default=d.log_std_init,
+                        help=f"initial log standard deviation of PPO's actions, in speed limits (default: "
+                        f"{d.log_std_init}; lower keeps a cloned policy closer to its teacher)")
     parser.add_argument("--demos", default=d.demos, help=f"demonstrations file, shared by both variants "
                         f"(default: {d.demos})")
     parser.add_argument("--save-every", type=int, default=d.save_every,
@@ -348,15 +387,20 @@ def parse_args(argv: list[str] | None = None) -> TrainConfig:
                         help="also log training figures to TensorBoard in DIR (pip install tensorboard)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     args = parser.parse_args(argv)
-    for flag, value, least in (("--timesteps", args.timesteps, 1), ("--num-envs", args.num_envs, 1),
+    for flag, value, least in (("--timesteps", args.timesteps, 0), ("--num-envs", args.num_envs, 1),
                                ("--demo-steps", args.demo_steps, 0), ("--save-every", args.save_every, 1),
-                               ("--shards", args.shards, 1)):
+                               ("--shards", args.shards, 1), ("--dagger-rounds", args.dagger_rounds, 0),
+                               ("--dagger-steps", args.dagger_steps, 1), ("--bc-epochs", args.bc_epochs, 1)):
         if value < least:
             parser.error(f"{flag}={value}: expected an integer >= {least}")
     if not args.sensor_range > 0:  # also refuses NaN
         parser.error(f"--sensor-range={args.sensor_range}: expected a distance > 0 (or inf)")
     if not args.minutes > 0:
         parser.error(f"--minutes={args.minutes}: expected a duration > 0")
+    if args.dagger_rounds > 0 and args.demo_steps == 0:
+        parser.error("--dagger-rounds: DAgger refines a clone; add --demo-steps N")
+    if not np.isfinite(args.log_std_init):
+        parser.error(f"--log-std-init={args.log_std_init}: expected a finite number")
     if args.demo_steps > 0 and args.sensor_range != float("inf"):
         parser.error("--demo-steps: the teacher's demonstrations see every pedestrian; add --sensor-range inf")
     use_predictions = not args.no_predictions
@@ -367,6 +411,8 @@ def parse_args(argv: list[str] | None = None) -> TrainConfig:
                        reward=replace(d.reward, prediction=args.prediction_reward), extractor=args.extractor,
                        closest_approach=args.closest_approach, shards=args.shards, tensorboard=args.tensorboard,
                        demo_steps=args.demo_steps, demos=args.demos, minutes=args.minutes,
+                       dagger_rounds=args.dagger_rounds, dagger_steps=args.dagger_steps, log_std_init=args.log_std_init,
+                       bc_epochs=args.bc_epochs,
                        save_every=args.save_every, out=args.out, ship_as=args.ship, progress=not args.quiet)
 
 
