@@ -110,6 +110,8 @@ def test_a_sensor_range_reaches_the_env_and_bad_ranges_are_refused(capsys: pytes
 def test_a_trained_policy_file_drives_ppo_and_other_planners_refuse_it(tmp_path: Path,
                                                                        capsys: pytest.CaptureFixture) -> None:
     """``--policy-file`` swaps the shipped policy for one's own: its episodes are its own (not the shipped one's)."""
+    import torch
+
     from st_sim.apps.navigation.features import FeatureConfig
     from st_sim.apps.navigation.ppo import build_policy, save_policy
 
@@ -117,7 +119,7 @@ def test_a_trained_policy_file_drives_ppo_and_other_planners_refuse_it(tmp_path:
     policy = build_policy(cfg, [8])
     for parameter in policy.parameters():  # a policy that walks backwards, away from the goal
         parameter.data.zero_()
-    policy.action_net.bias.data[:] = torch_tensor([-1.0, 0.0])
+    policy.action_net.bias.data[:] = torch.tensor([-1.0, 0.0])
     save_policy(policy, cfg, [8], tmp_path / "backwards.pt")
     args = ["navigate", "--env", "STCrowd-SimCorridor-v1", "--policy", "ppo", "--predictor", "none", "--episodes",
             "2", "--quiet"]
@@ -131,9 +133,3 @@ def test_a_trained_policy_file_drives_ppo_and_other_planners_refuse_it(tmp_path:
         main(["navigate", "--policy", "straight", "--predictor", "none", "--policy-file", "x.pt", "--quiet"])
     with pytest.raises(SystemExit, match=r"error: .*nothing\.pt: no such policy file"):
         main([*args, "--policy-file", str(tmp_path / "nothing.pt")])
-
-
-def torch_tensor(values: list[float]):  # noqa: ANN201  (torch is imported lazily, as in the package)
-    import torch
-
-    return torch.tensor(values)

@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 import json
+from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from st_sim.apps.navigation.demonstrations import (
+    ARRAYS,
+    FORMAT,
     DemoFileError,
     Demos,
     DemoSpec,
@@ -45,6 +48,15 @@ def test_a_file_with_another_spec_or_damaged_bytes_is_refused_by_name(tmp_path: 
     path.write_bytes(path.read_bytes()[:100])
     with pytest.raises(DemoFileError, match=r"demos\.npz: not a readable demonstrations file"):
         load_or_collect(DemoSpec(steps=6), path)
+
+
+def test_a_file_written_before_a_spec_field_existed_reads_as_that_fields_default(tmp_path: Path) -> None:
+    path, demos = tmp_path / "old.npz", hand_made()
+    old_spec = {k: v for k, v in {"format": FORMAT, **asdict(DemoSpec(steps=6))}.items() if k != "student"}
+    np.savez(path, spec=json.dumps(old_spec), **{name: getattr(demos, name) for name in ARRAYS}, wall_time_s=1.0)
+    np.testing.assert_array_equal(load_or_collect(DemoSpec(steps=6), path).actions, demos.actions)
+    with pytest.raises(DemoFileError, match="collected with"):
+        load_or_collect(DemoSpec(steps=6, student="clone.pt"), path)
 
 
 @pytest.mark.parametrize("use_predictions", [True, False])

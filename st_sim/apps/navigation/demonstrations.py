@@ -207,6 +207,7 @@ def load_or_collect(spec: DemoSpec, path: str | Path, progress: bool = True) -> 
             demos = Demos(*(data[name] for name in ARRAYS), wall_time_s=float(data["wall_time_s"]))
     except Exception as err:  # zip, key and JSON errors of a damaged or foreign file
         raise DemoFileError(f"{path}: not a readable demonstrations file: {err}") from err
+    stored = {**asdict(DemoSpec()), **stored}  # a field added since the file was written has its default there
     if stored != {"format": FORMAT, **asdict(spec)}:
         raise DemoFileError(f"{path}: collected with {stored}, not {asdict(spec)}; remove it or pass another path")
     return demos
