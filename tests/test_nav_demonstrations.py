@@ -111,11 +111,18 @@ def test_dagger_rounds_let_the_clone_drive_and_the_teacher_label(tmp_path: Path)
     from st_sim.apps.navigation.train_ppo import main, parse_args
 
     out = tmp_path / "run"
-    main(parse_args(["--timesteps", "0", "--demo-steps", "24", "--dagger-rounds", "2", "--dagger-steps", "12",
-                     "--bc-epochs", "2", "--sensor-range", "inf", "--closest-approach", "--demos",
-                     str(tmp_path / "demos.npz"), "--out", str(out), "--quiet"]))
+    main(parse_args(["--timesteps", "0", "--num-envs", "2", "--demo-steps", "24", "--dagger-rounds", "2",
+                     "--dagger-steps", "12", "--bc-epochs", "2", "--sensor-range", "inf", "--closest-approach",
+                     "--demos", str(tmp_path / "demos.npz"), "--out", str(out), "--quiet"]))
     rounds = json.loads((out / "training.json").read_text())["cloning"]["rounds"]
     assert [r["labelled_steps"] for r in rounds] == [24, 36, 48]
+    # PPO then continues from the clone, and its record keeps the cloning's
+    main(parse_args(["--timesteps", "64", "--num-envs", "2", "--demo-steps", "24", "--dagger-rounds", "2",
+                     "--dagger-steps", "12", "--bc-epochs", "2", "--sensor-range", "inf", "--closest-approach",
+                     "--demos", str(tmp_path / "demos.npz"), "--out", str(out), "--quiet"]))
+    record = json.loads((out / "training.json").read_text())
+    assert record["resumed_from"] == 0 and record["cloning"]["rounds"] == rounds
+    assert record["final"]["timesteps"] >= 64
     teacher = load_or_collect(DemoSpec(steps=24, closest_approach=True), tmp_path / "demos.npz")
     for round_ in (1, 2):
         spec = DemoSpec(steps=12, seed=DemoSpec().seed + 10_000 * round_, closest_approach=True,

@@ -293,8 +293,12 @@ def main(cfg: TrainConfig) -> Path:
             raise ValueError(f"{out} holds a run of {resumed_from} env steps; --timesteps {cfg.timesteps} cannot "
                              "shrink it (ask for more to extend it, or use another --out)")
         print(f"resuming {saved[0]} at {resumed_from} env steps")
+        if (out / "cloning.json").is_file():
+            cloning = json.loads((out / "cloning.json").read_text())
     elif cfg.demo_steps > 0:
         cloning = clone_teacher(model.policy, cfg, net_arch)
+        write_text_atomic(out / "cloning.json", json.dumps(cloning, indent=1))
+        save_resumable(model, cfg, curve)  # a run killed during PPO restarts from the clone
     else:
         with torch.no_grad():  # exploration then learns when to deviate from the path
             model.policy.action_net.bias.copy_(torch.tensor([cfg.initial_forward, 0.0]))
@@ -337,7 +341,8 @@ def ship(policy_path: Path, name: str, record: dict) -> Path:
     manifest = json.loads(manifest_path.read_text()) if manifest_path.exists() else {"policies": {}}
     manifest["policies"][name] = {"file": target.name, "sha256": record["sha256"], "command": record["command"],
                                   "env_id": record["config"]["env_id"], "timesteps": record["config"]["timesteps"],
-                                  "wall_time_s": round(record["wall_time_s"], 1), "final_training": record["final"]}
+                                  "wall_time_s": round(record["wall_time_s"], 1), "final_training": record["final"],
+                                  "cloning": record["cloning"]}
     write_text_atomic(manifest_path, json.dumps(manifest, indent=1, sort_keys=True) + "\n")
     return target
 
