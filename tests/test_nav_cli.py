@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -129,7 +130,8 @@ def test_a_trained_policy_file_drives_ppo_and_other_planners_refuse_it(tmp_path:
     assert own["policy_file"].endswith("backwards.pt") and shipped["policy_file"] is None
     assert own["summary"]["success"]["value"] == 0.0, "walking away from the goal never reaches it"
     assert own["episodes"] != shipped["episodes"]
-    with pytest.raises(SystemExit, match=r"error: a policy file .* given for the straight planner"):
-        main(["navigate", "--policy", "straight", "--predictor", "none", "--policy-file", "x.pt", "--quiet"])
-    with pytest.raises(SystemExit, match=r"error: .*nothing\.pt: no such policy file"):
-        main([*args, "--policy-file", str(tmp_path / "nothing.pt")])
+    capsys.readouterr()
+    assert main(["navigate", "--policy", "straight", "--predictor", "none", "--policy-file", "x.pt", "--quiet"]) == 1
+    assert re.fullmatch(r"error: a policy file .* given for the straight planner.*\n", capsys.readouterr().err)
+    assert main([*args, "--policy-file", str(tmp_path / "nothing.pt")]) == 1
+    assert re.fullmatch(r"error: .*nothing\.pt: no such policy file.*\n", capsys.readouterr().err)

@@ -61,10 +61,7 @@ def run(args: argparse.Namespace) -> int:
                      seed=args.seed, pedestrians_see_ego=SEE_EGO_CHOICES[args.pedestrians_see_ego],
                      pedestrians=args.pedestrians, sensor_range_m=args.sensor_range,
                      rerun_dir=args.rerun, data_root=args.data_root, policy_file=args.policy_file)
-    try:
-        result = run_navigation(nav_run, progress=not args.quiet)
-    except ValueError as err:  # a planner option for another planner, an unreadable policy file
-        raise SystemExit(f"error: {err}") from None
+    result = run_navigation(nav_run, progress=not args.quiet)
     print(summary_text(result))
     if args.json:
         write_text_atomic(Path(args.json), json.dumps(result, indent=1))
