@@ -108,24 +108,23 @@ def test_train_ppo_writes_a_loadable_policy_curve_and_record(tmp_path: Path, dem
 def test_dagger_rounds_let_the_clone_drive_and_the_teacher_label(tmp_path: Path) -> None:
     """Each round adds the clone's own steps, labelled by the teacher, to the labels the next fit sees; the clone's
     episodes are its own (they differ from the teacher's on the same seeds)."""
-    from st_sim.apps.navigation.train_ppo import main, parse_args
+    from st_sim.apps.navigation.train_ppo import DAGGER_SEED_STRIDE, main, parse_args
 
     out = tmp_path / "run"
-    main(parse_args(["--timesteps", "0", "--num-envs", "2", "--demo-steps", "24", "--dagger-rounds", "2",
-                     "--dagger-steps", "12", "--bc-epochs", "2", "--sensor-range", "inf", "--closest-approach",
-                     "--demos", str(tmp_path / "demos.npz"), "--out", str(out), "--quiet"]))
+    args = ["--num-envs", "2", "--demo-steps", "24", "--dagger-rounds", "2", "--dagger-steps", "12", "--bc-epochs",
+            "2", "--sensor-range", "inf", "--closest-approach", "--demos", str(tmp_path / "demos.npz"), "--out",
+            str(out), "--quiet"]
+    main(parse_args(["--timesteps", "0", *args]))
     rounds = json.loads((out / "training.json").read_text())["cloning"]["rounds"]
     assert [r["labelled_steps"] for r in rounds] == [24, 36, 48]
     # PPO then continues from the clone, and its record keeps the cloning's
-    main(parse_args(["--timesteps", "64", "--num-envs", "2", "--demo-steps", "24", "--dagger-rounds", "2",
-                     "--dagger-steps", "12", "--bc-epochs", "2", "--sensor-range", "inf", "--closest-approach",
-                     "--demos", str(tmp_path / "demos.npz"), "--out", str(out), "--quiet"]))
+    main(parse_args(["--timesteps", "64", *args]))
     record = json.loads((out / "training.json").read_text())
     assert record["resumed_from"] == 0 and record["cloning"]["rounds"] == rounds
     assert record["final"]["timesteps"] >= 64
     teacher = load_or_collect(DemoSpec(steps=24, closest_approach=True), tmp_path / "demos.npz")
     for round_ in (1, 2):
-        spec = DemoSpec(steps=12, seed=DemoSpec().seed + 10_000 * round_, closest_approach=True,
+        spec = DemoSpec(steps=12, seed=DemoSpec().seed + DAGGER_SEED_STRIDE * round_, closest_approach=True,
                         student=str(out / f"dagger-{round_}.pt"))
         labelled = load_or_collect(spec, out / f"dagger-{round_}.npz")
         assert labelled.features_with.shape == (12, FeatureConfig(True, closest_approach=True).size)
