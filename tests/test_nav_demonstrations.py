@@ -94,7 +94,7 @@ def test_train_ppo_writes_a_loadable_policy_curve_and_record(tmp_path: Path, dem
 
     cfg = parse_args(["--no-predictions", "--timesteps", "256", "--num-envs", "2", "--demo-steps", str(demo_steps),
                       "--demos", str(tmp_path / "demos.npz"), "--out", str(tmp_path / "run"), "--quiet",
-                      *(["--sensor-range", "inf"] if demo_steps else [])])
+                      *(["--sensor-range", "inf"] if demo_steps else ["--tensorboard", str(tmp_path / "tb")])])
     policy_path = main(cfg)
     policy, features = load_policy(policy_path)
     assert not features.use_predictions and policy.observation_space.shape == (features.size,)
@@ -103,6 +103,8 @@ def test_train_ppo_writes_a_loadable_policy_curve_and_record(tmp_path: Path, dem
     assert (record["cloning"] is None) == (demo_steps == 0)
     if demo_steps:
         assert record["cloning"]["rounds"][0]["action_mse"] >= 0 and (tmp_path / "demos.npz").exists()
+    else:  # stable-baselines3's own logger wrote TensorBoard events
+        assert any(path.stat().st_size > 0 for path in (tmp_path / "tb").rglob("events.out.tfevents.*"))
 
 
 def test_dagger_rounds_let_the_clone_drive_and_the_teacher_label(tmp_path: Path) -> None:
@@ -153,6 +155,17 @@ def test_train_ppo_refuses_bad_budgets_by_flag(flag: str, value: str, capsys: py
     with pytest.raises(SystemExit):
         parse_args([flag, value])
     assert flag.lstrip("-") in capsys.readouterr().err.replace("_", "-")
+
+
+def test_tensorboard_logging_without_tensorboard_installed_is_refused_before_any_work(
+        monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture) -> None:
+    from st_sim.apps.navigation import train_ppo
+
+    real = train_ppo.util.find_spec
+    monkeypatch.setattr(train_ppo.util, "find_spec", lambda name: None if name == "tensorboard" else real(name))
+    with pytest.raises(SystemExit):
+        train_ppo.parse_args(["--tensorboard", "tb"])
+    assert "TensorBoard is not installed; pip install -e '.[tensorboard]'" in capsys.readouterr().err
 
 
 def test_an_empty_collection_is_refused_before_any_work() -> None:

@@ -34,7 +34,7 @@ import sys
 import time
 from collections import deque
 from dataclasses import asdict, dataclass, field, replace
-from importlib import resources
+from importlib import resources, util
 from pathlib import Path
 from typing import Any
 
@@ -93,7 +93,7 @@ class TrainConfig:
     shards: int = 1
     """worker processes the training envs are split into (``envs.shards``; 1: this process)"""
     tensorboard: str | None = None
-    """also log SB3's training figures to TensorBoard in this folder (``pip install tensorboard``)"""
+    """also log SB3's training figures to TensorBoard in this folder (the ``tensorboard`` extra)"""
     log_std_init: float = -0.5
     """initial log standard deviation of the Gaussian actions (std 0.61 of the speed limit)"""
     initial_forward: float = 0.7
@@ -389,7 +389,7 @@ def parse_args(argv: list[str] | None = None) -> TrainConfig:
     parser.add_argument("--shards", type=int, default=d.shards,
                         help=f"worker processes the training envs are split into (default: {d.shards})")
     parser.add_argument("--tensorboard", default=None, metavar="DIR",
-                        help="also log training figures to TensorBoard in DIR (pip install tensorboard)")
+                        help="also log training figures to TensorBoard in DIR (pip install -e '.[tensorboard]')")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     args = parser.parse_args(argv)
     for flag, value, least in (("--timesteps", args.timesteps, 0), ("--num-envs", args.num_envs, 1),
@@ -408,6 +408,8 @@ def parse_args(argv: list[str] | None = None) -> TrainConfig:
         parser.error(f"--log-std-init={args.log_std_init}: expected a finite number")
     if args.demo_steps > 0 and args.sensor_range != float("inf"):
         parser.error("--demo-steps: the teacher's demonstrations see every pedestrian; add --sensor-range inf")
+    if args.tensorboard is not None and util.find_spec("tensorboard") is None:
+        parser.error("--tensorboard: TensorBoard is not installed; pip install -e '.[tensorboard]'")
     use_predictions = not args.no_predictions
     if not np.isfinite(args.prediction_reward):
         parser.error(f"--prediction-reward={args.prediction_reward}: expected a finite weight")
