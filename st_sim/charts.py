@@ -31,7 +31,7 @@ if TYPE_CHECKING:
 DPI = 150  # pixels per inch of the written PNGs
 PANEL_IN = (6.0, 3.2)  # width, height of one panel [inches]
 MARKERS = "osD^v<>"  # marker of each measured series in ``band_chart``, in turn
-LABEL_RINGS = (1, 2, 3, 4)  # candidate label positions lie on these rings, in multiples of the innermost
+LABEL_RINGS = (1, 2, 3, 4, 6, 8)  # candidate label positions lie on these rings, in multiples of the innermost
 LABEL_OFFSETS_PT = [(dx * r, dy * r) for r in LABEL_RINGS for dx, dy in  # candidate label positions [points]
                     ((6, 6), (6, -10), (-6, 6), (-6, -10), (8, -2), (-8, -2), (0, 10), (0, -14))]
 
