@@ -205,17 +205,17 @@ class CrowdVectorEnv(VectorEnv):
     def _forecasts(self, which: Sequence[int]) -> list[Forecast]:
         forecasts: dict[int, Forecast | None] = {i: self.envs[i].cached_forecast() for i in which}
         missing = [i for i, forecast in forecasts.items() if forecast is None]
-        histories = [self.envs[i].histories_to_predict() for i in missing]
-        sizes = [len(h) for h in histories]
         if missing:
-            futures, anchors = predict_futures(self.predictor, np.concatenate(histories), self.scene,
-                                               self.num_samples, np.repeat(np.arange(len(missing)), sizes))
-            cuts = np.cumsum(sizes)[:-1]
-            per_env_anchors = (list(zip(*(np.split(a, cuts) for a in anchors), strict=True)) if anchors is not None
-                               else [None] * len(missing))
-            for i, forecast in zip(missing, zip(np.split(futures, cuts), per_env_anchors, strict=True), strict=True):
-                forecasts[i] = forecast
-                self.envs[i].remember_forecast(forecast)
+            requests = [self.envs[i].forecast_request() for i in missing]
+            sizes = [len(request.histories_m) for request in requests]
+            targets = np.concatenate([request.targets for request in requests])
+            futures, _ = predict_futures(self.predictor, np.concatenate([r.histories_m for r in requests]),
+                                               self.scene, self.num_samples, np.repeat(np.arange(len(missing)), sizes),
+                                               targets, anchors=False)
+            cuts = np.cumsum([int(request.targets.sum()) for request in requests])[:-1]
+            for i, forecast in zip(missing, np.split(futures, cuts), strict=True):
+                forecasts[i] = (forecast, None)
+                self.envs[i].remember_forecast(forecasts[i])
         return [forecasts[i] for i in which]
 
     def _batch(self, observations: list[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:

@@ -20,7 +20,7 @@ import numpy as np
 from scipy.cluster.vq import kmeans2
 from scipy.ndimage import distance_transform_edt
 
-from predictor.normalize import AgentFrame
+from predictor.normalize import AgentFrame, rotate
 from predictor.singular_space import T_WIN, SingularSpace
 from replays.scenes import Scene
 
@@ -137,8 +137,12 @@ def _on_walkable_pixel(uv: np.ndarray, scene: Scene) -> np.ndarray:
 
 def adaptive_anchors(anchors: np.ndarray, frames: AgentFrame, space_of: list[SingularSpace],
                      population: np.ndarray, scene: Scene | None, off_image: str = "pull", bend: str = "ramp"
-                     ) -> tuple[np.ndarray, np.ndarray]:
-    """Per-agent anchors adapted to the map, as coefficients and world paths.
+                     ) -> np.ndarray:
+    """Per-agent anchor coefficients adapted to the map.
+
+    With the "ramp" bend only the prototypes' end points are placed in the world: the bend adds the end point's
+    correction linearly over the 12 steps, so in Singular space it adds the correction (agent frame) times the
+    basis summed with the ramp's weights (``SingularSpace.project`` is linear). "scale" bends whole paths in pixels.
 
     Args:
         anchors: (P, S, K) prototype coefficients per population (0 = moving, 1 = slow).
@@ -149,24 +153,45 @@ def adaptive_anchors(anchors: np.ndarray, frames: AgentFrame, space_of: list[Sin
         off_image, bend: see ``adapt_paths``.
 
     Returns:
-        coefficients: (N, S, K) adapted anchors.  paths_m: (N, S, 12, 2) prototype paths in world metres
-        (before adaptation) stacked with the adapted ones: shape (2, N, S, 12, 2).
+        (N, S, K) adapted anchor coefficients.
     """
-    n, s, k = len(population), anchors.shape[1], anchors.shape[2]
-    local = np.zeros((n, s, T_WIN, 2))
+    coefs = anchors[population].copy()  # (N, S, K)
+    if scene is None or len(population) == 0:
+        return coefs
+    if bend != "ramp":
+        _, adapted_m = anchor_paths(anchors, frames, space_of, population, scene, off_image, bend)
+        adapted_local = frames.to_agent(adapted_m)
+        for p, space in enumerate(space_of):
+            mask = population == p
+            coefs[mask] = space.project(adapted_local[mask].reshape(-1, T_WIN, 2)).reshape(coefs[mask].shape)
+        return coefs
+    end_local = np.zeros((len(population), anchors.shape[1], 2))
+    for p, space in enumerate(space_of):
+        mask = population == p
+        end_local[mask] = space.reconstruct(anchors[p])[None, :, -1]
+    end_m = frames.to_world(end_local)  # (N, S, 2)
+    target_px, moved = _end_targets(scene.world_to_pixel(end_m), scene, off_image)
+    if not moved.any():
+        return coefs
+    shift_m = np.where(moved[..., None], scene.pixel_to_world(target_px) - end_m, 0.0)
+    extra = (slice(None), None)
+    shift_local = rotate(shift_m, -frames.angle_rad[extra]) / frames.scale_m[extra][..., None]  # (N, S, 2)
+    for p, space in enumerate(space_of):
+        mask = population == p
+        ramp_basis = np.einsum("t,tck->ck", RAMP, space.basis.reshape(T_WIN, 2, space.k))  # (2, K)
+        coefs[mask] += shift_local[mask] @ ramp_basis
+    return coefs
+
+
+def anchor_paths(anchors: np.ndarray, frames: AgentFrame, space_of: list[SingularSpace], population: np.ndarray,
+                 scene: Scene | None, off_image: str = "pull", bend: str = "ramp") -> tuple[np.ndarray, np.ndarray]:
+    """(prototype, adapted) anchor paths of N agents, each (N, S, 12, 2) world metres (arguments as
+    ``adaptive_anchors``; the adapted ones are the prototypes where ``scene`` is None)."""
+    local = np.zeros((len(population), anchors.shape[1], T_WIN, 2))
     for p, space in enumerate(space_of):
         mask = population == p
         local[mask] = space.reconstruct(anchors[p])[None]
     proto_m = frames.to_world(local)
     if scene is None:
-        coefs = np.empty((n, s, k))
-        for p in range(len(space_of)):
-            coefs[population == p] = anchors[p]
-        return coefs, np.stack([proto_m, proto_m])
-    adapted_m, _ = adapt_paths(proto_m, scene, frames.origin_m, off_image, bend)
-    adapted_local = frames.to_agent(adapted_m)
-    coefs = np.empty((n, s, k))
-    for p, space in enumerate(space_of):
-        mask = population == p
-        coefs[mask] = space.project(adapted_local[mask].reshape(-1, T_WIN, 2)).reshape(-1, s, k)
-    return coefs, np.stack([proto_m, adapted_m])
+        return proto_m, proto_m
+    return proto_m, adapt_paths(proto_m, scene, frames.origin_m, off_image, bend)[0]

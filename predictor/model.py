@@ -13,7 +13,7 @@ from dataclasses import dataclass, fields
 import numpy as np
 import torch
 
-from predictor.anchors import BEND_SHAPES, OFF_IMAGE_MODES, adapt_paths, adaptive_anchors, onto_walkable
+from predictor.anchors import BEND_SHAPES, OFF_IMAGE_MODES, adapt_paths, adaptive_anchors, anchor_paths, onto_walkable
 from predictor.baselines import constant_velocity
 from predictor.config_check import check_config
 from predictor.normalize import AgentFrame, agent_frames, rotate
@@ -118,11 +118,12 @@ class ModelConfig:
 
 @dataclass
 class Prediction:
-    """Predicted futures with the anchors they were refined from; all (N, S, 12, 2) world metres."""
+    """Predicted futures with the anchors they were refined from; all (N, S, 12, 2) world metres (the anchors None
+    when not asked for)."""
 
     futures: np.ndarray
-    prototype_anchors: np.ndarray
-    adapted_anchors: np.ndarray
+    prototype_anchors: np.ndarray | None
+    adapted_anchors: np.ndarray | None
 
 
 @dataclass
@@ -133,7 +134,6 @@ class Inputs:
     population: np.ndarray  # (N,) int
     history: np.ndarray  # (N, F) float32 features
     anchors: np.ndarray  # (N, S, K) adapted anchor coefficients
-    anchor_paths_m: np.ndarray  # (2, N, S, 12, 2) prototype and adapted anchors, world metres
     group: np.ndarray  # (N,) int64
 
 
@@ -165,19 +165,19 @@ class SingularTrajectory:
         for p, space in enumerate(self.spaces):
             mask = population == p
             history_coef[mask] = space.project(history_local[mask] - history_local[mask][:, :1])
-        n, s, k = len(obs), self.cfg.num_samples, self.cfg.k
-        anchors, anchor_paths = np.zeros((n, s, k)), np.zeros((2, n, s, T_WIN, 2))
+        anchors = np.zeros((len(obs), self.cfg.num_samples, self.cfg.k))
         for i, scene in enumerate(scenes):
             mask = scene_index == i
-            anchors[mask], anchor_paths[:, mask] = adaptive_anchors(
-                self.anchors, frames.subset(mask), self.spaces, population[mask],
-                scene if self.cfg.adapt_anchors else None, self.cfg.anchor_off_image, self.cfg.anchor_bend)
+            anchors[mask] = adaptive_anchors(self.anchors, frames.subset(mask), self.spaces, population[mask],
+                                             scene if self.cfg.adapt_anchors else None, self.cfg.anchor_off_image,
+                                             self.cfg.anchor_bend)
+        n = len(obs)
         history = np.concatenate([
             history_local.reshape(n, -1), history_coef / self.coef_scale[population][:, None],
             np.log(frames.scale_m)[:, None], frames.slow[:, None],
             _interaction_features(obs, group, frames, self.cfg.world_features),
         ], axis=1).astype(np.float32)
-        return Inputs(frames, population, history, anchors, anchor_paths, group)
+        return Inputs(frames, population, history, anchors, group)
 
     def tensors(self, inputs: Inputs) -> dict[str, torch.Tensor]:
         """Network-ready tensors: scaled anchors, history, group, population, speed scale."""
@@ -202,17 +202,28 @@ class SingularTrajectory:
     # ---------------------------------------------------------------- prediction
     @torch.inference_mode()
     def predict_detailed(self, obs: np.ndarray, group: np.ndarray, scene: Scene | None,
-                         num_samples: int | None = None, steps: int | None = None) -> Prediction:
-        """Futures, prototype and adapted anchors, each (N, S, 12, 2) world metres."""
+                         num_samples: int | None = None, steps: int | None = None, targets: np.ndarray | None = None,
+                         anchors: bool = True) -> Prediction:
+        """Futures, prototype and adapted anchors, each (T, S, 12, 2) world metres, of the T ``targets``.
+
+        Args:
+            obs: (N, T_obs, 2) world metres.  group: (N,) int64 scene moment of each agent.
+            targets: (N,) bool, the agents to forecast; the others are context only: they shape the targets'
+                forecasts (interaction layer, window centroid) exactly as if they were forecast too. None: all.
+            anchors: also return the anchor paths (False: both None).
+        """
         num_samples = num_samples or self.cfg.num_samples
         obs, group = check_inputs(obs, group, num_samples)
         if num_samples > self.cfg.num_samples:
             raise ValueError(f"model trained for S = {self.cfg.num_samples} samples, asked for {num_samples}")
         if obs.shape[1] != self.cfg.obs_len:
             raise ValueError(f"model observes {self.cfg.obs_len} steps, got obs of {obs.shape[1]}")
-        if len(obs) == 0:
+        targets = np.ones(len(obs), bool) if targets is None else np.asarray(targets, bool)
+        if targets.shape != (len(obs),):
+            raise ValueError(f"targets: expected a bool array of shape ({len(obs)},), got shape {targets.shape}")
+        if not targets.any():
             empty = empty_prediction(num_samples)
-            return Prediction(empty, empty, empty)
+            return Prediction(empty, empty if anchors else None, empty if anchors else None)
         inputs = self.prepare(obs, group, [scene], np.zeros(len(obs), np.int64))
         t = self.tensors(inputs)
         noise = self.sampler_noise().expand_as(t["anchors"])
@@ -221,23 +232,31 @@ class SingularTrajectory:
         else:
             order = torch.argsort(t["group"], stable=True)  # windows contiguous, so chunks keep them whole
             chunks = [order[chunk] for chunk in window_batches(t["group"][order], BATCH_AGENTS, None)]
+        wanted = torch.from_numpy(targets)
         local = torch.empty(len(obs), self.cfg.num_samples, T_WIN, 2)
         for idx in chunks:
             ctx = self.refiner.context(t["history"][idx], t["anchors"][idx], t["group"][idx])
+            keep = wanted[idx]
+            idx, ctx = idx[keep], ctx[keep]
             residual = self.refiner.sample(t["anchors"][idx], ctx, noise[idx], steps)
             local[idx] = self.paths_local(t["anchors"][idx], residual, t["population"][idx])
-        futures = inputs.frames.to_world(local.double().numpy())  # (N, S, 12, 2) world metres
+        frames = inputs.frames.subset(targets)
+        futures = frames.to_world(local[wanted].double().numpy())  # (T, S, 12, 2) world metres
         if self.cfg.adapt_output and self.cfg.adapt_anchors and scene is not None:
-            futures, _ = adapt_paths(futures, scene, inputs.frames.origin_m, self.cfg.anchor_off_image,
-                                     self.cfg.anchor_bend)
+            futures, _ = adapt_paths(futures, scene, frames.origin_m, self.cfg.anchor_off_image, self.cfg.anchor_bend)
         if self.cfg.output_on_map and scene is not None:
             futures, _ = onto_walkable(futures, scene, self.cfg.on_map_tolerance_m)
-        standing = np.linalg.norm(obs[:, -1] - obs[:, -2], axis=-1) < self.cfg.standing_m
-        futures[standing] = constant_velocity(obs[standing])[:, None]  # (n, 1, 12, 2) onto every sample
-        futures = futures.astype(np.float32)
+        observed = obs[targets]
+        standing = np.linalg.norm(observed[:, -1] - observed[:, -2], axis=-1) < self.cfg.standing_m
+        futures[standing] = constant_velocity(observed[standing])[:, None]  # (n, 1, 12, 2) onto every sample
         keep = slice(0, num_samples)  # anchors are ordered by cluster size: the first are the likeliest
-        return Prediction(futures[:, keep], inputs.anchor_paths_m[0][:, keep].astype(np.float32),
-                          inputs.anchor_paths_m[1][:, keep].astype(np.float32))
+        futures = futures[:, keep].astype(np.float32)
+        if not anchors:
+            return Prediction(futures, None, None)
+        prototype, adapted = anchor_paths(self.anchors, frames, self.spaces, inputs.population[targets],
+                                          scene if self.cfg.adapt_anchors else None, self.cfg.anchor_off_image,
+                                          self.cfg.anchor_bend)
+        return Prediction(futures, prototype[:, keep].astype(np.float32), adapted[:, keep].astype(np.float32))
 
     def sampler_noise(self) -> torch.Tensor:
         """(1, S, K) starting noise x_M, one fixed draw per sample shared by every agent.

@@ -1,5 +1,5 @@
-"""The ego's sensor range (``EnvConfig.sensor_range_m``), the discomfort reward part and the forecasts a log replay
-keeps, as properties over seeds."""
+"""The ego's sensor range (``EnvConfig.sensor_range_m``), forecasts of the nearest only (``forecast_nearest``), the
+discomfort reward part and the forecasts a log replay keeps, as properties over seeds."""
 
 from __future__ import annotations
 
@@ -63,8 +63,39 @@ def test_discomfort_part_is_the_gap_shortfall_and_weighs_into_the_reward(seed: i
             break
 
 
+@pytest.mark.parametrize("env_id", ["STCrowd-SimCrossing-v1", "STCrowd-Zara1-v0"])
+@settings(max_examples=4, deadline=None)
+@given(seed=st.integers(0, 10_000), nearest=st.integers(1, 8), range_m=st.sampled_from([4.0, np.inf]))
+def test_only_the_nearest_are_forecast_and_exactly_as_with_everyone_forecast(env_id: str, seed: int, nearest: int,
+                                                                          range_m: float) -> None:
+    """``forecast_nearest``: futures for the k sensed pedestrians nearest to the robot only, and the same futures as
+    when every sensed one is forecast (the others still condition the predictor)."""
+    few = gym.make(env_id, predictor="singular", config=EnvConfig(sensor_range_m=range_m, forecast_nearest=nearest))
+    every = gym.make(env_id, predictor="singular", config=EnvConfig(sensor_range_m=range_m))
+    rng = np.random.default_rng(seed)
+    (obs, info), (obs_every, _) = few.reset(seed=seed), every.reset(seed=seed)
+    for t in range(12):
+        for key in ("ego", "history", "history_mask"):
+            assert np.array_equal(obs[key], obs_every[key]), f"[step {t}] {key}"
+        sensed = np.flatnonzero(obs["history_mask"][:, -1])
+        distance = np.linalg.norm(obs["history"][sensed, -1].astype(np.float64) - obs["ego"][:2], axis=1)
+        closest = np.zeros(len(obs["futures_mask"]), bool)
+        closest[sensed[np.argsort(distance, kind="stable")[:nearest]]] = True
+        assert np.array_equal(obs["futures_mask"], obs_every["futures_mask"] & closest), f"[step {t}] forecast rows"
+        assert np.array_equal(info["predicted_ids"] >= 0, obs["futures_mask"])
+        np.testing.assert_allclose(obs["futures"][obs["futures_mask"]], obs_every["futures"][obs["futures_mask"]],
+                                   rtol=0, atol=1e-4, err_msg=f"[step {t}]")
+        assert not obs["futures"][~obs["futures_mask"]].any()
+        action = rng.uniform(-1.5, 1.5, 2).astype(np.float32)
+        (obs, _, end, cut, info), (obs_every, *_rest) = few.step(action), every.step(action)
+        if end or cut:
+            break
+
+
 @pytest.mark.parametrize("field, value", [("sensor_range_m", 0.0), ("sensor_range_m", -1.0), ("discomfort_m", -0.1),
-                                          ("discomfort_m", float("nan"))])
+                                          ("discomfort_m", float("nan")), ("forecast_nearest", 0),
+                                          ("forecast_nearest", 2.0), ("forecast_nearest", True),
+                                          ("forecast_nearest", "6")])
 def test_sensing_fields_are_range_checked(field: str, value: float) -> None:
     with pytest.raises(ConfigError, match=field):
         EnvConfig(**{field: value})

@@ -1,5 +1,6 @@
 """What the learned policy reads and is paid for: the attention over pedestrians (any order, any number present),
-the predicted-closest-approach features, and the prediction-aware reward part."""
+the predicted-closest-approach features, the features of a batch of observations, and the prediction-aware reward
+part."""
 
 from __future__ import annotations
 
@@ -16,7 +17,19 @@ from envs.common.config import EnvConfig, RewardWeights
 from envs.common.crowd_env import WEIGHT_OF
 from replays.constants import STEP_S, T_PRED
 from st_sim.apps.navigation.attention import EMBED, PedestrianAttention
-from st_sim.apps.navigation.features import NEAREST, RAY_COUNT, FeatureConfig, encode
+from st_sim.apps.navigation.features import (
+    NEAREST,
+    PREDICTED_STEPS,
+    RAY_COUNT,
+    SPREAD_STEPS,
+    FeatureConfig,
+    encode,
+    encode_batch,
+    path_frame,
+    path_frames,
+    to_velocities,
+)
+from st_sim.apps.navigation.pedestrians import pedestrians_of
 from st_sim.apps.navigation.ppo import build_policy, load_policy, save_policy
 from st_sim.apps.navigation.world import world_of
 
@@ -115,3 +128,56 @@ def test_closest_approach_features_say_how_near_and_when() -> None:
     assert present.any()
     gap, when = slots[present, -2], slots[present, -1]
     assert np.allclose(gap * 5.0, 0.3, atol=0.02) and np.allclose(when, 6 / T_PRED)
+
+
+def reference_slots(obs: dict[str, np.ndarray], frame: np.ndarray, cfg: FeatureConfig, max_speed_mps: float
+                    ) -> np.ndarray:
+    """(NEAREST, slot_size) the pedestrian slots as the module docstring defines them, one pedestrian at a time."""
+    horizon = T_PRED if cfg.use_predictions and cfg.closest_approach else max(PREDICTED_STEPS)
+    peds = pedestrians_of(obs, horizon, cfg.use_predictions)
+    ego_xy, ego_v = obs["ego"][:2].astype(np.float64), obs["ego"][2:4].astype(np.float64)
+    distance_m = np.linalg.norm(peds.xy_m - ego_xy, axis=1)
+    slots = np.zeros((NEAREST, cfg.slot_size))
+    for slot, p in enumerate(p for p in np.argsort(distance_m, kind="stable")[:NEAREST]
+                             if distance_m[p] <= cfg.sensor_range_m):
+        row = [1.0, *(frame @ (peds.xy_m[p] - ego_xy) / 5.0), *(frame @ (peds.velocity_mps[p] - ego_v) / max_speed_mps)]
+        if cfg.use_predictions:
+            mean = peds.futures_m[p].mean(axis=0)  # (H, 2)
+            spread = np.sqrt(((peds.futures_m[p] - mean) ** 2).sum(axis=-1).mean(axis=0))
+            row += [*((mean[[s - 1 for s in PREDICTED_STEPS]] - ego_xy) @ frame.T / 5.0).ravel(),
+                    *(spread[[s - 1 for s in SPREAD_STEPS]] / 2.0)]
+            if cfg.closest_approach:
+                gap = np.linalg.norm(mean - (ego_xy + STEP_S * np.arange(1, horizon + 1)[:, None] * ego_v), axis=-1)
+                row += [gap.min() / 5.0, (np.argmin(gap) + 1) / horizon]
+        slots[slot] = row
+    return slots
+
+
+@settings(max_examples=6, deadline=None)
+@given(seed=st.integers(0, 10_000), cfg=st.sampled_from([*CONFIGS, FeatureConfig(True, 3.0, True)]),
+       env_id=st.sampled_from(["STCrowd-SimCrossing-v1", "STCrowd-Zara1-v0"]))
+def test_batched_features_are_each_observations_own(seed: int, cfg: FeatureConfig, env_id: str) -> None:
+    """``encode_batch`` over observations of different moments (and goals) gives each one's features, its pedestrian
+    slots as defined pedestrian by pedestrian, and ``to_velocities`` each one's velocity."""
+    env = gym.make(env_id, predictor="cvm-s")
+    world, rng = world_of(env), np.random.default_rng(seed)
+    observations = []
+    for episode in range(3):
+        obs, _ = env.reset(seed=seed + episode)
+        for _ in range(rng.integers(1, 12)):
+            obs, _, end, cut, _ = env.step(rng.uniform(-1.5, 1.5, 2).astype(np.float32))
+            if end or cut:
+                break
+        observations.append(obs)
+    batch = {key: np.stack([obs[key] for obs in observations]) for key in observations[0]}
+    frames = path_frames(batch["ego"], world)
+    features = encode_batch(batch, world, cfg, frames)
+    actions = rng.uniform(-1.2, 1.2, (len(observations), 2)).astype(np.float32)
+    velocities = to_velocities(actions, frames, world.max_speed_mps)
+    for b, obs in enumerate(observations):
+        frame = path_frame(obs, world)
+        np.testing.assert_array_equal(frames[b], frame)
+        np.testing.assert_array_equal(features[b], encode(obs, world, cfg))
+        slots = features[b, 3 + RAY_COUNT:].reshape(NEAREST, cfg.slot_size)
+        np.testing.assert_allclose(slots, reference_slots(obs, frame, cfg, world.max_speed_mps), rtol=0, atol=1e-6)
+        np.testing.assert_allclose(velocities[b], np.clip(actions[b], -1, 1) @ frame * world.max_speed_mps, atol=1e-6)

@@ -1,4 +1,5 @@
-"""The diffusion refiner: DDIM sampling matches its textbook form; widths and shapes; S = 1 defaults."""
+"""The diffusion refiner: DDIM sampling matches its textbook form; widths and shapes; S = 1 defaults; forecasts of
+some agents conditioned on all; anchor coefficients from their end points."""
 
 from __future__ import annotations
 
@@ -10,10 +11,13 @@ import torch
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from predictor.anchors import onto_walkable
+from predictor import load_pretrained
+from predictor.anchors import adaptive_anchors, anchor_paths, onto_walkable
 from predictor.baselines import ConstantVelocity
 from predictor.model import SINGLE_SAMPLE_STAND_SPEED_M
+from predictor.normalize import agent_frames
 from predictor.refiner import LINEAR_BETAS, SAMPLERS, Refiner, RefinerConfig, linear_alpha_bar
+from predictor.singular_space import T_WIN
 from predictor.train import (
     DETERMINISTIC_STATIC_M,
     SINGLE_SAMPLE_SCALE_FLOOR_M,
@@ -183,3 +187,41 @@ def test_only_single_sample_models_keep_standing_agents_at_constant_velocity(tas
     as_cvm = as_cvm.all(axis=(1, 2, 3))  # (N,)
     assert as_cvm[standing].all() == (samples == 1)
     assert not as_cvm[~standing].any()
+
+
+@settings(max_examples=6, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), share=st.floats(0.0, 1.0), chunked=st.booleans())
+def test_forecasting_some_agents_gives_them_the_futures_of_forecasting_all(seed: int, share: float,
+                                                                           chunked: bool) -> None:
+    """``targets``: the other agents only condition the forecast, and the targets' futures and anchors are those of a
+    call that forecasts everyone (also when the call is split into chunks of whole windows)."""
+    model = load_pretrained("stochastic/univ")
+    test = load_windows("stochastic", "univ", "test")
+    test = test.subset(test.group < (40 if chunked else 6))  # 40 UNIV windows hold more agents than one chunk
+    targets = np.random.default_rng(seed).random(len(test.obs)) < share
+    univ = load_scene("univ")
+    every = model.predict_detailed(test.obs, test.group, univ, 20)
+    some = model.predict_detailed(test.obs, test.group, univ, 20, targets=targets)
+    for name in ("futures", "prototype_anchors", "adapted_anchors"):
+        np.testing.assert_allclose(getattr(some, name), getattr(every, name)[targets], rtol=0, atol=1e-4, err_msg=name)
+    assert model.predict_detailed(test.obs, test.group, univ, 20, targets=targets, anchors=False).adapted_anchors \
+        is None
+
+
+@pytest.mark.parametrize("scene", ["eth", "univ", "zara1"])
+def test_ramp_adapted_anchor_coefficients_are_those_of_the_bent_paths(scene: str) -> None:
+    """The coefficients that ``adaptive_anchors`` derives from the end points alone equal the Singular-space projection
+    of the whole bent paths (``anchor_paths``), bent or not."""
+    model = load_pretrained(f"stochastic/{scene}")
+    test = load_windows("stochastic", scene, "test")
+    frames = agent_frames(test.obs, model.cfg.scale_by_speed, model.cfg.slow_speed_m)
+    population = frames.slow.astype(np.int64)
+    where = load_scene(scene)
+    coefs = adaptive_anchors(model.anchors, frames, model.spaces, population, where)
+    _, bent_m = anchor_paths(model.anchors, frames, model.spaces, population, where)
+    local = frames.to_agent(bent_m)
+    for p, space in enumerate(model.spaces):
+        mask = population == p
+        projected = space.project(local[mask].reshape(-1, T_WIN, 2)).reshape(coefs[mask].shape)
+        np.testing.assert_allclose(coefs[mask], projected, rtol=0, atol=1e-9)
+    assert (np.abs(coefs - model.anchors[population]).max(axis=2) > 1e-6).any(), "some anchors are bent"

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, fields
-from numbers import Real
+from numbers import Integral, Real
 
 from envs.common.errors import ConfigError
 
@@ -100,6 +100,10 @@ class EnvConfig:
     sensor_range_m: float = math.inf
     """the ego senses pedestrians whose centre is within this distance of its own; the others' observation rows are
     empty (masks False) and they are not forecast; inf: everyone (spectator envs always see everyone) [m], (0, inf]"""
+    forecast_nearest: int | None = None
+    """forecast only the k sensed pedestrians nearest to the ego (ties in observation-row order), the ones a policy
+    that reads k pedestrians uses; the others' rows keep their histories but no futures; None: every sensed one
+    (spectator envs always forecast everyone), an int >= 1"""
     discomfort_m: float = 0.25
     """gap between the ego's body and a pedestrian's (a disc of ``pedestrian_radius_m``) below which the
     ``discomfort`` reward part counts [m], [0, 5]"""
@@ -115,5 +119,8 @@ class EnvConfig:
             "arena_margin_m": Interval(0.0, 100.0), "sensor_range_m": Interval(high=math.inf, **positive),
             "discomfort_m": Interval(0.0, 5.0),
         })
+        nearest = self.forecast_nearest
+        if nearest is not None and (isinstance(nearest, bool) or not isinstance(nearest, Integral) or nearest < 1):
+            raise ConfigError(f"EnvConfig.forecast_nearest={nearest!r}: expected None or an int >= 1")
         if not isinstance(self.reward, RewardWeights):
             raise ConfigError(f"EnvConfig.reward={self.reward!r}: expected a RewardWeights")

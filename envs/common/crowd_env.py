@@ -16,7 +16,7 @@ The env never ends an episode for time: "timeout" is the ``TimeLimit`` wrapper's
 with ``termination`` None), like the end of a replay's recording.
 
 ``reset`` and ``step`` each come in two halves around the predictor call, ``begin_reset``/``end_reset`` and
-``begin_step``/``end_step`` with ``histories_to_predict`` in between, so that ``envs.vector_env`` can step many
+``begin_step``/``end_step`` with ``forecast_request`` in between, so that ``envs.vector_env`` can step many
 envs and forecast for all of them in one batched call; a single env runs the halves back to back.
 
 Input contract (both vectorisation modes of gymnasium): every check of an argument, option or action runs
@@ -42,7 +42,14 @@ from envs.common.config import EnvConfig
 from envs.common.ego import action_to_velocity, checked_action, on_image, require_on_map
 from envs.common.errors import ConfigError, EgoPlacementError, EnvInputError, NeedsResetError, ResetOptionsError
 from envs.common.fault import robot_at_fault
-from envs.common.predictors import Forecast, ForecastCache, predict_futures, resolve_predictor, task_sizes
+from envs.common.predictors import (
+    Forecast,
+    ForecastCache,
+    ForecastRequest,
+    predict_futures,
+    resolve_predictor,
+    task_sizes,
+)
 from envs.common.running_metrics import RunningMetrics
 from envs.common.tracks import Frame, TrackBuffer, lookup
 from replays.constants import FORECAST_LIMIT_M, POSITION_LIMIT_M, STEP_S, T_PRED
@@ -110,6 +117,7 @@ class CrowdEnv(gym.Env):
         """forecasts kept for moments that recur (``_forecast_moment``); None: always predict afresh"""
         self._history: tuple[np.ndarray, np.ndarray] | None = None  # TrackBuffer.history() of the newest frame
         self._rows = np.zeros(0, np.int64)  # observation rows to forecast, chosen by the begin_* half
+        self._context_rows = np.zeros(0, np.int64)  # rows whose histories the forecast conditions on (_rows among them)
         self._previous_xy_m = np.zeros(2)  # the ego before this step
         self._contact: Contact | None = None  # the step's first pedestrian contact, if any
         self._episode_over = False  # terminated, or the world ended: step needs a reset first
@@ -121,12 +129,12 @@ class CrowdEnv(gym.Env):
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         self.begin_reset(seed=seed, options=options)
-        return self.end_reset(*self._predict(self.histories_to_predict()))
+        return self.end_reset(*self._predict())
 
     def step(self, action: np.ndarray):
         self.begin_step(action)
         try:
-            forecast = self._predict(self.histories_to_predict())
+            forecast = self._predict()
         except Exception as err:
             self.interrupt(f"the predictor failed: {err}")
             raise
@@ -181,7 +189,7 @@ class CrowdEnv(gym.Env):
     def end_reset(self, predicted: np.ndarray, anchors: tuple[np.ndarray, np.ndarray] | None
                   ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
         """Second half of ``reset``: the first observation and info, given ``predict_futures``'s output for
-        ``histories_to_predict()``."""
+        ``forecast_request()``."""
         self._obs = self._observe(predicted, anchors)
         info = self._info(dict.fromkeys(REWARD_PARTS, 0.0), None)
         self._log_rerun(info, 0.0)
@@ -225,7 +233,7 @@ class CrowdEnv(gym.Env):
 
     def end_step(self, predicted: np.ndarray, anchors: tuple[np.ndarray, np.ndarray] | None):
         """Second half of ``step``: observation, reward, terminated, truncated and info, given
-        ``predict_futures``'s output for ``histories_to_predict()``."""
+        ``predict_futures``'s output for ``forecast_request()``."""
         self._obs = self._observe(predicted, anchors)
         parts = self._reward_parts(self._previous_xy_m) if self.ego else dict.fromkeys(REWARD_PARTS, 0.0)
         reward = float(sum(getattr(self.cfg.reward, WEIGHT_OF.get(name, name)) * value
@@ -239,38 +247,51 @@ class CrowdEnv(gym.Env):
 
     def _sense(self) -> None:
         """What the ego senses of the newest frame: the histories (pedestrians beyond ``sensor_range_m`` emptied)
-        and the rows to forecast (``_predicted_rows`` among the sensed)."""
+        and the rows to forecast (``_predicted_rows`` among the sensed; with ``forecast_nearest`` k, among the k
+        sensed nearest to the ego, measured as a policy measures them in the observation)."""
         history, mask = self.tracks.history()
-        rows = self._predicted_rows()
-        if self.ego and math.isfinite(self.cfg.sensor_range_m):
-            far = np.linalg.norm(history[:, -1] - self.ego_xy_m, axis=1) > self.cfg.sensor_range_m
+        rows = targets = self._predicted_rows()
+        if self.ego and (math.isfinite(self.cfg.sensor_range_m) or self.cfg.forecast_nearest is not None):
+            ego_m = np.clip(self.ego_xy_m, -self._ego_high[:2], self._ego_high[:2]).astype(np.float32)
+            distance_m = np.linalg.norm(history[:, -1].astype(np.float64) - ego_m, axis=1)
+            far = distance_m > self.cfg.sensor_range_m
             history[far], mask[far] = 0.0, False
-            rows = rows[~far[rows]]
-        self._history, self._rows = (history, mask), rows
+            rows = targets = rows[~far[rows]]
+            if self.cfg.forecast_nearest is not None:
+                sensed = np.flatnonzero(mask[:, -1])
+                targets = rows[np.isin(rows, sensed[np.argsort(distance_m[sensed], kind="stable")
+                                                    [:self.cfg.forecast_nearest]])]
+        self._history, self._context_rows, self._rows = (history, mask), rows, targets
 
-    def histories_to_predict(self) -> np.ndarray:
-        """(P, T_obs, 2) float32 metres: the histories of the agents to forecast now (after a ``begin_*``)."""
-        return self._history[0][self._rows]
+    def forecast_request(self) -> ForecastRequest:
+        """What to forecast now (after a ``begin_*``): every sensed agent with T_obs frames conditions the forecast,
+        ``targets`` of them get futures (the ``forecast_nearest`` nearest, or all)."""
+        return ForecastRequest(self._history[0][self._context_rows], np.isin(self._context_rows, self._rows),
+                               self.rerun_target is not None)
 
-    def _predict(self, histories_m: np.ndarray) -> Forecast:
+    def _predict(self) -> Forecast:
         forecast = self.cached_forecast()
         if forecast is None:
-            forecast = predict_futures(self.predictor, histories_m, self.scene, self.num_samples)
+            request = self.forecast_request()
+            forecast = predict_futures(self.predictor, request.histories_m, self.scene, self.num_samples,
+                                       targets=request.targets, anchors=request.anchors)
             self.remember_forecast(forecast)
         return forecast
 
     def cached_forecast(self) -> Forecast | None:
-        """The forecast of ``histories_to_predict()`` kept from an earlier visit of this moment, if any."""
+        """The forecast of ``forecast_request()`` kept from an earlier visit of this moment, if any."""
         moment = self._forecast_moment()
         if moment is None or self.forecasts is None:
             return None
-        return self.forecasts.get(moment, self.tracks.row_ids[self._rows])
+        forecast = self.forecasts.get(moment, self.tracks.row_ids[self._rows], self.tracks.row_ids[self._context_rows])
+        return None if forecast is None or (self.rerun_target is not None and forecast[1] is None) else forecast
 
     def remember_forecast(self, forecast: Forecast) -> None:
-        """Keep the forecast of ``histories_to_predict()`` for later visits of this moment (if it can recur)."""
+        """Keep the forecast of ``forecast_request()`` for later visits of this moment (if it can recur)."""
         moment = self._forecast_moment()
         if moment is not None and self.forecasts is not None:
-            self.forecasts.put(moment, self.tracks.row_ids[self._rows], forecast)
+            self.forecasts.put(moment, self.tracks.row_ids[self._rows], forecast,
+                               self.tracks.row_ids[self._context_rows])
 
     def close(self) -> None:
         """Finish the Rerun recording, if any; a later step starts a new, numbered one."""

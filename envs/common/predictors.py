@@ -7,6 +7,7 @@ import sys
 from collections import OrderedDict
 from collections.abc import Hashable, Iterator
 from contextlib import contextmanager
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -90,35 +91,54 @@ def _load_singular(name: str) -> Any:
         ) from err
 
 
+@dataclass(frozen=True, eq=False)
+class ForecastRequest:
+    """What an env asks the predictor for at one moment: the histories (C, T_obs, 2) float32 metres of the agents
+    the forecast conditions on, which of them get futures (``targets`` (C,) bool), and whether their anchor paths
+    are wanted too (a Rerun recording logs them)."""
+
+    histories_m: np.ndarray
+    targets: np.ndarray
+    anchors: bool = False
+
+
 def predict_futures(model: Any, history_m: np.ndarray, scene: Scene | None, num_samples: int,
-                    group: np.ndarray | None = None) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray] | None]:
+                    group: np.ndarray | None = None, targets: np.ndarray | None = None, anchors: bool = True
+                    ) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray] | None]:
     """One batched call for all agents of one scene moment, or of several (a vector env's sub-envs).
 
     Args:
         history_m: (P, T_obs, 2) float32 metres, world frame.
         group: (P,) int64 scene moment of each agent (agents interact only within one); None: all in one.
+        targets: (P,) bool, the agents to forecast; the others only condition them (a predictor with
+            ``predict_detailed`` skips their futures; any other forecasts all P and keeps the targets'); None: all.
+        anchors: return the anchor paths of predictors with ``predict_detailed`` (False: None, and cheaper).
 
     Returns:
-        futures: (P, S, 12, 2) float32 metres, within +-FORECAST_LIMIT_M.
-        anchors: (prototype, adapted), each (P, S, 12, 2) metres, for predictors with
-            ``predict_detailed`` (SingularTrajectory); None otherwise.
+        futures: (T, S, 12, 2) float32 metres of the T targets, within +-FORECAST_LIMIT_M.
+        anchors: (prototype, adapted), each (T, S, 12, 2) metres, for predictors with
+            ``predict_detailed`` (SingularTrajectory) when asked for; None otherwise.
 
     Raises:
         ValueError: the predictor returned anything but (P, S, 12, 2) finite floats within +-FORECAST_LIMIT_M
             (``st_sim.metrics.PredictionError``; ``predictor.plugins.PluginError`` from a plug-in).
     """
-    if len(history_m) == 0:
+    targets = np.ones(len(history_m), bool) if targets is None else np.asarray(targets, bool)
+    if not targets.any():
         return np.zeros((0, num_samples, T_PRED, 2), np.float32), None
     group = np.zeros(len(history_m), np.int64) if group is None else np.asarray(group, np.int64)
-    anchors = None
+    paths = None
+    name = getattr(model, "name", type(model).__name__)
     with one_torch_thread():
         if callable(getattr(model, "predict_detailed", None)):
-            detail = model.predict_detailed(history_m, group, scene, num_samples)
-            futures, anchors = detail.futures, (detail.prototype_anchors, detail.adapted_anchors)
+            detail = model.predict_detailed(history_m, group, scene, num_samples, targets=targets, anchors=anchors)
+            futures = check_futures(detail.futures, int(targets.sum()), num_samples, name)
+            if anchors:
+                paths = (detail.prototype_anchors, detail.adapted_anchors)
         else:
-            futures = model.predict(history_m, group, scene, num_samples)
-    futures = check_futures(futures, len(history_m), num_samples, getattr(model, "name", type(model).__name__))
-    return futures, anchors
+            futures = check_futures(model.predict(history_m, group, scene, num_samples), len(history_m), num_samples,
+                                    name)[targets]
+    return futures, paths
 
 
 @contextmanager
@@ -154,9 +174,10 @@ class ForecastCache:
         self._entries: OrderedDict[tuple, tuple[np.ndarray, Forecast]] = OrderedDict()
         self.hits = self.misses = 0
 
-    def get(self, moment: Hashable, ids: np.ndarray) -> Forecast | None:
-        """The forecast of agents ``ids`` (P,) at ``moment`` in the order of ``ids``, or None if not kept."""
-        key = (moment, *sorted(ids.tolist()))
+    def get(self, moment: Hashable, ids: np.ndarray, context: np.ndarray | None = None) -> Forecast | None:
+        """The forecast of agents ``ids`` (P,) at ``moment`` conditioned on agents ``context`` (C,) (None: on ``ids``
+        alone), in the order of ``ids``, or None if not kept."""
+        key = self._key(moment, ids, context)
         entry = self._entries.get(key)
         if entry is None:
             self.misses += 1
@@ -167,12 +188,12 @@ class ForecastCache:
         order = np.searchsorted(stored_ids, ids)
         return futures[order], None if anchors is None else (anchors[0][order], anchors[1][order])
 
-    def put(self, moment: Hashable, ids: np.ndarray, forecast: Forecast) -> None:
-        """Keep the forecast of agents ``ids`` (P,) at ``moment``."""
-        order = np.argsort(ids)
-        key = (moment, *ids[order].tolist())
+    def put(self, moment: Hashable, ids: np.ndarray, forecast: Forecast, context: np.ndarray | None = None) -> None:
+        """Keep the forecast of agents ``ids`` (P,) at ``moment`` conditioned on agents ``context`` (C,)."""
+        key = self._key(moment, ids, context)
         if key in self._entries:
             return
+        order = np.argsort(ids)
         futures, anchors = forecast
         kept = (futures[order], None if anchors is None else (anchors[0][order], anchors[1][order]))
         self._entries[key] = (ids[order], kept)
@@ -180,6 +201,12 @@ class ForecastCache:
         while self.used_bytes > self.budget_bytes and len(self._entries) > 1:
             _, (_, dropped) = self._entries.popitem(last=False)
             self.used_bytes -= _nbytes(dropped)
+
+    @staticmethod
+    def _key(moment: Hashable, ids: np.ndarray, context: np.ndarray | None) -> tuple:
+        context_key = None if context is None or np.array_equal(np.sort(context), np.sort(ids)) else \
+            tuple(sorted(context.tolist()))
+        return (moment, context_key, *sorted(ids.tolist()))
 
 
 def _nbytes(forecast: Forecast) -> int:

@@ -23,7 +23,6 @@ import numpy as np
 from gymnasium import spaces
 
 from replays.constants import STEP_S, T_PRED
-from st_sim.apps.navigation.pedestrians import pedestrians_of
 from st_sim.apps.navigation.world import NavWorld, world_of
 
 GOAL_SCALE_M = 10.0  # goal distance unit [m]
@@ -64,47 +63,89 @@ class FeatureConfig:
 
 def path_frame(obs: dict[str, np.ndarray], world: NavWorld) -> np.ndarray:
     """(2, 2) rows = unit x (along the path to the goal) and y (to its left), world frame."""
-    x_axis = world.terrain.direction_to(obs["ego"][:2].astype(np.float64), obs["ego"][4:6], world.wall_clearance_m)
-    if not x_axis.any():
-        x_axis = np.array([1.0, 0.0])
-    return np.stack([x_axis, [-x_axis[1], x_axis[0]]])
+    return path_frames(obs["ego"][None], world)[0]
+
+
+def path_frames(ego: np.ndarray, world: NavWorld) -> np.ndarray:
+    """(B, 2, 2) ``path_frame`` of B observations from their ego rows ``obs["ego"]`` (B, 6)."""
+    xy, goal = ego[:, :2].astype(np.float64), ego[:, 4:6].astype(np.float64)
+    x_axis = world.terrain.directions_to(xy, goal, world.wall_clearance_m)
+    x_axis[~x_axis.any(axis=1)] = (1.0, 0.0)
+    return np.stack([x_axis, np.stack([-x_axis[:, 1], x_axis[:, 0]], axis=1)], axis=1)
 
 
 def encode(obs: dict[str, np.ndarray], world: NavWorld, cfg: FeatureConfig, frame: np.ndarray | None = None
            ) -> np.ndarray:
     """(cfg.size,) float32 features of an STCrowd observation (see the module docstring); ``frame``: its
     ``path_frame`` if already computed."""
-    frame = path_frame(obs, world) if frame is None else frame
-    ego_xy, ego_v, goal = (obs["ego"][i:i + 2].astype(np.float64) for i in (0, 2, 4))
-    ego = [min(np.linalg.norm(goal - ego_xy) / GOAL_SCALE_M, 2.0), *(frame @ ego_v / world.max_speed_mps)]
+    return encode_batch({key: value[None] for key, value in obs.items()}, world, cfg,
+                        None if frame is None else frame[None])[0]
+
+
+def encode_batch(obs: dict[str, np.ndarray], world: NavWorld, cfg: FeatureConfig, frames: np.ndarray | None = None
+                 ) -> np.ndarray:
+    """(B, cfg.size) float32 features of B observations batched as a vector env batches them (every array with a
+    leading axis B); ``frames``: their ``path_frames`` (B, 2, 2) if already computed. Row b equals ``encode`` of
+    observation b."""
+    frames = path_frames(obs["ego"], world) if frames is None else frames
+    ego_xy, ego_v, goal = (obs["ego"][:, i:i + 2].astype(np.float64) for i in (0, 2, 4))
+    batch = len(ego_xy)
+    ego = np.concatenate([np.minimum(np.linalg.norm(goal - ego_xy, axis=1) / GOAL_SCALE_M, 2.0)[:, None],
+                          np.einsum("bij,bj->bi", frames, ego_v) / world.max_speed_mps], axis=1)
 
     angles = np.arange(RAY_COUNT) * 2 * np.pi / RAY_COUNT
-    rays = np.cos(angles)[:, None] * frame[0] + np.sin(angles)[:, None] * frame[1]  # (R, 2)
+    rays = np.cos(angles)[:, None] * frames[:, None, 0] + np.sin(angles)[:, None] * frames[:, None, 1]  # (B, R, 2)
     reach = np.arange(1, int(RAY_RANGE_M / RAY_STEP_M) + 1) * RAY_STEP_M  # (D,)
-    blocked = world.terrain.clearance_at(ego_xy + rays[:, None] * reach[:, None]) <= world.wall_clearance_m  # (R, D)
-    free_m = np.where(blocked.any(axis=1), reach[np.argmax(blocked, axis=1)] - RAY_STEP_M, RAY_RANGE_M)
+    points = ego_xy[:, None, None] + rays[:, :, None] * reach[:, None]  # (B, R, D, 2)
+    blocked = world.terrain.clearance_at(points) <= world.wall_clearance_m
+    free_m = np.where(blocked.any(axis=2), reach[np.argmax(blocked, axis=2)] - RAY_STEP_M, RAY_RANGE_M)
 
-    horizon = T_PRED if cfg.use_predictions and cfg.closest_approach else max(PREDICTED_STEPS)
-    peds = pedestrians_of(obs, horizon, cfg.use_predictions)
-    slots = np.zeros((NEAREST, cfg.slot_size))
-    distance_m = np.linalg.norm(peds.xy_m - ego_xy, axis=1)
-    nearest = np.argsort(distance_m)[:NEAREST]
-    nearest = nearest[distance_m[nearest] <= cfg.sensor_range_m]
-    for slot, p in enumerate(nearest):
-        row = [1.0, *(frame @ (peds.xy_m[p] - ego_xy) / POSITION_SCALE_M),
-               *(frame @ (peds.velocity_mps[p] - ego_v) / world.max_speed_mps)]
-        if cfg.use_predictions:
-            samples = peds.futures_m[p]  # (S, H, 2)
-            mean = samples.mean(axis=0)  # (H, 2)
-            spread = np.sqrt(((samples - mean) ** 2).sum(axis=-1).mean(axis=0))  # (H,)
-            row += [*(((mean[[s - 1 for s in PREDICTED_STEPS]] - ego_xy) @ frame.T) / POSITION_SCALE_M).ravel(),
-                    *(spread[[s - 1 for s in SPREAD_STEPS]] / SPREAD_SCALE_M)]
-            if cfg.closest_approach:
-                course = ego_xy + STEP_S * np.arange(1, len(mean) + 1)[:, None] * ego_v  # (H, 2)
-                gap = np.linalg.norm(mean - course, axis=-1)
-                row += [gap.min() / POSITION_SCALE_M, (np.argmin(gap) + 1) / len(mean)]
-        slots[slot] = row
-    return np.concatenate([ego, free_m / RAY_RANGE_M, slots.ravel()]).astype(np.float32)
+    slots = np.zeros((batch, NEAREST, cfg.slot_size))
+    nearest, sensed = nearest_pedestrians(obs, ego_xy, cfg.sensor_range_m)  # (B, NEAREST) rows, bool
+    rows = np.arange(batch)[:, None]
+    xy = obs["history"][rows, nearest, -1].astype(np.float64)  # (B, NEAREST, 2)
+    seen_before = obs["history_mask"][rows, nearest, -2] if obs["history"].shape[2] > 1 else np.zeros(xy.shape[:2],
+                                                                                                      bool)
+    step = np.where(seen_before[..., None], xy - obs["history"][rows, nearest, -2], 0.0)
+    slots[..., 0] = 1.0
+    slots[..., 1:3] = np.einsum("bij,bnj->bni", frames, xy - ego_xy[:, None]) / POSITION_SCALE_M
+    slots[..., 3:5] = np.einsum("bij,bnj->bni", frames, step / STEP_S - ego_v[:, None]) / world.max_speed_mps
+    if cfg.use_predictions:
+        horizon = T_PRED if cfg.closest_approach else max(PREDICTED_STEPS)
+        ahead = np.arange(1, horizon + 1)[:, None]  # (H, 1)
+        walking = xy[:, :, None] + ahead * step[:, :, None]  # (B, NEAREST, H, 2): constant velocity
+        samples = np.where(obs["futures_mask"][rows, nearest][..., None, None, None],
+                           obs["futures"][rows, nearest, :, :horizon].astype(np.float64), walking[:, :, None])
+        mean = samples.mean(axis=2)  # (B, NEAREST, H, 2)
+        spread = np.sqrt(((samples - mean[:, :, None]) ** 2).sum(axis=-1).mean(axis=2))  # (B, NEAREST, H)
+        future = np.einsum("bij,bnhj->bnhi", frames, mean[:, :, [s - 1 for s in PREDICTED_STEPS]] - ego_xy[:, None,
+                                                                                                          None])
+        columns = 5 + 2 * len(PREDICTED_STEPS)
+        slots[..., 5:columns] = future.reshape(batch, NEAREST, -1) / POSITION_SCALE_M
+        slots[..., columns:columns + len(SPREAD_STEPS)] = spread[..., [s - 1 for s in SPREAD_STEPS]] / SPREAD_SCALE_M
+        if cfg.closest_approach:
+            course = ego_xy[:, None] + STEP_S * ahead * ego_v[:, None]  # (B, H, 2)
+            gap = np.linalg.norm(mean - course[:, None], axis=-1)  # (B, NEAREST, H)
+            slots[..., -2] = gap.min(axis=-1) / POSITION_SCALE_M
+            slots[..., -1] = (np.argmin(gap, axis=-1) + 1) / horizon
+    slots[~sensed] = 0.0
+    return np.concatenate([ego, free_m / RAY_RANGE_M, slots.reshape(batch, -1)], axis=1).astype(np.float32)
+
+
+def nearest_pedestrians(obs: dict[str, np.ndarray], ego_xy_m: np.ndarray, sensor_range_m: float
+                        ) -> tuple[np.ndarray, np.ndarray]:
+    """The ``NEAREST`` present pedestrians of B batched observations, nearest first (ties in row order), and which
+    of them are within ``sensor_range_m``: ((B, NEAREST) observation rows, (B, NEAREST) bool; False for slots
+    beyond the pedestrians present). ``ego_xy_m`` (B, 2) [m]."""
+    present = obs["history_mask"][:, :, -1]  # (B, N)
+    distance_m = np.linalg.norm(obs["history"][:, :, -1].astype(np.float64) - ego_xy_m[:, None], axis=-1)
+    distance_m[~present] = np.inf
+    if distance_m.shape[1] < NEAREST:
+        distance_m = np.pad(distance_m, ((0, 0), (0, NEAREST - distance_m.shape[1])), constant_values=np.inf)
+    nearest = np.argsort(distance_m, axis=1, kind="stable")[:, :NEAREST]
+    chosen = np.take_along_axis(distance_m, nearest, axis=1)
+    nearest = np.minimum(nearest, obs["history"].shape[1] - 1)  # padding rows point at a real (absent) row
+    return nearest, np.isfinite(chosen) & (chosen <= sensor_range_m)
 
 
 def drop_predictions(features: np.ndarray, cfg: FeatureConfig = FeatureConfig(True)) -> np.ndarray:
@@ -119,7 +160,13 @@ def to_velocity(action: np.ndarray, obs: dict[str, np.ndarray], world: NavWorld,
     """(2,) float32 world-frame velocity [m/s] of a policy action (2,) in [-1, 1] (path frame, speed limits);
     ``frame``: the observation's ``path_frame`` if already computed."""
     frame = path_frame(obs, world) if frame is None else frame
-    return (np.clip(action, -1.0, 1.0) @ frame * world.max_speed_mps).astype(np.float32)
+    return to_velocities(np.asarray(action)[None], frame[None], world.max_speed_mps)[0]
+
+
+def to_velocities(actions: np.ndarray, frames: np.ndarray, max_speed_mps: float) -> np.ndarray:
+    """(B, 2) float32 world-frame velocities [m/s] of B policy actions (B, 2) in [-1, 1] in their path frames
+    (B, 2, 2)."""
+    return (np.einsum("bi,bij->bj", np.clip(actions, -1.0, 1.0), frames) * max_speed_mps).astype(np.float32)
 
 
 class NavFeatures(gym.Wrapper):

@@ -26,6 +26,7 @@ UNREACHABLE_PENALTY_M = 100.0  # cost-to-go of a point with no grid path: its st
 _ANGLES = np.linspace(0.0, 2 * np.pi, 64, endpoint=False)
 HEADINGS = np.stack([np.cos(_ANGLES), np.sin(_ANGLES)], axis=1)  # (64, 2) candidate directions of direction_to
 LOOKAHEAD_M = 0.5  # direction_to compares the cost-to-go this far ahead [m]
+GOAL_FIELDS_KEPT = 16  # cost-to-go fields kept, one per goal (sub-envs of a vector env may head to different goals)
 LOOKUP_CELLS = 1  # cost-to-go of a point = least (cell cost + distance to the cell) over (2R+1)^2 cells
 
 
@@ -54,8 +55,7 @@ class Terrain:
         self.free = scene.is_walkable(self._centres_m)
         padded = np.pad(self.free, 1, constant_values=False)
         self.clearance_m = ndimage.distance_transform_edt(padded)[1:-1, 1:-1] * cell_m
-        self._goal_key: tuple | None = None
-        self._goal_cost: np.ndarray | None = None
+        self._goal_fields: dict[tuple, np.ndarray] = {}  # goal key -> cost-to-go field, least recently used first
 
     def __repr__(self) -> str:
         return f"Terrain({self.free.shape[1]}x{self.free.shape[0]} cells of {self.cell_m} m)"
@@ -99,19 +99,32 @@ class Terrain:
 
         The best of DIRECTIONS headings by the cost-to-go one LOOKAHEAD_M ahead (or at the goal, if nearer).
         """
-        to_goal = np.asarray(goal_m, np.float64) - xy_m
-        reach_m = min(LOOKAHEAD_M, float(np.linalg.norm(to_goal)))
-        if reach_m < 1e-6:
-            return np.zeros(2)
-        cost = self.cost_to_go(xy_m + reach_m * HEADINGS, goal_m, body_m)
-        return HEADINGS[int(np.argmin(cost))].copy()
+        return self.directions_to(np.asarray(xy_m, np.float64)[None], np.asarray(goal_m, np.float64)[None],
+                                  body_m)[0]
+
+    def directions_to(self, xy_m: np.ndarray, goal_m: np.ndarray, body_m: float) -> np.ndarray:
+        """(B, 2) ``direction_to`` of B points (B, 2) [m], each toward its own goal (B, 2) [m]."""
+        to_goal = goal_m - xy_m
+        reach_m = np.minimum(LOOKAHEAD_M, np.linalg.norm(to_goal, axis=1))  # (B,)
+        ahead = xy_m[:, None] + reach_m[:, None, None] * HEADINGS  # (B, 64, 2)
+        cost = np.empty(ahead.shape[:2])
+        goals, which = np.unique(goal_m, axis=0, return_inverse=True)
+        for g, goal in enumerate(goals):
+            mine = which.reshape(-1) == g
+            cost[mine] = self.cost_to_go(ahead[mine], goal, body_m)
+        return np.where((reach_m >= 1e-6)[:, None], HEADINGS[np.argmin(cost, axis=1)], 0.0)
 
     def _goal_field(self, goal_m: np.ndarray, body_m: float) -> np.ndarray:
-        """(Gy, Gx) geodesic distance to ``goal_m`` [m] over cells with ``body_m`` of clearance; kept per goal."""
+        """(Gy, Gx) geodesic distance to ``goal_m`` [m] over cells with ``body_m`` of clearance; the last
+        ``GOAL_FIELDS_KEPT`` goals' fields are kept."""
         key = (*np.round(goal_m, 6).tolist(), body_m)
-        if key != self._goal_key:
-            self._goal_cost, self._goal_key = _geodesic(self.clearance_m >= body_m, self._centres_m, goal_m), key
-        return self._goal_cost
+        field = self._goal_fields.pop(key, None)
+        if field is None:
+            field = _geodesic(self.clearance_m >= body_m, self._centres_m, goal_m)
+        self._goal_fields[key] = field  # most recently used last
+        while len(self._goal_fields) > GOAL_FIELDS_KEPT:
+            self._goal_fields.pop(next(iter(self._goal_fields)))
+        return field
 
 
 def _geodesic(eligible: np.ndarray, centres_m: np.ndarray, goal_m: np.ndarray) -> np.ndarray:

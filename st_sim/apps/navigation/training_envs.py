@@ -22,11 +22,10 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 from gymnasium.vector import AutoresetMode
-from gymnasium.vector.utils import iterate
 from stable_baselines3.common.vec_env import VecEnv
 
 from envs.common.config import EnvConfig
-from st_sim.apps.navigation.features import FeatureConfig, encode, path_frame, to_velocity
+from st_sim.apps.navigation.features import NEAREST, FeatureConfig, encode_batch, path_frames, to_velocities
 from st_sim.apps.navigation.predictors import env_predictor
 from st_sim.apps.navigation.world import world_of
 
@@ -51,17 +50,14 @@ class FeatureVecEnv(VecEnv):
 
     def __init__(self, env_id: str, num_envs: int, features: FeatureConfig, config: EnvConfig | None = None,
                  shards: int = 1):
-        config = replace(config or EnvConfig(), sensor_range_m=features.sensor_range_m)
+        config = replace(config or EnvConfig(), sensor_range_m=features.sensor_range_m, forecast_nearest=NEAREST)
         self.vector = gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point",
                                    autoreset_mode=AutoresetMode.SAME_STEP, config=config, shards=shards,
                                    predictor=env_predictor("singular" if features.use_predictions else "none"))
         self.features = features
-        if shards == 1:
-            self.worlds = [world_of(env) for env in self.vector.envs]
-        else:  # the sub-envs live elsewhere; every sub-env of an id has the same world
-            self.worlds = [world_of(gym.make(env_id, predictor="cvm", config=config))] * num_envs
-        self._obs: list[dict[str, np.ndarray]] = []
-        self._frames: list[np.ndarray] = []  # path_frame of each sub-env's observation, for its next action
+        # every sub-env of an id has the same world (scene, limits, map); the sub-envs may live in other processes
+        self.world = world_of(self.vector.envs[0] if shards == 1 else gym.make(env_id, predictor="cvm", config=config))
+        self._frames = np.zeros((num_envs, 2, 2))  # path_frames of the sub-envs' observations, for their next action
         self._velocities = np.zeros((num_envs, 2), np.float32)
         super().__init__(num_envs, spaces.Box(-np.inf, np.inf, (features.size,), np.float32),
                          spaces.Box(-1.0, 1.0, (2,), np.float32))
@@ -75,17 +71,20 @@ class FeatureVecEnv(VecEnv):
 
     def step_async(self, actions: np.ndarray) -> None:
         actions = np.asarray(actions, np.float32).reshape(self.num_envs, 2)
-        self._velocities = np.stack([to_velocity(action, obs, world, frame) for action, obs, world, frame
-                                     in zip(actions, self._obs, self.worlds, self._frames, strict=True)])
+        self._velocities = to_velocities(actions, self._frames, self.world.max_speed_mps)
 
     def step_wait(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[dict]]:
         obs, rewards, terminations, truncations, batched = self.vector.step(self._velocities)
         features = self._encode_all(obs)
         infos = [sub_env_info(batched, i) for i in range(self.num_envs)]
-        for i in np.flatnonzero(terminations | truncations):  # the step's own info and features, not the reset's
-            final = infos[i]
-            infos[i] = {**final["final_info"], "TimeLimit.truncated": bool(truncations[i] and not terminations[i]),
-                        "terminal_observation": encode(final["final_obs"], self.worlds[i], self.features)}
+        ended = np.flatnonzero(terminations | truncations)
+        if ended.size:  # the step's own info and features, not the reset's
+            final_obs = [infos[i]["final_obs"] for i in ended]
+            final_features = encode_batch({key: np.stack([obs[key] for obs in final_obs]) for key in final_obs[0]},
+                                          self.world, self.features)
+            for i, features_i in zip(ended, final_features, strict=True):
+                infos[i] = {**infos[i]["final_info"], "terminal_observation": features_i,
+                            "TimeLimit.truncated": bool(truncations[i] and not terminations[i])}
         return features, rewards.astype(np.float32), terminations | truncations, infos
 
     def close(self) -> None:
@@ -106,10 +105,8 @@ class FeatureVecEnv(VecEnv):
         return [False for _ in self._get_indices(indices)]
 
     def _encode_all(self, obs: dict[str, np.ndarray]) -> np.ndarray:
-        self._obs = list(iterate(self.vector.single_observation_space, obs))
-        self._frames = [path_frame(o, world) for o, world in zip(self._obs, self.worlds, strict=True)]
-        return np.stack([encode(o, world, self.features, frame)
-                         for o, world, frame in zip(self._obs, self.worlds, self._frames, strict=True)])
+        self._frames = path_frames(obs["ego"], self.world)
+        return encode_batch(obs, self.world, self.features, self._frames)
 
     def _get_indices(self, indices: Any) -> Sequence[int]:
         return range(self.num_envs) if indices is None else [indices] if isinstance(indices, int) else indices
