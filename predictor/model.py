@@ -23,7 +23,7 @@ from predictor.singular_space import T_WIN, SingularSpace
 from replays.constants import TASKS
 from replays.scenes import Scene
 
-BATCH_AGENTS = 512  # agents per refiner call at inference (whole windows; bounds attention memory)
+BATCH_AGENTS = 4096  # agents per call of the refiner's interaction layer at inference (whole windows; bounds memory)
 SINGLE_SAMPLE_STAND_SPEED_M = 0.05  # S = 1: slower agents keep constant velocity [m per 0.4 s step]
 
 
@@ -233,15 +233,14 @@ class SingularTrajectory:
             order = torch.argsort(t["group"], stable=True)  # windows contiguous, so chunks keep them whole
             chunks = [order[chunk] for chunk in window_batches(t["group"][order], BATCH_AGENTS, None)]
         wanted = torch.from_numpy(targets)
-        local = torch.empty(len(obs), self.cfg.num_samples, T_WIN, 2)
-        for idx in chunks:
-            ctx = self.refiner.context(t["history"][idx], t["anchors"][idx], t["group"][idx])
-            keep = wanted[idx]
-            idx, ctx = idx[keep], ctx[keep]
-            residual = self.refiner.sample(t["anchors"][idx], ctx, noise[idx], steps)
-            local[idx] = self.paths_local(t["anchors"][idx], residual, t["population"][idx])
+        ctx = torch.empty(len(obs), self.refiner.cfg.dim)
+        for idx in chunks:  # the interaction layer within whole windows; then every target denoised in one batch
+            ctx[idx] = self.refiner.context(t["history"][idx], t["anchors"][idx], t["group"][idx])
+        anchors_scaled = t["anchors"][wanted]
+        residual = self.refiner.sample(anchors_scaled, ctx[wanted], noise[wanted], steps)
+        local = self.paths_local(anchors_scaled, residual, t["population"][wanted])
         frames = inputs.frames.subset(targets)
-        futures = frames.to_world(local[wanted].double().numpy())  # (T, S, 12, 2) world metres
+        futures = frames.to_world(local.double().numpy())  # (T, S, 12, 2) world metres
         if self.cfg.adapt_output and self.cfg.adapt_anchors and scene is not None:
             futures, _ = adapt_paths(futures, scene, frames.origin_m, self.cfg.anchor_off_image, self.cfg.anchor_bend)
         if self.cfg.output_on_map and scene is not None:

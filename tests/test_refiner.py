@@ -12,6 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from predictor import load_pretrained
+from predictor import model as predictor_model
 from predictor.anchors import adaptive_anchors, anchor_paths, onto_walkable
 from predictor.baselines import ConstantVelocity
 from predictor.model import SINGLE_SAMPLE_STAND_SPEED_M
@@ -190,18 +191,21 @@ def test_only_single_sample_models_keep_standing_agents_at_constant_velocity(tas
 
 
 @settings(max_examples=6, deadline=None)
-@given(seed=st.integers(0, 2**31 - 1), share=st.floats(0.0, 1.0), chunked=st.booleans())
+@given(seed=st.integers(0, 2**31 - 1), share=st.floats(0.0, 1.0),
+       chunk=st.sampled_from([predictor_model.BATCH_AGENTS, 100]))
 def test_forecasting_some_agents_gives_them_the_futures_of_forecasting_all(seed: int, share: float,
-                                                                           chunked: bool) -> None:
+                                                                           chunk: int) -> None:
     """``targets``: the other agents only condition the forecast, and the targets' futures and anchors are those of a
-    call that forecasts everyone (also when the call is split into chunks of whole windows)."""
+    call that forecasts everyone (also when the interaction layer runs in chunks of whole windows)."""
     model = load_pretrained("stochastic/univ")
     test = load_windows("stochastic", "univ", "test")
-    test = test.subset(test.group < (40 if chunked else 6))  # 40 UNIV windows hold more agents than one chunk
+    test = test.subset(test.group < 12)  # about 500 agents: several chunks of 100
     targets = np.random.default_rng(seed).random(len(test.obs)) < share
     univ = load_scene("univ")
     every = model.predict_detailed(test.obs, test.group, univ, 20)
-    some = model.predict_detailed(test.obs, test.group, univ, 20, targets=targets)
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(predictor_model, "BATCH_AGENTS", chunk)
+        some = model.predict_detailed(test.obs, test.group, univ, 20, targets=targets)
     for name in ("futures", "prototype_anchors", "adapted_anchors"):
         np.testing.assert_allclose(getattr(some, name), getattr(every, name)[targets], rtol=0, atol=1e-4, err_msg=name)
     assert model.predict_detailed(test.obs, test.group, univ, 20, targets=targets, anchors=False).adapted_anchors \

@@ -115,6 +115,8 @@ class TrackBuffer:
     def _take_history(self, rows: np.ndarray, ids: np.ndarray) -> None:
         """Fill the ring of rows just given to agents ``ids`` with where the kept frames saw them (an agent may come
         back within the kept frames, in another row)."""
+        if not len(ids):
+            return
         self._ring_seen[:, rows] = False
         for age, kept in enumerate(reversed(self.frames), start=1):
             idx = lookup(kept.ids, ids)

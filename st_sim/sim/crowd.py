@@ -40,7 +40,7 @@ from st_sim.sim.layout import Layout, Region
 from st_sim.sim.navigation import NavigationField
 from st_sim.sim.pairs import Neighbours, cap_speed
 from st_sim.sim.population import PROGRESS_M, PopulationError, Roster, choose_exits
-from st_sim.sim.spawning import Arrivals, initial_crowd, place_arrivals
+from st_sim.sim.spawning import Arrivals, SpawnRequest, initial_crowd, place_arrivals
 from st_sim.sim.stops import start_standing
 from st_sim.sim.sweep import Contact, closest_approach, first_contact, first_touch
 from st_sim.sim.walls import WallGrid
@@ -163,9 +163,13 @@ def step_crowds(sims: Sequence[CrowdSim], ego_velocities_mps: Sequence[np.ndarra
         at_exit[heading_there] = region.contains(xy_m[heading_there])
     iy, ix = nav.cells(xy_m)
     to_exit_m = nav.distance_m[exit_idx, iy, ix]
+    requests = [sim._end_step(xy_m[bounds[k]:bounds[k + 1]], at_exit[bounds[k]:bounds[k + 1]],
+                              to_exit_m[bounds[k]:bounds[k + 1]]) for k, sim in enumerate(sims)]
+    spawning = [k for k, request in enumerate(requests) if request is not None]
+    arrivals = dict(zip(spawning, place_arrivals(nav, first.layout, cfg, [requests[k] for k in spawning]),
+                        strict=True)) if spawning else {}
     for k, sim in enumerate(sims):
-        rows = slice(bounds[k], bounds[k + 1])
-        sim._end_step(xy_m[rows], at_exit[rows], to_exit_m[rows])
+        sim._finish_step(arrivals.get(k))
 
 
 def sweep_egos(sims: Sequence[CrowdSim], marks: list[np.ndarray], bounds: np.ndarray, pedestrian: np.ndarray,
@@ -256,6 +260,7 @@ class CrowdSim:
         self._ego_contact: Contact | None = None
         self._ego_touched_wall = False
         self._ego_nearest_m = np.inf
+        self._reordered = False  # somebody left during the step being finished (``_end_step``)
         keep_clear_m = np.zeros((0, 2))
         if ego is not None:
             start = layout.ego_start_m if ego.start_m is None else np.asarray(ego.start_m, dtype=np.float64)
@@ -389,27 +394,37 @@ class CrowdSim:
                         np.where(standing, 0.0, roster.speed_mps),
                         np.where(movable, np.where(standing, STANDING_YIELD, 1.0), 0.0))
 
-    def _end_step(self, xy_m: np.ndarray, at_exit: np.ndarray, to_exit_m: np.ndarray) -> None:
+    def _end_step(self, xy_m: np.ndarray, at_exit: np.ndarray, to_exit_m: np.ndarray) -> SpawnRequest | None:
         """After the substeps, at the bodies' positions ``xy_m`` (K, 2) [m]: planned stops, rerouting, arrivals at the
-        exits and new arrivals (``at_exit`` (K,): inside the exit one heads to; ``to_exit_m`` (K,): walking distance
-        to it [m])."""
+        exits (``at_exit`` (K,): inside the exit one heads to; ``to_exit_m`` (K,): walking distance to it [m]); then
+        the Poisson draw of new arrivals: what to place (``place_arrivals``, with the other crowds' arrivals), or None
+        when nobody arrives. ``_finish_step`` completes the step."""
         self.step_count += 1
         roster = self._roster
         if (roster.stop_step >= 0).any():
             start_standing(roster, self.step_count, self._in_gate(xy_m), self.cfg.population, self.rng)
-        settled = False  # ``add`` aligns the roster with pymunk's new body order
-        if self.layout.period is None:
-            rerouted = self._reroute_stuck(xy_m, to_exit_m)
-            if rerouted.size:  # they head for another exit now
-                at_exit = at_exit.copy()
-                at_exit[rerouted] = self._inside_own_exit(xy_m[rerouted], roster.exit_idx[rerouted])
-            stay = self._remove_arrived(at_exit)
-            settled = self._spawn(xy_m[stay])
-            if not stay.all() and not settled:
-                self._settle_order()
-                settled = True
-        if not settled:  # pymunk's body order is unchanged: only the positions are new
-            self._xy_m = xy_m
+        self._xy_m, self._reordered = xy_m, False
+        if self.layout.period is not None:
+            return None
+        rerouted = self._reroute_stuck(xy_m, to_exit_m)
+        if rerouted.size:  # they head for another exit now
+            at_exit = at_exit.copy()
+            at_exit[rerouted] = self._inside_own_exit(xy_m[rerouted], roster.exit_idx[rerouted])
+        stay = self._remove_arrived(at_exit)
+        if not stay.all():
+            self._xy_m, self._reordered = xy_m[stay], True
+        counts = self.rng.poisson(self.cfg.spawn_rate_hz * STEP_S, len(self.layout.entries))
+        room = self.max_pedestrians - int(np.count_nonzero(self._roster.ped_id >= 0))
+        if room <= 0 or not counts.any():
+            return None
+        return SpawnRequest(counts, room, self._xy_m, self._roster, self.step_count, self._next_group, self.rng)
+
+    def _finish_step(self, arrivals: Arrivals | None) -> None:
+        """Complete the step begun by ``_end_step`` with the new pedestrians placed for it (None: nobody arrives)."""
+        if arrivals is not None and len(arrivals.xy_m):
+            self.add(arrivals)
+        elif self._reordered:  # somebody left: pymunk's body order changed
+            self._settle_order()
         self._history.append((self.ids, self.positions_m))
 
     @property
@@ -499,34 +514,19 @@ class CrowdSim:
         """
         rows = self._roster
         gone = at_exit & (rows.ped_id >= 0)
+        if not gone.any():
+            return ~gone
         for body_id in rows.body_id[gone].tolist():
             body = self._bodies.pop(body_id)
             self.space.remove(body, *body.shapes)
         self._roster = rows.take(~gone)
         return ~gone
 
-    def _spawn(self, xy_m: np.ndarray) -> bool:
-        """Poisson arrivals (pedestrians alone or in groups) at every entry, while below the cap and where there
-        is room.
-
-        Args:
-            xy_m: (K, 2) positions of the roster's bodies [m].
-
-        Returns:
-            True if anybody arrived.
-        """
-        counts = self.rng.poisson(self.cfg.spawn_rate_hz * STEP_S, len(self.layout.entries))
-        room = self.max_pedestrians - int(np.count_nonzero(self._roster.ped_id >= 0))
-        if room <= 0 or not counts.any():
-            return False
-        arrivals = place_arrivals(self.nav, self.layout, self.cfg, counts, room, xy_m, self._roster, self.step_count,
-                                  self._next_group, self.rng)
-        self.add(arrivals)
-        return len(arrivals.xy_m) > 0
-
     def _settle_order(self) -> None:
         """Align the roster with pymunk's body order and cache positions, velocities and the id order."""
-        self._roster = self._roster.reorder(self._batch.body_ids())
+        order = self._batch.body_ids()
+        if not np.array_equal(order, self._roster.body_id):
+            self._roster = self._roster.reorder(order)
         self._xy_m, _ = self._read()
         is_ped = self._roster.ped_id >= 0
         peds = np.flatnonzero(is_ped)

@@ -3,6 +3,7 @@ may be placed or appear."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, fields
 
 import numpy as np
@@ -109,18 +110,23 @@ def preferred_speeds(pop: PopulationConfig, n: int, rng: np.random.Generator) ->
 
 
 def choose_exits(nav: NavigationField, xy_m: np.ndarray, allowed: np.ndarray,
-                 rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+                 rng: np.random.Generator | Sequence[np.random.Generator], sizes: Sequence[int] | None = None
+                 ) -> tuple[np.ndarray, np.ndarray]:
     """Pick, for each point, an allowed exit reachable from it and not right there, uniformly at random.
 
     Args:
         xy_m: (M, 2) start points [m].  allowed: (E,) bool mask of permitted exits, or (E, M) one per point.
+        rng: the generator of the draws; or, with ``sizes``, one generator per block of consecutive points (block b
+            holds ``sizes[b]`` points; several crowds' points at once, each drawing from its own generator).
 
     Returns:
         exit_idx: (M,) int64 chosen exits.  ok: (M,) bool, False where no exit qualifies.
     """
     dist = nav.distance_at(xy_m)  # (E, M)
     valid = np.isfinite(dist) & (dist > MIN_ROUTE_M) & (allowed[:, None] if allowed.ndim == 1 else allowed)
-    keys = np.where(valid, rng.random(dist.shape), -1.0)
+    draws = rng.random(dist.shape) if sizes is None else \
+        np.concatenate([g.random((len(dist), n)) for g, n in zip(rng, sizes, strict=True)], axis=1).reshape(dist.shape)
+    keys = np.where(valid, draws, -1.0)
     return np.argmax(keys, axis=0).astype(np.int64), valid.any(axis=0)
 
 
@@ -180,55 +186,71 @@ def lattice_positions(nav: NavigationField, n: int, diameter_m: float, max_gap_m
 
 
 def spawn_points(regions: list[Region], counts: np.ndarray, allowed: np.ndarray, nav: NavigationField,
-                 others_m: np.ndarray, others_heading: np.ndarray, clearance_m: float, lane_m: float,
-                 rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Up to counts[r] random free points of each region r, with exits, for new pedestrians where there is room.
+                 others_m: Sequence[np.ndarray], others_heading: Sequence[np.ndarray], clearance_m: np.ndarray,
+                 lane_m: float, rngs: Sequence[np.random.Generator]) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """Up to counts[c, r] random free points of each region r, with exits, for new pedestrians where there is room,
+    for C crowds at once (crowd c drawing only from ``rngs[c]``, in the order it would alone).
 
     A point qualifies if it is at least clearance_m from every body present (and from the other new points)
     and no oncoming body (heading more than 90 degrees off) stands in the new pedestrian's path closer than
     lane_m: people do not step out right in front of others. All regions are handled at once.
 
     Args:
-        regions: (R) entry regions.  counts: (R,) pedestrians wanted at each; CANDIDATES_PER_SPAWN random points
+        regions: (R) entry regions.  counts: (C, R) pedestrians wanted at each; CANDIDATES_PER_SPAWN random points
             are tried for each.
         allowed: (R, E) bool, the exits each region leads to.
-        others_m: (K, 2) positions of the bodies present [m].  others_heading: (K, 2) their desired directions.
-        clearance_m: required centre distance to every body [m].  lane_m: free path length required [m].
+        others_m: per crowd, (K, 2) positions of the bodies present [m].  others_heading: per crowd, (K, 2) their
+            desired directions.
+        clearance_m: (C,) required centre distance to every body [m].  lane_m: free path length required [m].
 
     Returns:
-        xy_m: (M, 2) positions [m].  exit_idx: (M,) int64 exits.  region: (M,) int64 region of each, ascending.
+        per crowd: xy_m (M, 2) positions [m], exit_idx (M,) int64 exits, region (M,) int64 region of each, ascending.
     """
     box = np.array([[r.polygon_m.min(axis=0), r.polygon_m.max(axis=0)] for r in regions])  # (R, 2, 2)
-    origin = np.repeat(np.arange(len(regions)), counts * CANDIDATES_PER_SPAWN)
+    origins = [np.repeat(np.arange(len(regions)), row * CANDIDATES_PER_SPAWN) for row in counts]
+    origin = np.concatenate(origins)
+    crowd = np.repeat(np.arange(len(counts)), [len(o) for o in origins])
     lo, hi = box[origin, 0], box[origin, 1]
-    candidates = lo + rng.random((len(origin), 2)) * (hi - lo)
+    candidates = lo + np.concatenate([g.random((len(o), 2)) for g, o in zip(rngs, origins, strict=True)]
+                                     ).reshape(-1, 2) * (hi - lo)
     inside = np.zeros(len(origin), bool)
-    for r in np.flatnonzero(counts).tolist():
+    for r in np.flatnonzero(counts.any(axis=0)).tolist():
         mine = origin == r
         inside[mine] = regions[r].contains(candidates[mine])
     keep = inside & nav.startable_at(candidates)
-    candidates, origin = candidates[keep], origin[keep]
-    exit_idx, reachable = choose_exits(nav, candidates, allowed[origin].T, rng)
-    candidates, exit_idx, origin = candidates[reachable], exit_idx[reachable], origin[reachable]
-    reach = lane_m + clearance_m  # only bodies this close to a busy region can object
-    active = box[np.flatnonzero(counts)]
-    near = np.all((others_m > active[:, 0].min(axis=0) - reach) & (others_m < active[:, 1].max(axis=0) + reach),
-                  axis=1)
-    others_m, others_heading = others_m[near], others_heading[near]
-    heading = nav.direction_at(exit_idx, candidates)  # (C, 2)
-    offset = others_m[None, :, :] - candidates[:, None, :]  # (C, K, 2)
+    candidates, origin, crowd = candidates[keep], origin[keep], crowd[keep]
+    exit_idx, reachable = choose_exits(nav, candidates, allowed[origin].T, rngs,
+                                       np.bincount(crowd, minlength=len(counts)).tolist())
+    candidates, exit_idx = candidates[reachable], exit_idx[reachable]
+    origin, crowd = origin[reachable], crowd[reachable]
+    heading = nav.direction_at(exit_idx, candidates)  # (M, 2)
+    widest = max((len(o) for o in others_m), default=0)  # the crowds' bodies, padded far away and heading nowhere
+    bodies = np.full((len(counts), widest, 2), 1e9)
+    body_heading = np.zeros((len(counts), widest, 2))
+    for c, (xy, direction) in enumerate(zip(others_m, others_heading, strict=True)):
+        bodies[c, :len(xy)], body_heading[c, :len(xy)] = xy, direction
+    offset = bodies[crowd] - candidates[:, None, :]  # (M, K, 2)
     ahead = np.einsum("ckx,cx->ck", offset, heading)
     across = np.abs(offset[..., 0] * heading[:, None, 1] - offset[..., 1] * heading[:, None, 0])
-    in_path = (heading @ others_heading.T < 0) & (ahead > 0) & (ahead < lane_m) & (across < clearance_m)
-    roomy = (np.hypot(offset[..., 0], offset[..., 1]) >= clearance_m).all(axis=1) & ~in_path.any(axis=1)
-    candidates, exit_idx, origin = candidates[roomy], exit_idx[roomy], origin[roomy]
-    apart = np.linalg.norm(candidates[:, None] - candidates[None], axis=-1) >= clearance_m
-    chosen, open_ = [], np.ones(len(candidates), bool)
-    for r in np.flatnonzero(counts).tolist():  # first come, first served among the new ones
-        mine, taken = origin == r, 0
-        while taken < counts[r] and (open_ & mine).any():
-            first = int(np.argmax(open_ & mine))
-            chosen.append(first)
-            open_ &= apart[first]
-            taken += 1
-    return candidates[chosen].reshape(-1, 2), exit_idx[chosen], origin[chosen]
+    clear = clearance_m[crowd][:, None]
+    oncoming = np.zeros(ahead.shape, bool)
+    for c, direction in enumerate(others_heading):  # a matrix product, as in any crowd's own (ulp-exact signs)
+        rows = crowd == c
+        oncoming[rows, :len(direction)] = heading[rows] @ direction.T < 0
+    in_path = oncoming & (ahead > 0) & (ahead < lane_m) & (across < clear)
+    roomy = (np.hypot(offset[..., 0], offset[..., 1]) >= clear).all(axis=1) & ~in_path.any(axis=1)
+    candidates, exit_idx, origin, crowd = candidates[roomy], exit_idx[roomy], origin[roomy], crowd[roomy]
+    chosen_by_crowd = []
+    for c, row in enumerate(counts):  # first come, first served among each crowd's new ones
+        rows = np.flatnonzero(crowd == c)
+        apart = np.linalg.norm(candidates[rows, None] - candidates[None, rows], axis=-1) >= clearance_m[c]
+        chosen, open_ = [], np.ones(len(rows), bool)
+        for r in np.flatnonzero(row).tolist():
+            mine, taken = origin[rows] == r, 0
+            while taken < row[r] and (open_ & mine).any():
+                first = int(np.argmax(open_ & mine))
+                chosen.append(first)
+                open_ &= apart[first]
+                taken += 1
+        chosen_by_crowd.append(rows[chosen])
+    return [(candidates[c].reshape(-1, 2), exit_idx[c], origin[c]) for c in chosen_by_crowd]

@@ -7,6 +7,7 @@ A group shares its first member's exit and speed; the population config decides 
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -101,29 +102,58 @@ def route_mask(layout: Layout) -> np.ndarray:
     return allowed
 
 
-def place_arrivals(nav: NavigationField, layout: Layout, cfg: CrowdConfig, counts: np.ndarray, room: int,
-                   xy_m: np.ndarray, roster: Roster, step: int, first_group: int,
-                   rng: np.random.Generator) -> Arrivals:
-    """Arrivals at the entries: counts (E_in,) units per entry, at most room pedestrians in all.
+@dataclass(frozen=True, eq=False)
+class SpawnRequest:
+    """One crowd's arrivals to place: ``counts`` (E_in,) units wanted per entry (its Poisson draw), at most ``room``
+    pedestrians in all; the roster's bodies at ``xy_m`` (K, 2) [m] (for headings and stops), the current ``step``,
+    the first free group id ``first_group`` and the crowd's own generator ``rng``."""
 
-    A unit's first member appears at a free point of its entry (``population.spawn_points``, all entries at
-    once); its companions (``groups.unit_sizes``) appear abreast of it where there is room, else the group is
+    counts: np.ndarray
+    room: int
+    xy_m: np.ndarray
+    roster: Roster
+    step: int
+    first_group: int
+    rng: np.random.Generator
+
+
+def place_arrivals(nav: NavigationField, layout: Layout, cfg: CrowdConfig, requests: Sequence[SpawnRequest]
+                   ) -> list[Arrivals]:
+    """Arrivals at the entries of several crowds of one layout and config, each drawing from its own generator in
+    the order it would alone, so that a crowd's arrivals do not depend on the others.
+
+    A unit's first member appears at a free point of its entry (``population.spawn_points``, all entries and crowds
+    at once); its companions (``groups.unit_sizes``) appear abreast of it where there is room, else the group is
     smaller.
-
-    Args:
-        xy_m: (K, 2) positions of the roster's bodies [m].  roster: the bodies present (for headings and stops).
-        step: the current step.  first_group: the first free group id.
     """
     pop: PopulationConfig = cfg.population
-    heading = nav.direction_at(roster.exit_idx, xy_m) * (roster.ped_id >= 0)[:, None]
-    clearance_m = cfg.radius_m + roster.radius_m.max(initial=cfg.radius_m) + cfg.spawn_gap_m
-    counts = np.minimum(counts, room)
-    leads, exits, _ = spawn_points(layout.entries, counts, layout.derived(("routes",), lambda: route_mask(layout)),
-                                   nav, xy_m, heading, clearance_m, cfg.spawn_lane_m, rng)
-    leads, exits = leads[:room], exits[:room]
-    lead_heading = nav.direction_at(exits, leads)
+    rosters = [request.roster for request in requests]
+    xy_m = np.concatenate([request.xy_m for request in requests]).reshape(-1, 2)
+    heading = nav.direction_at(np.concatenate([r.exit_idx for r in rosters]), xy_m) * \
+        np.concatenate([r.ped_id >= 0 for r in rosters])[:, None]
+    cuts = np.cumsum([len(r) for r in rosters])[:-1]
+    clearance_m = np.array([cfg.radius_m + r.radius_m.max(initial=cfg.radius_m) + cfg.spawn_gap_m for r in rosters])
+    counts = np.array([np.minimum(request.counts, request.room) for request in requests]).reshape(len(requests), -1)
+    points = spawn_points(layout.entries, counts, layout.derived(("routes",), lambda: route_mask(layout)), nav,
+                          [request.xy_m for request in requests], np.split(heading, cuts), clearance_m,
+                          cfg.spawn_lane_m, [request.rng for request in requests])
+    leads = [(xy[:request.room], exits[:request.room])
+             for (xy, exits, _), request in zip(points, requests, strict=True)]
+    lead_heading = np.split(nav.direction_at(np.concatenate([e for _, e in leads]),
+                                             np.concatenate([xy for xy, _ in leads]).reshape(-1, 2)),
+                            np.cumsum([len(e) for _, e in leads])[:-1])
+    return [_units(nav, pop, request, xy, exits, heading_c, clearance_c)
+            for request, (xy, exits), heading_c, clearance_c in zip(requests, leads, lead_heading, clearance_m,
+                                                                    strict=True)]
+
+
+def _units(nav: NavigationField, pop: PopulationConfig, request: SpawnRequest, leads: np.ndarray, exits: np.ndarray,
+           lead_heading: np.ndarray, clearance_m: float) -> Arrivals:
+    """One crowd's arrivals from its units' first members ``leads`` (U, 2) [m] heading to ``exits`` (U,) along
+    ``lead_heading`` (U, 2): companions abreast where there is room, speeds, groups and stops."""
+    rng, room = request.rng, request.room
     member_xy, member_unit = [leads], [np.arange(len(leads))]
-    taken = np.concatenate([xy_m, leads])
+    taken = np.concatenate([request.xy_m, leads])
     room -= len(leads)
     sizes = unit_sizes(pop, len(leads), rng)
     for k in np.flatnonzero(sizes > 1).tolist():  # companions, abreast of the lead
@@ -137,8 +167,8 @@ def place_arrivals(nav: NavigationField, layout: Layout, cfg: CrowdConfig, count
     xy = np.concatenate(member_xy)
     unit = np.concatenate(member_unit)
     sizes = np.bincount(unit, minlength=n_units)
-    group_of_unit = np.where(sizes > 1, first_group + np.cumsum(sizes > 1) - 1, -1)
+    group_of_unit = np.where(sizes > 1, request.first_group + np.cumsum(sizes > 1) - 1, -1)
     speed = preferred_speeds(pop, n_units, rng)
-    stop = plan_stops(pop, sizes, roster, step, rng)
+    stop = plan_stops(pop, sizes, request.roster, request.step, rng)
     return Arrivals(xy_m=xy, exit_idx=exits[unit], speed_mps=speed[unit],
                     group=group_of_unit[unit], stop_step=stop[unit], go_step=np.zeros(len(xy), np.int64))
