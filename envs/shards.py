@@ -30,6 +30,7 @@ from envs.common.errors import EnvInputError
 from envs.vector_env import CrowdVectorEnv, StepParts, batch_infos, sub_env_seeds
 
 EXECUTORS: tuple[str, ...] = ("process", "ray")
+SHARD = "envs.shards:Shard"  # what a worker of a ShardedVectorEnv hosts
 PARENT_POLL_S = 1.0  # a worker process checks this often whether its driver is still alive [s]
 
 
@@ -39,10 +40,8 @@ class Shard:
 
     def __init__(self, env_class_path: str, num_envs: int, max_episode_steps: int | None, autoreset_mode: str,
                  kwargs: dict[str, Any]):
-        _one_thread()
-        module, _, name = env_class_path.partition(":")
-        env_class = getattr(__import__(module, fromlist=[name]), name)
-        self.vec = CrowdVectorEnv(env_class, num_envs, max_episode_steps, autoreset_mode, **kwargs)
+        one_thread()
+        self.vec = CrowdVectorEnv(hosted_class(env_class_path), num_envs, max_episode_steps, autoreset_mode, **kwargs)
 
     def spaces(self) -> tuple[Any, Any]:
         return self.vec.single_observation_space, self.vec.single_action_space
@@ -91,7 +90,7 @@ class ShardedVectorEnv(VectorEnv):
         self.sizes = [len(part) for part in np.array_split(np.arange(num_envs), shards)]
         self._cuts = np.cumsum(self.sizes)[:-1]
         args = [(env_class_path, size, max_episode_steps, self.autoreset_mode.value, kwargs) for size in self.sizes]
-        self._shards = [RayShard(*a) if executor == "ray" else ProcessShard(*a) for a in args]
+        self._shards = [(RayShard if executor == "ray" else ProcessShard)(SHARD, *a) for a in args]
         self.single_observation_space, self.single_action_space = self._shards[0].call("spaces")
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
@@ -164,11 +163,18 @@ class ShardHandle:
         return value
 
 
-class ProcessShard(ShardHandle):
-    """A ``Shard`` in a worker process of this machine (a fresh interpreter: no forked thread pools, and the caller's
-    script needs no ``if __name__ == "__main__"`` guard), spoken to through a local socket."""
+def hosted_class(target: str) -> type:
+    """The class ``module:Class`` that a worker hosts (imported there)."""
+    module, _, name = target.partition(":")
+    return getattr(__import__(module, fromlist=[name]), name)
 
-    def __init__(self, *args: Any):
+
+class ProcessShard(ShardHandle):
+    """An object of class ``target`` (``module:Class``, built with ``args``; ``Shard`` for a ``ShardedVectorEnv``) in a
+    worker process of this machine (a fresh interpreter: no forked thread pools, and the caller's script needs no
+    ``if __name__ == "__main__"`` guard), spoken to through a local socket."""
+
+    def __init__(self, target: str, *args: Any):
         key = secrets.token_bytes(16)
         with Listener(family="AF_UNIX", authkey=key) as listener:
             env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in sys.path if p and os.path.isdir(p))}
@@ -176,8 +182,8 @@ class ProcessShard(ShardHandle):
                                              "s.serve(sys.argv[1], bytes.fromhex(sys.argv[2]))",
                                              listener.address, key.hex()], env=env)
             self._conn = listener.accept()
-        self._conn.send(args)
-        outcome, value = self._conn.recv()  # the shard was built, or why not
+        self._conn.send((target, args))
+        outcome, value = self._conn.recv()  # the object was built, or why not
         if outcome == "error":
             raise value
 
@@ -200,20 +206,24 @@ class ProcessShard(ShardHandle):
 
 
 def serve(address: str, key: bytes) -> None:
-    """A worker process: build the shard the driver describes, then run its calls until "close" (or until the
-    driver is gone)."""
+    """A worker process: build the object the driver describes, then run its calls until "close" (or until the driver
+    is gone)."""
     threading.Thread(target=_exit_with_parent, args=(os.getppid(),), daemon=True).start()
     conn = Client(address, family="AF_UNIX", authkey=key)
     try:
-        shard = Shard(*conn.recv())
+        target, args = conn.recv()
+        hosted = hosted_class(target)(*args)
     except Exception as err:  # reported to the driver, which raises it
         conn.send(("error", err))
         return
     conn.send(("ok", None))
     while True:
-        method, call_args = conn.recv()
         try:
-            conn.send(("ok", getattr(shard, method)(*call_args)))
+            method, call_args = conn.recv()
+        except EOFError:  # the driver is gone without a "close"
+            return
+        try:
+            conn.send(("ok", getattr(hosted, method)(*call_args)))
         except Exception as err:
             conn.send(("error", err))
         if method == "close":
@@ -227,13 +237,14 @@ def _exit_with_parent(parent: int) -> None:
 
 
 class RayShard(ShardHandle):
-    """A ``Shard`` as a Ray actor (one CPU), wherever the connected cluster places it."""
+    """An object of class ``target`` (as ``ProcessShard``) as a Ray actor (one CPU), wherever the connected cluster
+    places it."""
 
-    def __init__(self, *args: Any):
+    def __init__(self, target: str, *args: Any):
         import ray
 
         self._ray = ray
-        self.actor = ray.remote(num_cpus=1)(Shard).remote(*args)
+        self.actor = ray.remote(num_cpus=1)(hosted_class(target)).remote(*args)
         self._pending: Any = None
 
     def send(self, method: str, *args: Any) -> None:
@@ -253,8 +264,8 @@ class RayShard(ShardHandle):
         self._ray.kill(self.actor)
 
 
-def _one_thread() -> None:
-    """One thread per shard: shards are the parallelism."""
+def one_thread() -> None:
+    """One thread per shard: shards are the parallelism (every class a worker hosts calls this first)."""
     for var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
         os.environ[var] = "1"
     import torch

@@ -19,6 +19,7 @@ import torch
 from gymnasium import spaces
 from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
 from torch import nn
+from torch.nn import functional
 
 from st_sim.apps.navigation.features import NEAREST, RAY_COUNT, FeatureConfig
 
@@ -47,6 +48,17 @@ class PedestrianAttention(BaseFeaturesExtractor):
         robot = self.robot(observations[:, :self.robot_size])  # (B, E)
         slots = observations[:, self.robot_size:].reshape(-1, NEAREST, self.slot_size)  # (B, N, F)
         keys = torch.cat([self.nobody.expand(len(slots), -1, -1), self.pedestrian(slots)], dim=1)  # (B, 1 + N, E)
-        absent = torch.cat([torch.zeros_like(slots[:, :1, 0], dtype=torch.bool), slots[:, :, 0] < 0.5], dim=1)
-        attended, _ = self.attend(robot[:, None], keys, keys, key_padding_mask=absent, need_weights=False)
-        return torch.cat([robot, attended[:, 0]], dim=1)
+        present = torch.cat([torch.ones_like(slots[:, :1, 0], dtype=torch.bool), slots[:, :, 0] >= 0.5], dim=1)
+        return torch.cat([robot, self._attended(robot, keys, present)], dim=1)
+
+    def _attended(self, robot: torch.Tensor, keys: torch.Tensor, present: torch.Tensor) -> torch.Tensor:
+        """(B, E) what the robot's encoding (B, E) attends to among ``keys`` (B, 1 + N, E) where ``present`` (B, 1 + N):
+        ``self.attend``'s multi-head attention with its own weights, one fused call instead of its general path (the
+        same values; several times faster for one query over seven keys)."""
+        weight, bias = self.attend.in_proj_weight, self.attend.in_proj_bias
+        heads, width = self.attend.num_heads, EMBED // self.attend.num_heads
+        query = functional.linear(robot, weight[:EMBED], bias[:EMBED]).view(-1, heads, 1, width)
+        key, value = functional.linear(keys, weight[EMBED:], bias[EMBED:]).view(*keys.shape[:2], 2, heads, width) \
+            .permute(2, 0, 3, 1, 4)  # each (B, heads, 1 + N, width)
+        mixed = functional.scaled_dot_product_attention(query, key, value, attn_mask=present[:, None, None, :])
+        return self.attend.out_proj(mixed.reshape(-1, EMBED))

@@ -131,9 +131,10 @@ def outcome(info: dict) -> str:
     return "timeout" if termination is None else "goal" if termination == "goal" else "collision"
 
 
-def curve_callback(cfg: TrainConfig, curve: list[dict]) -> Any:
+def curve_callback(cfg: TrainConfig, curve: list[dict], timing: dict[str, float]) -> Any:
     """A stable-baselines3 callback: progress bar, a curve point every rollout, the resumable state every
-    ``cfg.save_every`` rollouts, a stop once ``cfg.minutes`` of wall time have passed."""
+    ``cfg.save_every`` rollouts, a stop once ``cfg.minutes`` of wall time have passed; adds the wall time of the
+    rollouts (envs and the policy acting) and of the updates to ``timing["rollout_s"]`` and ``timing["update_s"]``."""
     from stable_baselines3.common.callbacks import BaseCallback
 
     class Curve(BaseCallback):
@@ -141,6 +142,7 @@ def curve_callback(cfg: TrainConfig, curve: list[dict]) -> Any:
             self.bar = tqdm(total=cfg.timesteps, initial=self.model.num_timesteps, unit="step",
                             disable=not cfg.progress, desc="ppo")
             self.rollouts, self.started = 0, time.monotonic()
+            self.mark = self.started  # when the current rollout (or update) began
             self.deadline = self.started + 60 * cfg.minutes
             self.recent: deque[tuple[str, float]] = deque(maxlen=CURVE_WINDOW)
 
@@ -151,7 +153,15 @@ def curve_callback(cfg: TrainConfig, curve: list[dict]) -> Any:
                     self.recent.append((outcome(info), float(info["episode"]["r"])))
             return time.monotonic() < self.deadline
 
+        def _on_rollout_start(self) -> None:
+            now = time.monotonic()
+            timing["update_s"] += now - self.mark if self.rollouts else 0.0  # the update after the last rollout
+            self.mark = now
+
         def _on_rollout_end(self) -> None:
+            now = time.monotonic()
+            timing["rollout_s"] += now - self.mark
+            self.mark = now
             if self.recent:
                 kinds = [kind for kind, _ in self.recent]
                 curve.append({"timesteps": int(self.num_timesteps), "wall_s": round(time.monotonic() - self.started, 1),
@@ -165,6 +175,7 @@ def curve_callback(cfg: TrainConfig, curve: list[dict]) -> Any:
                 save_resumable(self.model, cfg, curve)
 
         def _on_training_end(self) -> None:
+            timing["update_s"] += time.monotonic() - self.mark if self.rollouts else 0.0
             self.bar.close()
 
     return Curve()
@@ -304,15 +315,18 @@ def main(cfg: TrainConfig) -> Path:
             model.policy.action_net.bias.copy_(torch.tensor([cfg.initial_forward, 0.0]))
 
     # loop: rollouts -> PPO updates, a curve point per rollout, the resumable state every save_every rollouts
-    learning = time.perf_counter()
+    learning, timing = time.perf_counter(), {"rollout_s": 0.0, "update_s": 0.0}
     if cfg.timesteps > resumed_from:
-        model.learn(total_timesteps=cfg.timesteps - resumed_from, callback=curve_callback(cfg, curve),
+        model.learn(total_timesteps=cfg.timesteps - resumed_from, callback=curve_callback(cfg, curve, timing),
                     reset_num_timesteps=resumed_from == 0, tb_log_name=run_name)
-    steps_per_s = (model.num_timesteps - resumed_from) / max(time.perf_counter() - learning, 1e-9)
+    learnt_s = max(time.perf_counter() - learning, 1e-9)
+    steps_per_s = (model.num_timesteps - resumed_from) / learnt_s
+    shares = {name.removesuffix("_s"): round(seconds / learnt_s, 3) for name, seconds in timing.items()}
     save_resumable(model, cfg, curve)
     wall_time_s = time.perf_counter() - start
     vec.close()
-    print(f"{model.num_timesteps - resumed_from} env steps learnt at {steps_per_s:.0f} env steps/s")
+    print(f"{model.num_timesteps - resumed_from} env steps learnt at {steps_per_s:.0f} env steps/s "
+          f"(rollouts {100 * shares['rollout']:.0f} % of the time, updates {100 * shares['update']:.0f} %)")
 
     # checkpoint: the actor-critic alone, as plain tensors (atomic write), then the curve and the record
     policy = build_policy(cfg.features, net_arch, cfg.extractor)
@@ -321,7 +335,7 @@ def main(cfg: TrainConfig) -> Path:
     write_text_atomic(out / "curve.json", json.dumps(curve, indent=1))
     plot_curve({run_name: curve}, out / "curve.png", run_name)
     record = {"run": run_name, "config": asdict(cfg), "wall_time_s": wall_time_s, "cloning": cloning,
-              "resumed_from": resumed_from, "sha256": sha256, "env_steps_per_s": steps_per_s,
+              "resumed_from": resumed_from, "sha256": sha256, "env_steps_per_s": steps_per_s, "time_shares": shares,
               "final": curve[-1] if curve else None, "command": "python -m st_sim.apps.navigation.train_ppo "
               + " ".join(sys.argv[1:])}
     write_text_atomic(out / "training.json", json.dumps(record, indent=1, default=str))

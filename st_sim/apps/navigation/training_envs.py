@@ -1,15 +1,18 @@
 """The PPO trainer's envs: an STCrowd native vector env seen through the navigation features, as a
 stable-baselines3 ``VecEnv``.
 
-    vec = FeatureVecEnv("STCrowd-SimCrossing-v1", num_envs=16, features=FeatureConfig(True, sensor_range_m=5.0))
-    features = vec.reset()                       # (16, features.size) float32
+    vec = FeatureVecEnv("STCrowd-SimCrossing-v1", num_envs=64, features=FeatureConfig(True), shards=2)
+    features = vec.reset()                       # (64, features.size) float32
     vec.step_async(actions); features, rewards, dones, infos = vec.step_wait()
 
 The sub-envs are stepped by ``gym.make_vec(..., vectorization_mode="vector_entry_point")`` with
 ``AutoresetMode.SAME_STEP`` (one batched predictor call per step for all of them), which is stable-baselines3's
 convention: an ended episode's sub-env is reset in the same step, its last features go to
 ``info["terminal_observation"]`` and ``info["TimeLimit.truncated"]`` says whether the time limit ended it.
-Actions (num_envs, 2) in [-1, 1] are path-frame velocities in speed limits (``features.to_velocity``).
+Actions (num_envs, 2) in [-1, 1] are path-frame velocities in speed limits (``features.to_velocities``). Only the
+``NEAREST`` pedestrians the features read are forecast (``EnvConfig.forecast_nearest``; every sensed one still
+conditions their forecast). With ``shards`` > 1 the sub-envs are split into worker processes (``FeatureShard`` in
+each, through ``envs.shards``), which step at once and send back features, not observations.
 """
 
 from __future__ import annotations
@@ -25,9 +28,14 @@ from gymnasium.vector import AutoresetMode
 from stable_baselines3.common.vec_env import VecEnv
 
 from envs.common.config import EnvConfig
+from envs.common.errors import EnvInputError
+from envs.shards import ProcessShard, one_thread
 from st_sim.apps.navigation.features import NEAREST, FeatureConfig, encode_batch, path_frames, to_velocities
 from st_sim.apps.navigation.predictors import env_predictor
 from st_sim.apps.navigation.world import world_of
+
+StepResult = tuple[np.ndarray, np.ndarray, np.ndarray, list[dict]]
+"""(features (N, size) float32, rewards (N,) float32, dones (N,) bool, infos), stable-baselines3's step result"""
 
 
 def sub_env_info(batched: dict[str, Any], i: int) -> dict[str, Any]:
@@ -36,47 +44,34 @@ def sub_env_info(batched: dict[str, Any], i: int) -> dict[str, Any]:
             for key, value in batched.items() if not key.startswith("_") and batched[f"_{key}"][i]}
 
 
-class FeatureVecEnv(VecEnv):
-    """``num_envs`` sub-envs of ``env_id`` stepped as one native vector env, observed through ``encode``.
-
-    Args:
-        env_id: an STCrowd id with an ego.
-        num_envs: sub-envs, >= 1.
-        features: what the policy sees; with ``use_predictions`` the env runs SingularTrajectory, without it no
-            predictor. Its ``sensor_range_m`` is also the env's, so only sensed pedestrians are forecast.
-        config: the env's settings (its ``sensor_range_m`` is replaced by the features'); None: defaults.
-        shards: worker processes the sub-envs are split into (``envs.shards``; 1: this process).
-    """
+class FeatureShard:
+    """``num_envs`` sub-envs of ``env_id`` in this process: one native vector env and its features (what
+    ``FeatureVecEnv`` runs, here or in each worker process; arguments as ``FeatureVecEnv``)."""
 
     def __init__(self, env_id: str, num_envs: int, features: FeatureConfig, config: EnvConfig | None = None,
-                 shards: int = 1):
+                 worker: bool = False):
+        if worker:
+            one_thread()
         config = replace(config or EnvConfig(), sensor_range_m=features.sensor_range_m, forecast_nearest=NEAREST)
         self.vector = gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point",
-                                   autoreset_mode=AutoresetMode.SAME_STEP, config=config, shards=shards,
+                                   autoreset_mode=AutoresetMode.SAME_STEP, config=config,
                                    predictor=env_predictor("singular" if features.use_predictions else "none"))
         self.features = features
-        # every sub-env of an id has the same world (scene, limits, map); the sub-envs may live in other processes
-        self.world = world_of(self.vector.envs[0] if shards == 1 else gym.make(env_id, predictor="cvm", config=config))
+        self.world = world_of(self.vector.envs[0])  # every sub-env of an id has the same world (scene, limits, map)
         self._frames = np.zeros((num_envs, 2, 2))  # path_frames of the sub-envs' observations, for their next action
-        self._velocities = np.zeros((num_envs, 2), np.float32)
-        super().__init__(num_envs, spaces.Box(-np.inf, np.inf, (features.size,), np.float32),
-                         spaces.Box(-1.0, 1.0, (2,), np.float32))
 
-    def reset(self) -> np.ndarray:
-        """(num_envs, size) features of new episodes (seeds from ``seed()`` if given, then fresh ones)."""
-        seeds = None if all(seed is None for seed in self._seeds) else list(self._seeds)
+    def reset(self, seeds: list[int | None] | None) -> np.ndarray:
+        """(num_envs, size) features of new episodes; sub-env i seeded with ``seeds[i]`` (None: fresh ones)."""
         obs, _ = self.vector.reset(seed=seeds)
-        self._reset_seeds()
         return self._encode_all(obs)
 
-    def step_async(self, actions: np.ndarray) -> None:
-        actions = np.asarray(actions, np.float32).reshape(self.num_envs, 2)
-        self._velocities = to_velocities(actions, self._frames, self.world.max_speed_mps)
-
-    def step_wait(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[dict]]:
-        obs, rewards, terminations, truncations, batched = self.vector.step(self._velocities)
+    def step(self, actions: np.ndarray) -> StepResult:
+        """One step of every sub-env with path-frame actions (num_envs, 2) in [-1, 1]."""
+        velocities = to_velocities(np.asarray(actions, np.float32).reshape(-1, 2), self._frames,
+                                   self.world.max_speed_mps)
+        obs, rewards, terminations, truncations, batched = self.vector.step(velocities)
         features = self._encode_all(obs)
-        infos = [sub_env_info(batched, i) for i in range(self.num_envs)]
+        infos = [sub_env_info(batched, i) for i in range(len(features))]
         ended = np.flatnonzero(terminations | truncations)
         if ended.size:  # the step's own info and features, not the reset's
             final_obs = [infos[i]["final_obs"] for i in ended]
@@ -87,26 +82,114 @@ class FeatureVecEnv(VecEnv):
                             "TimeLimit.truncated": bool(truncations[i] and not terminations[i])}
         return features, rewards.astype(np.float32), terminations | truncations, infos
 
-    def close(self) -> None:
-        self.vector.close()
+    def get_attr(self, attr_name: str, indices: Sequence[int]) -> list[Any]:
+        return [getattr(self.vector.envs[i], attr_name) for i in indices]
 
-    def get_attr(self, attr_name: str, indices: Any = None) -> list[Any]:
-        return [getattr(self.vector.envs[i], attr_name) for i in self._get_indices(indices)]
-
-    def set_attr(self, attr_name: str, value: Any, indices: Any = None) -> None:
-        for i in self._get_indices(indices):
+    def set_attr(self, attr_name: str, value: Any, indices: Sequence[int]) -> None:
+        for i in indices:
             setattr(self.vector.envs[i], attr_name, value)
 
-    def env_method(self, method_name: str, *method_args: Any, indices: Any = None, **method_kwargs: Any) -> list:
-        return [getattr(self.vector.envs[i], method_name)(*method_args, **method_kwargs)
-                for i in self._get_indices(indices)]
+    def env_method(self, method_name: str, method_args: tuple, method_kwargs: dict, indices: Sequence[int]) -> list:
+        return [getattr(self.vector.envs[i], method_name)(*method_args, **method_kwargs) for i in indices]
 
-    def env_is_wrapped(self, wrapper_class: type, indices: Any = None) -> list[bool]:
-        return [False for _ in self._get_indices(indices)]
+    def close(self) -> None:
+        self.vector.close()
 
     def _encode_all(self, obs: dict[str, np.ndarray]) -> np.ndarray:
         self._frames = path_frames(obs["ego"], self.world)
         return encode_batch(obs, self.world, self.features, self._frames)
+
+
+class FeatureVecEnv(VecEnv):
+    """``num_envs`` sub-envs of ``env_id`` stepped as native vector envs, observed through ``encode_batch``.
+
+    Args:
+        env_id: an STCrowd id with an ego.
+        num_envs: sub-envs, >= 1.
+        features: what the policy sees; with ``use_predictions`` the env runs SingularTrajectory, without it no
+            predictor. Its ``sensor_range_m`` is also the env's, so only sensed pedestrians are forecast.
+        config: the env's settings (its ``sensor_range_m`` is replaced by the features'); None: defaults.
+        shards: worker processes the sub-envs are split into (``FeatureShard`` each; 1: this process), at most
+            ``num_envs``. Sub-env i is the same env, with the same seed, whichever shard holds it.
+    """
+
+    def __init__(self, env_id: str, num_envs: int, features: FeatureConfig, config: EnvConfig | None = None,
+                 shards: int = 1):
+        if isinstance(shards, bool) or not isinstance(shards, int | np.integer) or not 1 <= shards <= num_envs:
+            raise EnvInputError(f"shards={shards!r}: expected an int between 1 and num_envs={num_envs}")
+        self.sizes = [len(part) for part in np.array_split(np.arange(num_envs), shards)]
+        self._cuts = np.cumsum(self.sizes)[:-1]
+        self._local = FeatureShard(env_id, num_envs, features, config) if shards == 1 else None
+        self._workers = [] if shards == 1 else [
+            ProcessShard(f"{__name__}:FeatureShard", env_id, size, features, config, True) for size in self.sizes]
+        super().__init__(num_envs, spaces.Box(-np.inf, np.inf, (features.size,), np.float32),
+                         spaces.Box(-1.0, 1.0, (2,), np.float32))
+        self._actions = np.zeros((num_envs, 2), np.float32)
+
+    def reset(self) -> np.ndarray:
+        """(num_envs, size) features of new episodes (seeds from ``seed()`` if given, then fresh ones)."""
+        seeds = None if all(seed is None for seed in self._seeds) else list(self._seeds)
+        self._reset_seeds()
+        if self._local is not None:
+            return self._local.reset(seeds)
+        parts = [None] * len(self._workers) if seeds is None else np.split(np.array(seeds, object), self._cuts)
+        return np.concatenate(self._all("reset", [(None if p is None else list(p),) for p in parts]))
+
+    def step_async(self, actions: np.ndarray) -> None:
+        self._actions = np.asarray(actions, np.float32).reshape(self.num_envs, 2)
+        if self._workers:
+            for worker, part in zip(self._workers, np.split(self._actions, self._cuts), strict=True):
+                worker.send("step", part)
+
+    def step_wait(self) -> StepResult:
+        if self._local is not None:
+            return self._local.step(self._actions)
+        parts = self._receive_all()
+        return (np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts]),
+                np.concatenate([p[2] for p in parts]), [info for p in parts for info in p[3]])
+
+    def close(self) -> None:
+        if self._local is not None:
+            self._local.close()
+        for worker in self._workers:
+            worker.close()
+
+    def get_attr(self, attr_name: str, indices: Any = None) -> list[Any]:
+        return self._per_sub_env("get_attr", (attr_name,), indices)
+
+    def set_attr(self, attr_name: str, value: Any, indices: Any = None) -> None:
+        self._per_sub_env("set_attr", (attr_name, value), indices)
+
+    def env_method(self, method_name: str, *method_args: Any, indices: Any = None, **method_kwargs: Any) -> list:
+        return self._per_sub_env("env_method", (method_name, method_args, method_kwargs), indices)
+
+    def env_is_wrapped(self, wrapper_class: type, indices: Any = None) -> list[bool]:
+        return [False for _ in self._get_indices(indices)]
+
+    def _per_sub_env(self, method: str, args: tuple, indices: Any) -> list[Any]:
+        """``method(*args, local_indices)`` of the shards holding the sub-envs ``indices``, results in their order."""
+        wanted = list(self._get_indices(indices))
+        if self._local is not None:
+            return getattr(self._local, method)(*args, wanted) or []
+        starts = np.r_[0, np.cumsum(self.sizes)]
+        holder = np.searchsorted(starts, wanted, side="right") - 1
+        results: list[Any] = []
+        for i, shard in zip(wanted, holder.tolist(), strict=True):
+            results += self._workers[shard].call(method, *args, [i - int(starts[shard])]) or []
+        return results
+
+    def _all(self, method: str, args: list[tuple]) -> list[Any]:
+        for worker, worker_args in zip(self._workers, args, strict=True):
+            worker.send(method, *worker_args)
+        return self._receive_all()
+
+    def _receive_all(self) -> list[Any]:
+        """Every worker's answer, in order; re-raise the first error a worker raised."""
+        results = [worker.receive() for worker in self._workers]
+        for outcome, value in results:
+            if outcome == "error":
+                raise value
+        return [value for _, value in results]
 
     def _get_indices(self, indices: Any) -> Sequence[int]:
         return range(self.num_envs) if indices is None else [indices] if isinstance(indices, int) else indices
