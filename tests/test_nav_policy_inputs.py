@@ -181,3 +181,19 @@ def test_batched_features_are_each_observations_own(seed: int, cfg: FeatureConfi
         slots = features[b, 3 + RAY_COUNT:].reshape(NEAREST, cfg.slot_size)
         np.testing.assert_allclose(slots, reference_slots(obs, frame, cfg, world.max_speed_mps), rtol=0, atol=1e-6)
         np.testing.assert_allclose(velocities[b], np.clip(actions[b], -1, 1) @ frame * world.max_speed_mps, atol=1e-6)
+
+
+@settings(max_examples=10, deadline=None)
+@given(cfg=st.sampled_from(CONFIGS), seed=st.integers(0, 2**32 - 1), batch=st.integers(1, 9))
+def test_the_fused_attention_is_the_multi_head_attention_of_its_weights(cfg: FeatureConfig, seed: int,
+                                                                        batch: int) -> None:
+    rng = np.random.default_rng(seed)
+    torch.manual_seed(seed % 2**31)
+    extractor = PedestrianAttention(spaces.Box(-np.inf, np.inf, (cfg.size,), np.float32), cfg)
+    x = _features(cfg, rng, batch, rng.random((batch, NEAREST)) < 0.5)
+    robot = extractor.robot(x[:, :extractor.robot_size])
+    slots = x[:, extractor.robot_size:].reshape(-1, NEAREST, extractor.slot_size)
+    keys = torch.cat([extractor.nobody.expand(batch, -1, -1), extractor.pedestrian(slots)], dim=1)
+    absent = torch.cat([torch.zeros(batch, 1, dtype=torch.bool), slots[:, :, 0] < 0.5], dim=1)
+    expected, _ = extractor.attend(robot[:, None], keys, keys, key_padding_mask=absent, need_weights=False)
+    torch.testing.assert_close(extractor(x)[:, EMBED:], expected[:, 0], rtol=0, atol=1e-6)
