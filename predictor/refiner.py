@@ -114,22 +114,25 @@ class Refiner(nn.Module):
         order = torch.argsort(window, stable=True)
         slot = torch.empty_like(window)
         slot[order] = torch.arange(len(group)) - torch.repeat_interleave(torch.cumsum(sizes, 0) - sizes, sizes)
-        keys = torch.arange(int(sizes.max())) < sizes[:, None]  # (W, longest) True = an agent
+        longest = int(sizes.max())
+        keys = torch.arange(longest) < sizes[:, None]  # (W, longest) True = an agent
+        cell = window * longest + slot  # (B,) each agent's place in the padded (W, longest) grid
         for layer in self.interact.layers:
-            tokens = self._window_layer(layer, tokens, window, slot, keys)
+            tokens = self._window_layer(layer, tokens, cell, keys)
         return tokens
 
-    def _window_layer(self, layer: nn.TransformerEncoderLayer, x: torch.Tensor, window: torch.Tensor,
-                      slot: torch.Tensor, keys: torch.Tensor) -> torch.Tensor:
-        """One pre-norm encoder layer on tokens x (B, dim), agent i at row ``window[i]``, column ``slot[i]``."""
+    def _window_layer(self, layer: nn.TransformerEncoderLayer, x: torch.Tensor, cell: torch.Tensor,
+                      keys: torch.Tensor) -> torch.Tensor:
+        """One pre-norm encoder layer on tokens x (B, dim), agent i at ``cell[i]`` of the flattened (W, longest)
+        grid of windows ``keys``."""
         attention = layer.self_attn
         heads, dim = attention.num_heads, x.shape[1]
         qkv = functional.linear(layer.norm1(x), attention.in_proj_weight, attention.in_proj_bias)  # (B, 3 dim)
-        rows = qkv.new_zeros(*keys.shape, 3 * dim).index_put((window, slot), qkv)
+        rows = qkv.new_zeros(keys.numel(), 3 * dim).index_copy(0, cell, qkv)
         q, k, v = rows.view(*keys.shape, 3, heads, dim // heads).permute(2, 0, 3, 1, 4)  # (W, heads, longest, .)
         mixed = functional.scaled_dot_product_attention(q, k, v, attn_mask=keys[:, None, None, :],
                                                         dropout_p=attention.dropout if self.training else 0.0)
-        mixed = mixed.transpose(1, 2).reshape(*keys.shape, dim)[window, slot]  # (B, dim)
+        mixed = mixed.transpose(1, 2).reshape(keys.numel(), dim).index_select(0, cell)  # (B, dim)
         x = x + layer.dropout1(attention.out_proj(mixed))
         return x + layer.dropout2(layer.linear2(layer.dropout(layer.activation(layer.linear1(layer.norm2(x))))))
 

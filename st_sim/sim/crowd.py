@@ -288,10 +288,13 @@ class CrowdSim:
 
     def _entry_reaches_exit(self, entry: Region, exits: tuple[int, ...]) -> bool:
         """True if some free point of entry has one of exits within reach (and farther than MIN_ROUTE_M)."""
-        lo, hi = entry.polygon_m.min(axis=0), entry.polygon_m.max(axis=0)
-        xy = np.stack(np.meshgrid(np.arange(lo[0], hi[0], self.cfg.nav_cell_m / 2),
-                                  np.arange(lo[1], hi[1], self.cfg.nav_cell_m / 2)), -1).reshape(-1, 2)
-        xy = xy[entry.contains(xy) & self.nav.free_at(xy)]
+        def free_points() -> np.ndarray:
+            lo, hi = entry.polygon_m.min(axis=0), entry.polygon_m.max(axis=0)
+            xy = np.stack(np.meshgrid(np.arange(lo[0], hi[0], self.cfg.nav_cell_m / 2),
+                                      np.arange(lo[1], hi[1], self.cfg.nav_cell_m / 2)), -1).reshape(-1, 2)
+            return xy[entry.contains(xy) & self.nav.free_at(xy)]
+
+        xy = self.nav.kept(("entry", id(entry)), free_points)
         allowed = np.zeros(len(self.layout.exits), bool)
         allowed[list(exits)] = True
         return bool(choose_exits(self.nav, xy, allowed, self.rng)[1].any())

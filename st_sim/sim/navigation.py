@@ -8,6 +8,8 @@ In a periodic layout the direction to an exit is simply along x, toward the exit
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 from scipy import ndimage
 from scipy.sparse import coo_matrix
@@ -43,6 +45,7 @@ class NavigationField:
     def __init__(self, layout: Layout, walls: WallGrid, clearance_m: float, cell_m: float):
         xmin, ymin, xmax, ymax = layout.bounds_m
         self.cell_m, self.clearance_m, self._walls = cell_m, clearance_m, walls
+        self._kept: dict[tuple, np.ndarray] = {}
         self.origin_m = np.array([xmin, ymin]) + cell_m / 2
         rows, cols = (ymax - ymin) / cell_m + 1, (xmax - xmin) / cell_m + 1
         check_memory(f"the {cols:.0f} x {rows:.0f} navigation grid of layout {layout.name}",
@@ -80,6 +83,12 @@ class NavigationField:
         for e, region in enumerate(layout.exits):
             self.distance_m[e] = layout.period.length_m
             self.direction[e] = [1.0 if region.centre_m[0] >= middle else -1.0, 0.0]
+
+    def kept(self, key: tuple, build: Callable[[], np.ndarray]) -> np.ndarray:
+        """An array derived from this field (lattice sites, a gate's free points), built once per key and kept."""
+        if key not in self._kept:
+            self._kept[key] = build()
+        return self._kept[key]
 
     def cells(self, xy_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(N, 2) metres -> row and column indices (N,), clipped to the grid."""

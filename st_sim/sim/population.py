@@ -173,7 +173,10 @@ def lattice_positions(nav: NavigationField, n: int, diameter_m: float, max_gap_m
         (min(n, available sites), 2) positions [m]; fewer than n when the layout is full.
     """
     for gap in np.linspace(max_gap_m, MIN_LATTICE_GAP_M, LATTICE_TRIES):
-        sites = _lattice_sites(nav, diameter_m + gap, blocked_m, blocked_gap_m, period, region)
+        spacing_m = float(diameter_m + gap)
+        key = ("lattice", spacing_m, blocked_m.tobytes(), blocked_gap_m.tobytes(),
+               None if period is None else (period.x0_m, period.length_m), None if region is None else id(region))
+        sites = nav.kept(key, lambda s=spacing_m: _lattice_sites(nav, s, blocked_m, blocked_gap_m, period, region))
         if len(sites) >= n:
             break
     chosen = sites[rng.permutation(len(sites))[:n]]
