@@ -156,7 +156,9 @@ class ReplayCrowdEnv(CrowdEnv):
     offline evaluation does, instead of every agent with T_obs frames), rerun (a .rrd path or "spawn": log
     every step, with predictions and SingularTrajectory's anchors, to Rerun; an existing recording is never
     overwritten: the new one is numbered, ``run-1.rrd``, and ``rerun_paths`` lists what was written),
-    pedestrians ("log": the recording exactly; "reactive": recorded pedestrians step round the robot).
+    pedestrians ("log": the recording exactly; "reactive": recorded pedestrians step round the robot), device
+    (where a SingularTrajectory the env loads runs: "auto" (default: a CUDA GPU when torch sees one, else the CPU),
+    "cpu", "cuda", "cuda:N" or "mps"; a predictor object passed in runs where it is).
 
     ## Version History
     - v0: initial version. 2026-11-25, same id (the default is unchanged): ``pedestrians="reactive"``,
@@ -172,7 +174,7 @@ class ReplayCrowdEnv(CrowdEnv):
                  task: str = "stochastic", ego: bool = True, render_mode: str | None = None,
                  config: EnvConfig | None = None, root: str | os.PathLike | None = None,
                  benchmark_windows: bool = False, rerun: str | os.PathLike | None = None,
-                 pedestrians: str = "log"):
+                 pedestrians: str = "log", device: str = "auto"):
         check_flag("benchmark_windows", benchmark_windows)
         if not isinstance(pedestrians, str) or pedestrians not in PEDESTRIAN_MODES:
             raise EnvInputError(f"pedestrians={pedestrians!r}: expected one of {', '.join(PEDESTRIAN_MODES)}")
@@ -192,7 +194,7 @@ class ReplayCrowdEnv(CrowdEnv):
                     for r in replays.values())
         super().__init__(load_scene(info.name, root), n_max, str(self.replay.path), predictor, task, ego,
                          render_mode, config, pretrained=shipped_checkpoint(task, info.name), rerun=rerun,
-                         root=root)
+                         root=root, device=device)
         observed = self.replay.xy_m[self.replay.present]
         margin = self.cfg.arena_margin_m  # checked by EnvConfig: [0, 100] m
         self.arena_low_m, self.arena_high_m = observed.min(axis=0) - margin, observed.max(axis=0) + margin

@@ -78,7 +78,8 @@ class SimCrowdEnv(CrowdEnv):
     render_mode, config (``EnvConfig``; its ego radius and speed limit go to the simulator), crowd
     (``st_sim.sim.CrowdConfig``; default: calibrated steering and, in a real scene, its fitted population),
     root (data root), rerun (a .rrd path or "spawn": log every step to Rerun), pedestrians_see_ego (True:
-    pedestrians steer around the ego; False: invisible robot).
+    pedestrians steer around the ego; False: invisible robot), device (as ``ReplayCrowdEnv``: where a
+    SingularTrajectory the env loads runs, "auto" by default).
 
     ## Version History
     - v1 (2026-11-23): calibrated speed-model steering, 0.2 m pedestrians, fitted populations in real scenes,
@@ -91,13 +92,13 @@ class SimCrowdEnv(CrowdEnv):
     def __init__(self, layout: str = "crossing", predictor: Any = "auto", task: str = "stochastic",
                  ego: bool = True, render_mode: str | None = None, config: EnvConfig | None = None,
                  crowd: CrowdConfig | None = None, root: str | os.PathLike | None = None,
-                 rerun: str | None = None, pedestrians_see_ego: bool = True):
+                 rerun: str | None = None, pedestrians_see_ego: bool = True, device: str = "auto"):
         self.layout = build_layout(layout, root)
         self.crowd_cfg = crowd or default_crowd(layout)
         self.pedestrians_see_ego = bool(pedestrians_see_ego)
         super().__init__(self.layout.scene, population_cap(self.crowd_cfg, self.layout), f"sim layout {layout}",
                          predictor, task, ego, render_mode, config, shipped_checkpoint(task, None), rerun=rerun,
-                         root=root)
+                         root=root, device=device)
         self.ego_max_accel_mps2 = EgoConfig().max_accel_mps2
         self.sim: CrowdSim | None = None
 

@@ -40,7 +40,7 @@ def content_hash(state: dict) -> str:
 
 def model_state(model: SingularTrajectory, half: bool = False) -> dict:
     """Everything needed to rebuild ``model``, as tensors and plain values, with its content hash."""
-    weights = {k: (v.half() if half and v.is_floating_point() else v.clone())
+    weights = {k: (v.half() if half and v.is_floating_point() else v).detach().cpu().clone()
                for k, v in model.refiner.state_dict().items()}
     state = {
         "format": FORMAT,

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 from dataclasses import fields
 
+from predictor.devices import DEVICE_HELP
 from predictor.train import TrainConfig
 from replays.constants import TASKS
 from st_sim.command_line import add_debug_flag, positive_int, run_guarded
@@ -103,6 +104,7 @@ def build_parser() -> argparse.ArgumentParser:
                             "inference (default: 0.05 for single-sample tasks, else off)")
     train.add_argument("--seed", type=int, help=f"random seed (default: {defaults.seed})")
     train.add_argument("--threads", type=int, help=f"torch threads (default: {defaults.threads})")
+    train.add_argument("--device", help=f"where the refiner trains: {DEVICE_HELP} (default: {defaults.device})")
     train.add_argument("--data-root", help="ETH/UCY folder (default: $STCROWD_DATA or the cache)")
     train.add_argument("--quiet", action="store_true", help="no progress bars")
 

@@ -16,6 +16,7 @@ import torch
 from predictor.anchors import BEND_SHAPES, OFF_IMAGE_MODES, adapt_paths, adaptive_anchors, anchor_paths, onto_walkable
 from predictor.baselines import constant_velocity
 from predictor.config_check import check_config
+from predictor.devices import resolve_device
 from predictor.normalize import AgentFrame, agent_frames, rotate
 from predictor.protocol import check_inputs, empty_prediction
 from predictor.refiner import SAMPLERS, Refiner, RefinerConfig
@@ -152,7 +153,17 @@ class SingularTrajectory:
         self.refiner = refiner.eval()
         self.source: str | None = None  # the checkpoint it was loaded from (set by predictor.checkpoint)
         self.bases = torch.tensor(np.stack([s.basis for s in spaces]), dtype=torch.float32)  # (2, 24, K)
+        self.device = torch.device("cpu")
         self._noise: torch.Tensor | None = None
+
+    def to(self, device: str | torch.device) -> SingularTrajectory:
+        """Run the refiner on ``device`` (a name as ``predictor.devices.resolve_device`` takes; "auto": a GPU when
+        torch sees one); inputs and outputs stay NumPy on the CPU. Returns self."""
+        self.device = resolve_device(device)
+        self.refiner.to(self.device)
+        self.bases = self.bases.to(self.device)
+        self._noise = None
+        return self
 
     # ---------------------------------------------------------------- inputs
     def prepare(self, obs: np.ndarray, group: np.ndarray, scenes: list[Scene | None],
@@ -193,8 +204,9 @@ class SingularTrajectory:
     def paths_local(self, anchors_scaled: torch.Tensor, residual: torch.Tensor, population: torch.Tensor
                     ) -> torch.Tensor:
         """Agent-frame paths (B, S, 12, 2) from scaled anchors and refiner residuals (B, S, K)."""
-        coef_scale = torch.as_tensor(self.coef_scale, dtype=torch.float32)[population][:, None, None]
-        res_scale = torch.as_tensor(self.residual_scale, dtype=torch.float32)[population][:, None, None]
+        device = anchors_scaled.device
+        coef_scale = torch.as_tensor(self.coef_scale, dtype=torch.float32, device=device)[population][:, None, None]
+        res_scale = torch.as_tensor(self.residual_scale, dtype=torch.float32, device=device)[population][:, None, None]
         coefs = anchors_scaled * coef_scale + residual * res_scale
         flat = torch.einsum("bsk,bdk->bsd", coefs, self.bases[population])
         return flat.view(*coefs.shape[:2], T_WIN, 2)
@@ -225,22 +237,22 @@ class SingularTrajectory:
             empty = empty_prediction(num_samples)
             return Prediction(empty, empty if anchors else None, empty if anchors else None)
         inputs = self.prepare(obs, group, [scene], np.zeros(len(obs), np.int64))
-        t = self.tensors(inputs)
+        t = {name: tensor.to(self.device) for name, tensor in self.tensors(inputs).items()}
         noise = self.sampler_noise().expand_as(t["anchors"])
         if len(obs) <= BATCH_AGENTS:
-            chunks = [torch.arange(len(obs))]
+            chunks = [torch.arange(len(obs), device=self.device)]
         else:
             order = torch.argsort(t["group"], stable=True)  # windows contiguous, so chunks keep them whole
             chunks = [order[chunk] for chunk in window_batches(t["group"][order], BATCH_AGENTS, None)]
-        wanted = torch.from_numpy(targets)
-        ctx = torch.empty(len(obs), self.refiner.cfg.dim)
+        wanted = torch.from_numpy(targets).to(self.device)
+        ctx = torch.empty(len(obs), self.refiner.cfg.dim, device=self.device)
         for idx in chunks:  # the interaction layer within whole windows; then every target denoised in one batch
             ctx[idx] = self.refiner.context(t["history"][idx], t["anchors"][idx], t["group"][idx])
         anchors_scaled = t["anchors"][wanted]
         residual = self.refiner.sample(anchors_scaled, ctx[wanted], noise[wanted], steps)
         local = self.paths_local(anchors_scaled, residual, t["population"][wanted])
         frames = inputs.frames.subset(targets)
-        futures = frames.to_world(local.double().numpy())  # (T, S, 12, 2) world metres
+        futures = frames.to_world(local.double().cpu().numpy())  # (T, S, 12, 2) world metres
         if self.cfg.adapt_output and self.cfg.adapt_anchors and scene is not None:
             futures, _ = adapt_paths(futures, scene, frames.origin_m, self.cfg.anchor_off_image, self.cfg.anchor_bend)
         if self.cfg.output_on_map and scene is not None:
@@ -263,9 +275,10 @@ class SingularTrajectory:
         Shared, so an agent's futures depend only on its own window, never on which other agents happen to
         be in the same call (the stream and the offline evaluation then agree exactly).
         """
-        if self._noise is None:
+        if self._noise is None:  # drawn on the CPU, so that every device starts from the same noise
             generator = torch.Generator().manual_seed(self.cfg.noise_seed)
-            self._noise = self.cfg.init_noise * torch.randn((1, self.cfg.num_samples, self.cfg.k), generator=generator)
+            self._noise = (self.cfg.init_noise * torch.randn((1, self.cfg.num_samples, self.cfg.k),
+                                                             generator=generator)).to(self.device)
         return self._noise
 
     def predict(self, obs: np.ndarray, group: np.ndarray, scene: Scene | None = None,
@@ -279,6 +292,7 @@ def window_batches(group: torch.Tensor, batch_agents: int, generator: torch.Gene
 
     ``group`` (N,) must hold each window's samples contiguously.
     """
+    device, group = group.device, group.cpu()
     ids, counts = torch.unique_consecutive(group, return_counts=True)
     starts = torch.cumsum(counts, 0) - counts
     order = torch.randperm(len(ids), generator=generator) if generator is not None else torch.arange(len(ids))
@@ -291,7 +305,7 @@ def window_batches(group: torch.Tensor, batch_agents: int, generator: torch.Gene
             current, size = [], 0
     if current:
         out.append(torch.cat(current))
-    return out
+    return [batch.to(device) for batch in out]
 
 
 def _interaction_features(obs: np.ndarray, group: np.ndarray, frames: AgentFrame, world: bool) -> np.ndarray:

@@ -113,9 +113,10 @@ class Refiner(nn.Module):
         _, window, sizes = torch.unique(group, return_inverse=True, return_counts=True)
         order = torch.argsort(window, stable=True)
         slot = torch.empty_like(window)
-        slot[order] = torch.arange(len(group)) - torch.repeat_interleave(torch.cumsum(sizes, 0) - sizes, sizes)
+        slot[order] = torch.arange(len(group), device=group.device) - \
+            torch.repeat_interleave(torch.cumsum(sizes, 0) - sizes, sizes)
         longest = int(sizes.max())
-        keys = torch.arange(longest) < sizes[:, None]  # (W, longest) True = an agent
+        keys = torch.arange(longest, device=group.device) < sizes[:, None]  # (W, longest) True = an agent
         cell = window * longest + slot  # (B,) each agent's place in the padded (W, longest) grid
         for layer in self.interact.layers:
             tokens = self._window_layer(layer, tokens, cell, keys)
@@ -182,8 +183,8 @@ class Refiner(nn.Module):
     def eps_loss(self, x0: torch.Tensor, anchors: torch.Tensor, ctx: torch.Tensor, generator: torch.Generator
                  ) -> torch.Tensor:
         """Epsilon-prediction MSE at a random step for clean residuals x0 (B, S, K)."""
-        m = torch.randint(1, self.cfg.steps + 1, (len(x0),), generator=generator)
-        noise = torch.randn(x0.shape, generator=generator)
+        m = torch.randint(1, self.cfg.steps + 1, (len(x0),), generator=generator).to(x0.device)
+        noise = torch.randn(x0.shape, generator=generator).to(x0.device)
         a = self.alpha_bar[m][:, None, None]
         x_m = a.sqrt() * x0 + (1 - a).sqrt() * noise
         out = self._denoise(x_m, self._step_invariant(anchors, ctx) + self.embed_step(self.step_table[m]))

@@ -22,6 +22,7 @@ from tqdm import tqdm
 from predictor.anchors import BEND_SHAPES, OFF_IMAGE_MODES, prototype_anchors
 from predictor.checkpoint import model_state, read_checkpoint, save_atomic
 from predictor.config_check import check_config
+from predictor.devices import resolve_device
 from predictor.model import ModelConfig, SingularTrajectory, window_batches
 from predictor.normalize import SLOW_SPEED_M, agent_frames
 from predictor.refiner import SAMPLERS, Refiner
@@ -134,6 +135,9 @@ class TrainConfig:
     """seeds numpy, torch, python and the batch order"""
     threads: int = 1
     """torch CPU threads (1 is fastest on a shared 2-core machine)"""
+    device: str = "auto"
+    """where the refiner trains: auto (a CUDA GPU when torch sees one, else the CPU), cpu, cuda, cuda:N or mps; the
+    checkpoint is the same file either way"""
     data_root: str | None = None
     """ETH/UCY folder (default: $STCROWD_DATA or the cache)"""
     progress: bool = True
@@ -161,7 +165,7 @@ class TrainConfig:
             raise ValueError(f"TrainConfig.dim={self.dim}: must be a multiple of the 4 attention heads")
 
 
-COSMETIC_FIELDS = ("out", "threads", "data_root", "progress")  # change neither the model nor the data
+COSMETIC_FIELDS = ("out", "threads", "device", "data_root", "progress")  # change neither the model nor the data
 
 
 def model_fields(cfg: TrainConfig) -> dict:
@@ -265,7 +269,7 @@ def rollout(model: SingularTrajectory, t: dict[str, torch.Tensor], idx: torch.Te
         noise = model.sampler_noise().expand_as(anchors)
     else:
         generator = torch.Generator().manual_seed(noise_seed)
-        noise = model.cfg.init_noise * torch.randn(anchors.shape, generator=generator)
+        noise = (model.cfg.init_noise * torch.randn(anchors.shape, generator=generator)).to(anchors.device)
     residual = refiner.sample(anchors, ctx, noise, steps)
     return model.paths_local(anchors, residual, t["population"][idx]) * t["scale_m"][idx][:, None, None, None]
 
@@ -347,6 +351,7 @@ def main(cfg: TrainConfig) -> Path:
     np.random.seed(cfg.seed)
     torch.manual_seed(cfg.seed)
     torch.set_num_threads(cfg.threads)
+    device = resolve_device(cfg.device)
     out = Path(cfg.out)
     check_writable(out)  # before any work
     run_name = f"{cfg.task}__{cfg.scene}__seed{cfg.seed}"
@@ -357,8 +362,9 @@ def main(cfg: TrainConfig) -> Path:
     if cfg.max_train_windows is not None:
         train = train.subset(train.group < cfg.max_train_windows)
     val = load_windows(cfg.task, cfg.scene, "val", root)
-    model = fit_model(cfg, train)
-    t_train, t_val = split_tensors(model, train, root), split_tensors(model, val, root)
+    model = fit_model(cfg, train).to(device)
+    t_train, t_val = ({name: tensor.to(device) for name, tensor in split_tensors(model, windows, root).items()}
+                      for windows in (train, val))
     checksums = data_checksums(cfg, root)
     recorded = {"train_config": model_fields(cfg), "data_checksums": checksums}  # what every checkpoint carries
 

@@ -184,12 +184,21 @@ def test_replay_rejects_predictor_returning_nan() -> None:
         env.reset(seed=0)
 
 
+class ShippedStandIn(ShiftedCVM):
+    """Stands in for a shipped SingularTrajectory checkpoint: moves to a device as one does."""
+
+    def to(self, device: str) -> ShippedStandIn:
+        self.device = device
+        return self
+
+
 def test_replay_singular_loads_the_scenes_leave_one_out_checkpoint(monkeypatch: pytest.MonkeyPatch) -> None:
     asked = []
-    monkeypatch.setattr(predictor, "load_pretrained", lambda name: asked.append(name) or ShiftedCVM(),
+    monkeypatch.setattr(predictor, "load_pretrained", lambda name: asked.append(name) or ShippedStandIn(),
                         raising=False)
     env = gym.make("STCrowd-Zara1-v0", predictor="singular")
-    assert asked == ["stochastic/zara1"] and isinstance(env.unwrapped.predictor, ShiftedCVM)
+    assert asked == ["stochastic/zara1"] and isinstance(env.unwrapped.predictor, ShippedStandIn)
+    assert env.unwrapped.predictor.device == "auto"  # the env's default device
     gym.make("STCrowd-Hotel-v0")  # the default ("auto") is SingularTrajectory for the stochastic task
     assert asked[-1] == "stochastic/hotel"
     gym.make("STCrowd-Hotel-v0", task="momentary")  # 2 observed frames: the 2-frame leave-one-out model

@@ -110,7 +110,7 @@ def test_train_ppo_writes_a_loadable_policy_curve_and_record(tmp_path: Path, dem
 def test_dagger_rounds_let_the_clone_drive_and_the_teacher_label(tmp_path: Path) -> None:
     """Each round adds the clone's own steps, labelled by the teacher, to the labels the next fit sees; the clone's
     episodes are its own (they differ from the teacher's on the same seeds)."""
-    from st_sim.apps.navigation.train_ppo import DAGGER_SEED_STRIDE, main, parse_args
+    from st_sim.apps.navigation.train_ppo import DAGGER_SEED_STRIDE, TrainConfig, main, parse_args
 
     out = tmp_path / "run"
     args = ["--num-envs", "2", "--demo-steps", "24", "--dagger-rounds", "2", "--dagger-steps", "12", "--bc-epochs",
@@ -124,10 +124,11 @@ def test_dagger_rounds_let_the_clone_drive_and_the_teacher_label(tmp_path: Path)
     record = json.loads((out / "training.json").read_text())
     assert record["resumed_from"] == 0 and record["cloning"]["rounds"] == rounds
     assert record["final"]["timesteps"] >= 64
-    teacher = load_or_collect(DemoSpec(steps=24, closest_approach=True), tmp_path / "demos.npz")
+    reward = asdict(TrainConfig().reward)  # the training reward: the teacher's returns are under it
+    teacher = load_or_collect(DemoSpec(steps=24, closest_approach=True, reward=reward), tmp_path / "demos.npz")
     for round_ in (1, 2):
         spec = DemoSpec(steps=12, seed=DemoSpec().seed + DAGGER_SEED_STRIDE * round_, closest_approach=True,
-                        student=str(out / f"dagger-{round_}.pt"))
+                        student=str(out / f"dagger-{round_}.pt"), reward=reward)
         labelled = load_or_collect(spec, out / f"dagger-{round_}.npz")
         assert labelled.features_with.shape == (12, FeatureConfig(True, closest_approach=True).size)
         assert np.abs(labelled.actions).max() <= 1.0
@@ -226,3 +227,41 @@ def test_dropping_the_prediction_columns_gives_the_features_without_predictions(
         np.testing.assert_array_equal(drop_predictions(with_predictions), encode(obs, world, FeatureConfig(False)))
         obs, *_ = env.step(np.array([1.0, 0.0], np.float32))
     env.close()
+
+
+def test_ppo_starts_from_a_policy_file_and_fits_its_critic_first(tmp_path: Path) -> None:
+    """``--init-policy``: PPO of another seed starts from a saved clone's weights; ``--critic-rollouts``: its first
+    updates change the critic only (the actor's mean action is the clone's), later ones the actor too; a policy
+    that reads other features is refused."""
+    import torch
+
+    from st_sim.apps.navigation.ppo import load_policy
+    from st_sim.apps.navigation.train_ppo import main, parse_args
+
+    common = ["--no-predictions", "--num-envs", "2", "--shards", "1", "--n-steps", "16", "--batch-size", "16",
+              "--quiet"]
+    clone = main(parse_args([*common, "--timesteps", "0", "--seed", "3", "--out", str(tmp_path / "clone")]))
+    start, _ = load_policy(clone)
+    probe = torch.as_tensor(np.random.default_rng(0).normal(size=(32, start.observation_space.shape[0])),
+                            dtype=torch.float32)
+
+    def mean_action(path: Path) -> torch.Tensor:
+        policy, _ = load_policy(path)
+        with torch.no_grad():
+            return policy.get_distribution(probe).distribution.mean
+
+    def value(path: Path) -> torch.Tensor:
+        policy, _ = load_policy(path)
+        with torch.no_grad():
+            return policy.predict_values(probe)
+
+    held = main(parse_args([*common, "--timesteps", "32", "--init-policy", str(clone), "--critic-rollouts", "5",
+                            "--out", str(tmp_path / "held")]))
+    torch.testing.assert_close(mean_action(held), mean_action(clone), rtol=0, atol=0)
+    assert not torch.allclose(value(held), value(clone))
+    moved = main(parse_args([*common, "--timesteps", "64", "--init-policy", str(clone), "--critic-rollouts", "1",
+                             "--out", str(tmp_path / "moved")]))
+    assert not torch.allclose(mean_action(moved), mean_action(clone))
+    with pytest.raises(ValueError, match="reads"):
+        main(parse_args(["--num-envs", "2", "--shards", "1", "--timesteps", "16", "--n-steps", "8", "--quiet",
+                         "--init-policy", str(clone), "--out", str(tmp_path / "other")]))

@@ -52,6 +52,7 @@ from envs.common.predictors import (
 )
 from envs.common.running_metrics import RunningMetrics
 from envs.common.tracks import Frame, TrackBuffer, lookup
+from predictor.devices import DeviceError, check_device_name
 from replays.constants import FORECAST_LIMIT_M, POSITION_LIMIT_M, STEP_S, T_PRED
 from replays.scenes import Scene
 from st_sim.sim.sweep import Contact, closest_approach, first_contact
@@ -76,7 +77,7 @@ class CrowdEnv(gym.Env):
     def __init__(self, scene: Scene, n_max: int, where: str, predictor: Any = "auto",
                  task: str = "stochastic", ego: bool = True, render_mode: str | None = None,
                  config: EnvConfig | None = None, pretrained: str = "universal",
-                 rerun: str | os.PathLike | None = None, root: str | os.PathLike | None = None):
+                 rerun: str | os.PathLike | None = None, root: str | os.PathLike | None = None, device: str = "auto"):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise EnvInputError(f"render_mode={render_mode!r}: expected None or 'rgb_array'")
         check_flag("ego", ego)
@@ -92,7 +93,10 @@ class CrowdEnv(gym.Env):
         self.cfg = config or EnvConfig()
         self.t_obs, self.num_samples = task_sizes(task)
         self.task, self.ego, self.render_mode = task, bool(ego), render_mode
-        self.predictor = resolve_predictor(predictor, task, pretrained, root)
+        try:
+            self.predictor = resolve_predictor(predictor, task, pretrained, root, check_device_name(device))
+        except DeviceError as err:
+            raise EnvInputError(f"{where}: {err}") from None
         self.tracks = TrackBuffer(n_max, self.t_obs, where)
         self.metrics = RunningMetrics(scene)
 

@@ -50,12 +50,13 @@ def scene_of_checkpoint(pretrained: str) -> str | None:
 
 
 def resolve_predictor(spec: Any, task: str = "stochastic", pretrained: str = "universal",
-                      root: str | os.PathLike | None = None) -> Any:
+                      root: str | os.PathLike | None = None, device: str = "cpu") -> Any:
     """A predictor object from a name (auto, cvm, cvm-s, linear, singular), a plug-in ``package.module:name``, or
     an object with ``predict``.
 
     ``singular`` (and ``auto``, its alias) loads the shipped checkpoint ``pretrained`` (see
-    ``shipped_checkpoint``); torch is only imported then. A plug-in's factory is called with ``task``, the env's
+    ``shipped_checkpoint``) onto ``device`` (``predictor.devices``; "auto": a GPU when torch sees one); torch is only
+    imported then. A predictor object runs where it is. A plug-in's factory is called with ``task``, the env's
     scene (None for a simulated layout), that scene's training and validation windows (all five scenes' for
     None) and the env's data root ``root`` (``predictor.plugins.load_plugin``).
     """
@@ -68,7 +69,7 @@ def resolve_predictor(spec: Any, task: str = "stochastic", pretrained: str = "un
         if spec in BASELINES:
             return BASELINES[spec]()
         if spec == "singular":
-            return _load_singular(pretrained)
+            return _load_singular(pretrained).to(device)
         if is_plugin_spec(spec):
             return load_plugin(spec, task, scene_of_checkpoint(pretrained), root)
         raise ValueError(f"predictor={spec!r}: expected one of {', '.join([*BASELINES, 'singular'])}, a plug-in "

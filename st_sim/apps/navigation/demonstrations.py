@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
+from envs.common.config import EnvConfig, RewardWeights
 from replays.atomic import atomic_path
 from st_sim.apps.navigation.features import FeatureConfig, drop_predictions, encode, path_frame, to_velocity
 from st_sim.apps.navigation.ppo import load_policy
@@ -57,6 +58,9 @@ class DemoSpec:
     student: str | None = None
     """a policy file (``ppo.save_policy``) that drives instead of the teacher, which then only labels the states
     the student reaches (a DAgger round); None: the teacher drives"""
+    reward: dict[str, float] | None = None
+    """reward weights of the env the teacher drives in (``RewardWeights`` fields; the returns the critic is cloned
+    to are under them, so give PPO's training reward); None: the env's defaults"""
 
 
 @dataclass(frozen=True, eq=False)
@@ -138,7 +142,8 @@ def _collect_share(job: tuple[DemoSpec, int, int]) -> tuple[np.ndarray, ...]:
     from st_sim.apps.navigation.world import world_of
 
     spec, worker, share = job
-    env = gym.make(spec.env_id, predictor=env_predictor("singular"))
+    config = None if spec.reward is None else EnvConfig(reward=RewardWeights(**spec.reward))
+    env = gym.make(spec.env_id, predictor=env_predictor("singular"), config=config)
     world = world_of(env)
     teacher = make_planner(spec.teacher, world, "singular")
     with_predictions = FeatureConfig(True, closest_approach=spec.closest_approach)

@@ -42,16 +42,18 @@ import numpy as np
 from tqdm import tqdm
 
 from envs.common.config import EnvConfig, RewardWeights
+from predictor.devices import DEVICE_HELP, DeviceError, resolve_device
 from replays.atomic import atomic_path, write_text_atomic
 from st_sim.apps.navigation.demonstrations import DemoSpec, behaviour_clone, concatenate, load_or_collect
 from st_sim.apps.navigation.features import FeatureConfig
-from st_sim.apps.navigation.ppo import EXTRACTORS, PRETRAINED_DIR, build_policy, policy_kwargs, save_policy
+from st_sim.apps.navigation.ppo import EXTRACTORS, PRETRAINED_DIR, build_policy, load_policy, policy_kwargs, save_policy
 
 CURVE_WINDOW = 100  # training episodes averaged per learning-curve point [-]
 DAGGER_SEED_STRIDE = 10_000  # episode seeds between two DAgger rounds (a worker's share is far fewer episodes) [-]
 RESUMABLE = ("use_predictions", "env_id", "num_envs", "sensor_range_m", "reward", "seed", "n_steps", "batch_size",
-             "n_epochs", "learning_rate", "gamma", "net_arch", "log_std_init", "initial_forward", "demo_steps",
-             "demos", "bc_epochs", "dagger_rounds", "dagger_steps", "extractor", "closest_approach", "shards")
+             "n_epochs", "learning_rate", "gamma", "net_arch", "log_std_init", "initial_forward", "init_policy",
+             "demo_steps", "demos", "bc_epochs", "dagger_rounds", "dagger_steps", "extractor", "closest_approach",
+             "clip_range", "target_kl", "critic_rollouts")
 """settings a run must share with the saved state to continue it (the budget and output options may differ)"""
 
 
@@ -65,8 +67,8 @@ class TrainConfig:
     """training env"""
     timesteps: int = 1_000_000
     """env steps over all envs (the training budget)"""
-    num_envs: int = 16
-    """sub-envs of the native vector env (one process)"""
+    num_envs: int = 64
+    """sub-envs, stepped as native vector envs (one batched forecast per step in each shard)"""
     sensor_range_m: float = 5.0
     """the robot senses, and the env forecasts, the pedestrians within this distance [m] (CrowdNav++'s 5 m)"""
     reward: RewardWeights = field(default_factory=lambda: RewardWeights(collision=-20.0, discomfort=-4.0))
@@ -75,10 +77,17 @@ class TrainConfig:
     """seed of PPO and of the envs (env i resets with seed + i first)"""
     n_steps: int = 128
     """steps per env per rollout"""
-    batch_size: int = 256
+    batch_size: int = 1024
     """minibatch size"""
-    n_epochs: int = 10
+    n_epochs: int = 5
     """passes over each rollout"""
+    clip_range: float = 0.2
+    """PPO's clipping of the probability ratio"""
+    target_kl: float | None = None
+    """stop an update's epochs early once the policy moved this far from the one that collected the rollout (KL);
+    None: no limit"""
+    critic_rollouts: int = 0
+    """first updates that fit only the critic, the actor held (``CriticFirstPPO``; for a cloned policy)"""
     learning_rate: float = 3e-4
     """Adam learning rate"""
     gamma: float = 0.99
@@ -90,14 +99,20 @@ class TrainConfig:
     alone, then attended over: ``attention.PedestrianAttention``)"""
     closest_approach: bool = False
     """with predictions, add each pedestrian's predicted closest approach to the robot's course to its features"""
-    shards: int = 1
-    """worker processes the training envs are split into (``envs.shards``; 1: this process)"""
+    shards: int = 2
+    """worker processes the training envs are split into (``FeatureVecEnv``; 1: this process)"""
     tensorboard: str | None = None
     """also log SB3's training figures to TensorBoard in this folder (the ``tensorboard`` extra)"""
+    device: str = "auto"
+    """where PPO and the envs' forecasts run: auto (a CUDA GPU when torch sees one, else the CPU), cpu, cuda, cuda:N
+    or mps (``predictor.devices``)"""
     log_std_init: float = -0.5
     """initial log standard deviation of the Gaussian actions (std 0.61 of the speed limit)"""
     initial_forward: float = 0.7
     """without demonstrations: initial mean action along the path to the goal, in speed limits"""
+    init_policy: str | None = None
+    """start PPO from this policy file (``train_ppo``'s policy.pt, e.g. a clone; its features, extractor and network
+    must be this run's); None: clone the teacher (``demo_steps``) or start from scratch"""
     demo_steps: int = 0
     """teacher steps cloned before PPO (0: none; they count towards the budget's wall time, not its env steps)"""
     demos: str = "runs/nav/demos.npz"
@@ -226,20 +241,39 @@ def clone_teacher(policy: Any, cfg: TrainConfig, net_arch: list[int]) -> dict[st
     seeds of its own (``DemoSpec().seed + r * DAGGER_SEED_STRIDE``...) with the teacher labelling (``dagger-r.npz``,
     reused by a run restarted with the same settings), and fits the clone again on every label so far.
     """
-    demos = load_or_collect(DemoSpec(cfg.env_id, cfg.demo_steps, closest_approach=cfg.closest_approach), cfg.demos,
-                            cfg.progress)
+    reward = asdict(cfg.reward)  # the critic is cloned to the teacher's returns under the training reward
+    demos = load_or_collect(DemoSpec(cfg.env_id, cfg.demo_steps, closest_approach=cfg.closest_approach,
+                                     reward=reward), cfg.demos, cfg.progress)
     record: dict[str, Any] = {"demo_collection_s": demos.wall_time_s, "rounds": []}
     for round_ in range(cfg.dagger_rounds + 1):
         if round_ > 0:
             student = Path(cfg.out) / f"dagger-{round_}.pt"
             save_policy(policy, cfg.features, net_arch, student, cfg.extractor)
             spec = DemoSpec(cfg.env_id, cfg.dagger_steps, seed=DemoSpec().seed + round_ * DAGGER_SEED_STRIDE,
-                            closest_approach=cfg.closest_approach, student=str(student))
+                            closest_approach=cfg.closest_approach, student=str(student), reward=reward)
             demos = concatenate([demos, load_or_collect(spec, student.with_suffix(".npz"), cfg.progress)])
         fit = behaviour_clone(policy, demos, cfg.use_predictions, cfg.gamma, cfg.bc_epochs, seed=cfg.seed + round_)
         record["rounds"].append({"labelled_steps": len(demos.actions), "wall_s": round(demos.wall_time_s, 1), **fit})
         print(f"behaviour cloning, round {round_} ({len(demos.actions)} labelled steps): {fit}")
     return record
+
+
+def start_from(policy: Any, cfg: TrainConfig, net_arch: list[int]) -> None:
+    """Load the weights of the policy file ``cfg.init_policy`` into ``policy``.
+
+    Raises:
+        ValueError: the file's policy reads other features or has another extractor or network (``PolicyFileError``
+            for a missing or damaged file).
+    """
+    saved, features = load_policy(cfg.init_policy)
+    if features != cfg.features:
+        raise ValueError(f"--init-policy {cfg.init_policy}: the policy reads {features}, this run {cfg.features}")
+    own = policy.state_dict()
+    theirs = saved.state_dict()
+    if own.keys() != theirs.keys() or any(own[k].shape != theirs[k].shape for k in own):
+        raise ValueError(f"--init-policy {cfg.init_policy}: its network differs from this run's (--extractor "
+                         f"{cfg.extractor}, net_arch {net_arch})")
+    policy.load_state_dict(theirs)
 
 
 def plot_curve(curves: dict[str, list[dict] | list[list[dict]]], path: Path, title: str) -> Path | None:
@@ -269,9 +303,9 @@ def plot_curve(curves: dict[str, list[dict] | list[list[dict]]], path: Path, tit
 def main(cfg: TrainConfig) -> Path:
     """Train, write the policy, the curve and the run record; returns the policy path."""
     import torch
-    from stable_baselines3 import PPO
     from stable_baselines3.common.vec_env import VecMonitor
 
+    from st_sim.apps.navigation.critic_first import CriticFirstPPO
     from st_sim.apps.navigation.training_envs import FeatureVecEnv
 
     # seeding: torch, numpy, envs (PPO's own generators through seed=)
@@ -281,23 +315,28 @@ def main(cfg: TrainConfig) -> Path:
     run_name = f"{cfg.env_id}__ppo-{'predictions' if cfg.use_predictions else 'no-predictions'}__seed{cfg.seed}"
     print(f"{run_name}: {json.dumps(asdict(cfg), default=str)}")
 
-    # envs: one native vector env of num_envs sub-envs (one batched forecast per step), seen through the features
-    vec = VecMonitor(FeatureVecEnv(cfg.env_id, cfg.num_envs, cfg.features, EnvConfig(reward=cfg.reward), cfg.shards))
+    # envs: num_envs sub-envs as native vector envs in cfg.shards processes (one batched forecast per step in each),
+    # seen through the features
+    device = resolve_device(cfg.device)
+    vec = VecMonitor(FeatureVecEnv(cfg.env_id, cfg.num_envs, cfg.features, EnvConfig(reward=cfg.reward), cfg.shards,
+                                   str(device)))
     vec.seed(cfg.seed)
 
     # model: PPO with a tanh actor-critic on the flat features or on their attention encoding (same for both variants)
     net_arch = list(cfg.net_arch)
-    model = PPO("MlpPolicy", vec, n_steps=cfg.n_steps, batch_size=cfg.batch_size, n_epochs=cfg.n_epochs,
-                learning_rate=cfg.learning_rate, gamma=cfg.gamma, seed=cfg.seed, device="cpu", verbose=0,
-                tensorboard_log=cfg.tensorboard, policy_kwargs={**policy_kwargs(cfg.features, net_arch, cfg.extractor),
-                                                                "log_std_init": cfg.log_std_init})
+    model = CriticFirstPPO("MlpPolicy", vec, n_steps=cfg.n_steps, batch_size=cfg.batch_size, n_epochs=cfg.n_epochs,
+                           clip_range=cfg.clip_range, target_kl=cfg.target_kl, critic_rollouts=cfg.critic_rollouts,
+                           learning_rate=cfg.learning_rate, gamma=cfg.gamma, seed=cfg.seed, device=device, verbose=0,
+                           tensorboard_log=cfg.tensorboard,
+                           policy_kwargs={**policy_kwargs(cfg.features, net_arch, cfg.extractor),
+                                          "log_std_init": cfg.log_std_init})
 
     # start: continue a saved run, clone the teacher (same demonstrations for both variants), or walk the path
     start = time.perf_counter()
     cloning, resumed_from, curve = None, 0, []
     saved = resumable_state(cfg)
     if saved is not None:
-        model = PPO.load(saved[0], env=vec, device="cpu")
+        model = CriticFirstPPO.load(saved[0], env=vec, device=device)
         resumed_from, curve = int(model.num_timesteps), saved[1]
         if resumed_from > cfg.timesteps:
             vec.close()
@@ -306,6 +345,9 @@ def main(cfg: TrainConfig) -> Path:
         print(f"resuming {saved[0]} at {resumed_from} env steps")
         if (out / "cloning.json").is_file():
             cloning = json.loads((out / "cloning.json").read_text())
+    elif cfg.init_policy is not None:
+        start_from(model.policy, cfg, net_arch)
+        save_resumable(model, cfg, curve)
     elif cfg.demo_steps > 0:
         cloning = clone_teacher(model.policy, cfg, net_arch)
         write_text_atomic(out / "cloning.json", json.dumps(cloning, indent=1))
@@ -371,12 +413,30 @@ def parse_args(argv: list[str] | None = None) -> TrainConfig:
     parser.add_argument("--timesteps", type=int, default=d.timesteps,
                         help=f"PPO env steps, 0: stop after cloning (default: {d.timesteps})")
     parser.add_argument("--num-envs", type=int, default=d.num_envs, help=f"parallel envs (default: {d.num_envs})")
+    parser.add_argument("--n-steps", type=int, default=d.n_steps,
+                        help=f"steps per env per rollout (default: {d.n_steps})")
+    parser.add_argument("--batch-size", type=int, default=d.batch_size,
+                        help=f"minibatch size (default: {d.batch_size})")
+    parser.add_argument("--n-epochs", type=int, default=d.n_epochs,
+                        help=f"passes over each rollout (default: {d.n_epochs})")
+    parser.add_argument("--learning-rate", type=float, default=d.learning_rate,
+                        help=f"Adam learning rate (default: {d.learning_rate})")
+    parser.add_argument("--clip-range", type=float, default=d.clip_range,
+                        help=f"PPO's clipping of the probability ratio (default: {d.clip_range})")
+    parser.add_argument("--target-kl", type=float, default=d.target_kl,
+                        help="stop an update's epochs once the policy's KL from the rollout's exceeds this "
+                             "(default: no limit)")
+    parser.add_argument("--critic-rollouts", type=int, default=d.critic_rollouts,
+                        help=f"first updates that fit only the critic, the actor held; for a cloned policy "
+                             f"(default: {d.critic_rollouts})")
     parser.add_argument("--sensor-range", type=float, default=d.sensor_range_m,
                         help=f"pedestrians sensed and forecast within this distance [m], inf: all (default: "
                         f"{d.sensor_range_m})")
     parser.add_argument("--minutes", type=float, default=d.minutes,
                         help="wall-time budget in minutes; learning stops there (default: none)")
     parser.add_argument("--seed", type=int, default=d.seed, help=f"seed (default: {d.seed})")
+    parser.add_argument("--init-policy", default=None, metavar="PATH",
+                        help="start PPO from this policy file (a clone's policy.pt) instead of cloning or scratch")
     parser.add_argument("--demo-steps", type=int, default=d.demo_steps,
                         help=f"teacher steps cloned before PPO, 0 for none (default: {d.demo_steps})")
     parser.add_argument("--bc-epochs", type=int, default=d.bc_epochs,
@@ -402,11 +462,15 @@ def parse_args(argv: list[str] | None = None) -> TrainConfig:
                         help="weight of the prediction-aware reward part predicted_collision (default: 0, off)")
     parser.add_argument("--shards", type=int, default=d.shards,
                         help=f"worker processes the training envs are split into (default: {d.shards})")
+    parser.add_argument("--device", default=d.device, help=f"where PPO and the envs' forecasts run: {DEVICE_HELP} "
+                        f"(default: {d.device})")
     parser.add_argument("--tensorboard", default=None, metavar="DIR",
                         help="also log training figures to TensorBoard in DIR (pip install -e '.[tensorboard]')")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     args = parser.parse_args(argv)
     for flag, value, least in (("--timesteps", args.timesteps, 0), ("--num-envs", args.num_envs, 1),
+                               ("--n-steps", args.n_steps, 2), ("--batch-size", args.batch_size, 2),
+                               ("--n-epochs", args.n_epochs, 1), ("--critic-rollouts", args.critic_rollouts, 0),
                                ("--demo-steps", args.demo_steps, 0), ("--save-every", args.save_every, 1),
                                ("--shards", args.shards, 1), ("--dagger-rounds", args.dagger_rounds, 0),
                                ("--dagger-steps", args.dagger_steps, 1), ("--bc-epochs", args.bc_epochs, 1)):
@@ -414,8 +478,14 @@ def parse_args(argv: list[str] | None = None) -> TrainConfig:
             parser.error(f"{flag}={value}: expected an integer >= {least}")
     if not args.sensor_range > 0:  # also refuses NaN
         parser.error(f"--sensor-range={args.sensor_range}: expected a distance > 0 (or inf)")
+    for flag, value in (("--learning-rate", args.learning_rate), ("--clip-range", args.clip_range),
+                        ("--target-kl", 0.5 if args.target_kl is None else args.target_kl)):
+        if not 0 < value < 1:  # also refuses NaN
+            parser.error(f"{flag}={value}: expected a number in (0, 1)")
     if not args.minutes > 0:
         parser.error(f"--minutes={args.minutes}: expected a duration > 0")
+    if args.init_policy is not None and args.demo_steps > 0:
+        parser.error("--init-policy: the run starts from that policy; drop --demo-steps (or --init-policy)")
     if args.dagger_rounds > 0 and args.demo_steps == 0:
         parser.error("--dagger-rounds: DAgger refines a clone; add --demo-steps N")
     if not np.isfinite(args.log_std_init):
@@ -424,6 +494,10 @@ def parse_args(argv: list[str] | None = None) -> TrainConfig:
         parser.error("--demo-steps: the teacher's demonstrations see every pedestrian; add --sensor-range inf")
     if args.tensorboard is not None and util.find_spec("tensorboard") is None:
         parser.error("--tensorboard: TensorBoard is not installed; pip install -e '.[tensorboard]'")
+    try:
+        resolve_device(args.device)
+    except DeviceError as err:
+        parser.error(f"--device: {err}")
     use_predictions = not args.no_predictions
     if not np.isfinite(args.prediction_reward):
         parser.error(f"--prediction-reward={args.prediction_reward}: expected a finite weight")
@@ -433,7 +507,10 @@ def parse_args(argv: list[str] | None = None) -> TrainConfig:
                        closest_approach=args.closest_approach, shards=args.shards, tensorboard=args.tensorboard,
                        demo_steps=args.demo_steps, demos=args.demos, minutes=args.minutes,
                        dagger_rounds=args.dagger_rounds, dagger_steps=args.dagger_steps, log_std_init=args.log_std_init,
-                       bc_epochs=args.bc_epochs,
+                       bc_epochs=args.bc_epochs, device=args.device, n_steps=args.n_steps,
+                       batch_size=args.batch_size, n_epochs=args.n_epochs, learning_rate=args.learning_rate,
+                       clip_range=args.clip_range, target_kl=args.target_kl, critic_rollouts=args.critic_rollouts,
+                       init_policy=args.init_policy,
                        save_every=args.save_every, out=args.out, ship_as=args.ship, progress=not args.quiet)
 
 

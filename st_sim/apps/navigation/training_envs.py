@@ -49,12 +49,12 @@ class FeatureShard:
     ``FeatureVecEnv`` runs, here or in each worker process; arguments as ``FeatureVecEnv``)."""
 
     def __init__(self, env_id: str, num_envs: int, features: FeatureConfig, config: EnvConfig | None = None,
-                 worker: bool = False):
+                 device: str = "auto", worker: bool = False):
         if worker:
             one_thread()
         config = replace(config or EnvConfig(), sensor_range_m=features.sensor_range_m, forecast_nearest=NEAREST)
         self.vector = gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point",
-                                   autoreset_mode=AutoresetMode.SAME_STEP, config=config,
+                                   autoreset_mode=AutoresetMode.SAME_STEP, config=config, device=device,
                                    predictor=env_predictor("singular" if features.use_predictions else "none"))
         self.features = features
         self.world = world_of(self.vector.envs[0])  # every sub-env of an id has the same world (scene, limits, map)
@@ -111,17 +111,19 @@ class FeatureVecEnv(VecEnv):
         config: the env's settings (its ``sensor_range_m`` is replaced by the features'); None: defaults.
         shards: worker processes the sub-envs are split into (``FeatureShard`` each; 1: this process), at most
             ``num_envs``. Sub-env i is the same env, with the same seed, whichever shard holds it.
+        device: where the forecasts run (``predictor.devices``; "auto": a GPU when torch sees one).
     """
 
     def __init__(self, env_id: str, num_envs: int, features: FeatureConfig, config: EnvConfig | None = None,
-                 shards: int = 1):
+                 shards: int = 1, device: str = "auto"):
         if isinstance(shards, bool) or not isinstance(shards, int | np.integer) or not 1 <= shards <= num_envs:
             raise EnvInputError(f"shards={shards!r}: expected an int between 1 and num_envs={num_envs}")
         self.sizes = [len(part) for part in np.array_split(np.arange(num_envs), shards)]
         self._cuts = np.cumsum(self.sizes)[:-1]
-        self._local = FeatureShard(env_id, num_envs, features, config) if shards == 1 else None
+        self._local = FeatureShard(env_id, num_envs, features, config, device) if shards == 1 else None
         self._workers = [] if shards == 1 else [
-            ProcessShard(f"{__name__}:FeatureShard", env_id, size, features, config, True) for size in self.sizes]
+            ProcessShard(f"{__name__}:FeatureShard", env_id, size, features, config, device, True)
+            for size in self.sizes]
         super().__init__(num_envs, spaces.Box(-np.inf, np.inf, (features.size,), np.float32),
                          spaces.Box(-1.0, 1.0, (2,), np.float32))
         self._actions = np.zeros((num_envs, 2), np.float32)
