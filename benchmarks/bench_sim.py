@@ -1,4 +1,4 @@
-"""Speed and physical soundness of the pymunk crowd simulator, side by side with PySocialForce.
+"""Speed and physical soundness of the pymunk crowd simulator, side by side with PySocialForce and navground.
 
 Both engines run the bidirectional corridor (20 m x 8 m, closed walls, gates at both ends) from the same initial
 crowd (positions, goals, preferred speeds from ``CrowdSim``), 0.4 s steps; CrowdSim keeps its head count by brisk
@@ -20,6 +20,11 @@ boundary, still runs the gated corridor.
 
 PySocialForce is a benchmark-only extra (``pip install -e ".[bench]"``); without it the script says so and runs
 STCrowd alone. Its defaults are kept except: 0.4 s steps, no groups, walls sampled every 0.1 m.
+
+With --batched, each repeat also runs navground (C++ with Python bindings, the same ``bench`` extra) on its ORCA
+Cross scenario: 40 holonomic agents of 0.2 m radius at up to 1.4 m/s, seeing 5 m, crossing an 8 m square between
+targets on its sides, updated every 0.1 s (navground's default) and every 0.2 s (STCrowd's substep); its figure is
+0.4 s of simulated time per CPU second, one thread, the same unit as STCrowd's sub-env steps.
 """
 
 from __future__ import annotations
@@ -39,6 +44,7 @@ from st_sim.sim.crowd import step_crowds
 from st_sim.sim.diagnostics import escaped, max_overlap_m, wall_penetration_m
 from st_sim.sim.layouts import periodic_corridor
 
+NAVGROUND_TIME_STEPS_S = (0.1, 0.2)  # navground's own default control period, and STCrowd's substep [s]
 SPAWN_RATE_HZ = 10.0  # per gate: refills the corridor as fast as there is room, to hold the population
 PSF_CONFIG = """
 [scene]
@@ -157,6 +163,44 @@ def bench_batched(crowds: int, steps: int, warmup: int, seed: int) -> tuple[floa
     return crowds * steps / (time.process_time() - cpu), crowds * steps / (time.perf_counter() - wall)
 
 
+NAVGROUND_CROSS = """
+type: Cross
+side: {side}
+groups:
+  - type: agent
+    number: {agents}
+    radius: {radius}
+    control_period: {time_step}
+    kinematics:
+      type: Omni
+      max_speed: {max_speed}
+    behavior:
+      type: ORCA
+    state_estimation:
+      type: Bounded
+      range: {range}
+"""
+"""navground's Cross scenario (agents cross a square between targets on its sides) with ORCA, holonomic pedestrians"""
+
+
+def bench_navground(time_step_s: float, steps: int, warmup: int, seed: int, agents: int = 40) -> float | None:
+    """Sub-env steps of 0.4 s per CPU second of navground's ORCA Cross (``agents`` discs of 0.2 m at up to 1.4 m/s
+    seeing 5 m, updated every ``time_step_s``), after ``warmup`` untimed steps; None without navground."""
+    try:
+        from navground import sim
+    except ImportError:
+        return None
+    scenario = sim.load_scenario(NAVGROUND_CROSS.format(side=8.0, agents=agents, radius=0.2, time_step=time_step_s,
+                                                        max_speed=1.4, range=5.0))
+    world = sim.World()
+    scenario.init_world(world, seed=seed)
+    ticks = round(0.4 / time_step_s)
+    world.run(steps=warmup * ticks, time_step=time_step_s)
+    cpu = time.process_time()
+    world.run(steps=steps * ticks, time_step=time_step_s)
+    return steps / (time.process_time() - cpu)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sizes", type=int, nargs="+", default=[50, 200, 500],
@@ -174,11 +218,18 @@ def main(argv: list[str] | None = None) -> int:
                         "K (sub-env steps per second)")
     args = parser.parse_args(argv)
     if args.batched:
-        print("| crowds stepped together | 40-pedestrian crossing sub-env steps / CPU s | / wall s |\n|---|---|---|")
-        for crowds in args.batched:
-            for _ in range(args.repeats):
+        print("| engine | crowds stepped together | 40-pedestrian sub-env steps of 0.4 s / CPU s | / wall s |\n"
+              "|---|---|---|---|")
+        for _ in range(args.repeats):  # navground's ORCA Cross beside ours, alternating, in every repeat
+            for crowds in args.batched:
                 cpu_rate, wall_rate = bench_batched(crowds, max(1, args.steps // crowds), args.warmup, args.seed)
-                print(f"| {crowds} | {cpu_rate:.0f} | {wall_rate:.0f} |", flush=True)
+                print(f"| STCrowd crossing, step_crowds | {crowds} | {cpu_rate:.0f} | {wall_rate:.0f} |", flush=True)
+            for time_step_s in NAVGROUND_TIME_STEPS_S:
+                rate = bench_navground(time_step_s, args.steps, args.warmup, args.seed)
+                if rate is None:
+                    print("| navground | – | not installed (pip install -e '.[bench]') | – |")
+                    break
+                print(f"| navground Cross, ORCA, {time_step_s} s updates | 1 | {rate:.0f} | – |", flush=True)
         return 0
 
     print("corridor 20 m x 8 m, bidirectional; 0.4 s steps; CPU = process time; lead = STCrowd's CPU steps/s over "

@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import os
 from collections.abc import Sequence
-from dataclasses import dataclass
 from itertools import pairwise
 from pathlib import Path
 
@@ -68,18 +67,6 @@ def population_cap(cfg: CrowdConfig, layout: Layout) -> int:
     return cap
 
 
-@dataclass(frozen=True, eq=False)
-class StepPlan:
-    """What one crowd holds fixed over a step: the ego's target velocity (2,) [m/s], and per body (K,) whether it is a
-    pedestrian, its mass [kg], its walking speed [m/s] (0 while standing) and how readily it gives way [-]."""
-
-    ego_target_mps: np.ndarray
-    movable: np.ndarray
-    mass_kg: np.ndarray
-    walk_mps: np.ndarray
-    yielding: np.ndarray
-
-
 def step_crowds(sims: Sequence[CrowdSim], ego_velocities_mps: Sequence[np.ndarray | None]) -> None:
     """Advance crowds of one layout and one config by one 0.4 s step together, as one set of arrays.
 
@@ -100,23 +87,32 @@ def step_crowds(sims: Sequence[CrowdSim], ego_velocities_mps: Sequence[np.ndarra
     if any(sim.layout is not first.layout or sim.cfg != first.cfg for sim in sims):
         raise ValueError("step_crowds: every crowd must share one layout and one config")
     cfg, dt_s, period = first.cfg, first._dt_s, first.layout.period
-    plans = [sim._begin_step(v) for sim, v in zip(sims, ego_velocities_mps, strict=True)]
-    sizes = np.array([len(sim._roster) for sim in sims])
+    # what the step holds fixed, for all crowds at once: who is a pedestrian, masses, walking speeds (0 while
+    # standing), readiness to give way (standing pedestrians yield little, the ego not at all), the egos' targets
+    rosters = [sim._roster for sim in sims]
+    sizes = np.array([len(r) for r in rosters])
     crowd = np.repeat(np.arange(len(sims)), sizes)  # (M,) which crowd each body belongs to
     bounds = np.r_[0, np.cumsum(sizes)]
-    rosters = [sim._roster for sim in sims]
-    radius_m = np.concatenate([r.radius_m for r in rosters])
-    exit_idx = np.concatenate([r.exit_idx for r in rosters])
+    radius_m, exit_idx, ped_id, go_step, preferred_mps = (np.concatenate([getattr(r, name) for r in rosters])
+                                                          for name in ("radius_m", "exit_idx", "ped_id", "go_step",
+                                                                       "speed_mps"))
     group = np.concatenate([np.where(r.group >= 0, r.group + k * GROUP_STRIDE, -1) for k, r in enumerate(rosters)])
-    movable, mass_kg, walk_mps, yielding = (np.concatenate([getattr(p, name) for p in plans])
-                                            for name in ("movable", "mass_kg", "walk_mps", "yielding"))
+    movable = ped_id >= 0
+    standing = go_step > np.repeat([sim.step_count for sim in sims], sizes)
+    mass_kg = np.where(movable, PED_MASS_KG, EGO_MASS_KG)
+    walk_mps = np.where(standing, 0.0, preferred_mps)
+    yielding = np.where(movable, np.where(standing, STANDING_YIELD, 1.0), 0.0)
     sees_ego = np.array([sim._ego_seen for sim in sims])[crowd]
     widest_m = np.array([sim._widest_m for sim in sims])
     ego_rows = np.array([bounds[k] + sim._ego_slot for k, sim in enumerate(sims) if sim._ego_slot is not None], int)
     egos = [sim for sim in sims if sim._ego_slot is not None]
-    ego_target = np.array([plan.ego_target_mps for sim, plan in zip(sims, plans, strict=True)
-                           if sim._ego_slot is not None]).reshape(-1, 2)
+    commanded = [v for sim, v in zip(sims, ego_velocities_mps, strict=True) if sim._ego_slot is not None]
+    ego_target = np.array([np.zeros(2) if v is None else np.asarray(v, dtype=np.float64).reshape(2)
+                           for v in commanded]).reshape(-1, 2)
+    ego_target = cap_speed(ego_target, np.array([sim.ego_cfg.max_speed_mps for sim in egos]))  # None: stop
     ego_accel = np.array([sim.ego_cfg.max_accel_mps2 * dt_s for sim in egos])
+    for sim in egos:
+        sim._ego_touched_wall = False
     model, walls_grid, nav = first._model, first._walls, first.nav
     marks = []  # (M, 2) positions of all crowds at the start of every substep, then at the end of the step
     for substep in range(cfg.n_substeps):
@@ -381,21 +377,6 @@ class CrowdSim:
                 velocity moves toward it by at most max_accel_mps2 per second. None = stop (command zero).
         """
         step_crowds([self], [ego_velocity_mps])
-
-    def _begin_step(self, ego_velocity_mps: np.ndarray | None) -> StepPlan:
-        """What the coming step holds fixed: the ego's target velocity and every body's mass, walking speed and
-        readiness to give way (standing pedestrians yield little, the ego not at all)."""
-        target = np.zeros(2)
-        if self._ego_body is not None and ego_velocity_mps is not None:
-            target = cap_speed(np.asarray(ego_velocity_mps, dtype=np.float64).reshape(1, 2),
-                               np.array([self.ego_cfg.max_speed_mps]))[0]
-        self._ego_touched_wall = False
-        roster = self._roster
-        movable = roster.ped_id >= 0
-        standing = roster.standing(self.step_count)
-        return StepPlan(target, movable, np.where(movable, PED_MASS_KG, EGO_MASS_KG),
-                        np.where(standing, 0.0, roster.speed_mps),
-                        np.where(movable, np.where(standing, STANDING_YIELD, 1.0), 0.0))
 
     def _end_step(self, xy_m: np.ndarray, at_exit: np.ndarray, to_exit_m: np.ndarray) -> SpawnRequest | None:
         """After the substeps, at the bodies' positions ``xy_m`` (K, 2) [m]: planned stops, rerouting, arrivals at the
