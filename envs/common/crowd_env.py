@@ -263,14 +263,17 @@ class CrowdEnv(gym.Env):
             rows = targets = rows[~far[rows]]
             if self.cfg.forecast_nearest is not None:
                 sensed = np.flatnonzero(mask[:, -1])
-                targets = rows[np.isin(rows, sensed[np.argsort(distance_m[sensed], kind="stable")
-                                                    [:self.cfg.forecast_nearest]])]
+                nearest = np.zeros(len(mask), bool)
+                nearest[sensed[np.argsort(distance_m[sensed], kind="stable")[:self.cfg.forecast_nearest]]] = True
+                targets = rows[nearest[rows]]
         self._history, self._context_rows, self._rows = (history, mask), rows, targets
 
     def forecast_request(self) -> ForecastRequest:
         """What to forecast now (after a ``begin_*``): every sensed agent with T_obs frames conditions the forecast,
         ``targets`` of them get futures (the ``forecast_nearest`` nearest, or all)."""
-        return ForecastRequest(self._history[0][self._context_rows], np.isin(self._context_rows, self._rows),
+        targets = np.zeros(len(self._history[0]), bool)
+        targets[self._rows] = True
+        return ForecastRequest(self._history[0][self._context_rows], targets[self._context_rows],
                                self.rerun_target is not None)
 
     def _predict(self) -> Forecast:

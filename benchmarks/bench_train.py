@@ -1,0 +1,93 @@
+"""PPO training throughput against one env, in the same run: env steps per second of ``train_ppo`` (updates included)
+and of one env at one thread, with where the training's time goes.
+
+    OMP_NUM_THREADS=1 python benchmarks/bench_train.py --minutes 3 --repeats 2
+    python benchmarks/bench_train.py --minutes 3 --shards 1 2 --no-predictions
+
+One env is SimCrossing-v1 as the shipped recipe sees it (SingularTrajectory forecasting every pedestrian, no sensor
+limit), stepped by a goal-seeking robot with noise (the policy PPO meets early in training) at one torch thread.
+Training is ``python -m st_sim.apps.navigation.train_ppo`` with the shipped recipe's features (``--sensor-range inf
+--closest-approach --extractor attention``) and its defaults otherwise (64 sub-envs, the given shards), from scratch
+(short episodes: the most resets) for ``--minutes`` of wall time; its figure is the env steps it learnt per second,
+rollouts and PPO updates included, with their shares of the time (``training.json``). The two alternate, one after
+the other, in each repeat.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import tempfile
+import time
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import torch
+
+import envs  # noqa: F401  (registers the ids)
+from envs.common.config import EnvConfig
+from st_sim.apps.navigation import train_ppo
+
+ENV_ID = "STCrowd-SimCrossing-v1"
+
+
+def goal_seeking(obs: dict[str, np.ndarray], rng: np.random.Generator) -> np.ndarray:
+    """(2,) float32 full speed toward the goal plus N(0, 0.5 m/s) noise per axis [m/s]."""
+    to_goal = obs["ego"][4:6] - obs["ego"][:2]
+    velocity = 1.5 * to_goal / max(float(np.linalg.norm(to_goal)), 1e-6)
+    return (velocity + rng.normal(0.0, 0.5, 2)).astype(np.float32)
+
+
+def one_env_rate(steps: int, seed: int, use_predictions: bool) -> float:
+    """Env steps per second of one env as the recipe sees it (every pedestrian forecast), one torch thread."""
+    torch.set_num_threads(1)
+    env = gym.make(ENV_ID, predictor="singular" if use_predictions else "cvm", config=EnvConfig(), device="cpu")
+    rng = np.random.default_rng(seed)
+    obs, _ = env.reset(seed=seed)
+    start = time.perf_counter()
+    for _ in range(steps):
+        obs, _, terminated, truncated, _ = env.step(goal_seeking(obs, rng))
+        if terminated or truncated:
+            obs, _ = env.reset()
+    rate = steps / (time.perf_counter() - start)
+    env.close()
+    return rate
+
+
+def training_rate(minutes: float, shards: int, seed: int, use_predictions: bool, out: Path) -> dict:
+    """``training.json``'s speed figures of a ``train_ppo`` run of ``minutes`` (the shipped recipe's features)."""
+    args = ["--timesteps", "100000000", "--minutes", str(minutes), "--sensor-range", "inf", "--closest-approach",
+            "--extractor", "attention", "--shards", str(shards), "--seed", str(seed), "--device", "cpu",
+            "--out", str(out), "--quiet"] + ([] if use_predictions else ["--no-predictions"])
+    train_ppo.main(train_ppo.parse_args(args))
+    record = json.loads((out / "training.json").read_text())
+    return {"env_steps_per_s": record["env_steps_per_s"], **record["time_shares"]}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--minutes", type=float, default=3.0, help="wall time of each training run (default: 3)")
+    parser.add_argument("--single-steps", type=int, default=600, help="steps of the one-env run (default: 600)")
+    parser.add_argument("--shards", type=int, nargs="+", default=[2], help="shards of the training runs (default: 2)")
+    parser.add_argument("--repeats", type=int, default=1, help="alternating repeats (default: 1)")
+    parser.add_argument("--no-predictions", action="store_true", help="the variant without forecasts")
+    args = parser.parse_args()
+    use_predictions = not args.no_predictions
+    print(f"{ENV_ID}, {'with' if use_predictions else 'without'} forecasts of every pedestrian; training: the shipped "
+          f"recipe's features, {args.minutes:g} min per run from scratch")
+    print("| repeat | configuration | env steps/s | ratio to one env | rollouts | PPO updates |\n|---|---|---|---|---|---|")
+    with tempfile.TemporaryDirectory() as scratch:
+        for repeat in range(args.repeats):
+            single = one_env_rate(args.single_steps, repeat, use_predictions)
+            print(f"| {repeat + 1} | one env, 1 thread | {single:.0f} | 1.00 | – | – |", flush=True)
+            for shards in args.shards:
+                figures = training_rate(args.minutes, shards, repeat, use_predictions,
+                                        Path(scratch) / f"run{repeat}-{shards}")
+                rate = figures["env_steps_per_s"]
+                print(f"| {repeat + 1} | train_ppo, 64 sub-envs, {shards} shard(s) | {rate:.0f} | {rate / single:.2f} | "
+                      f"{100 * figures['rollout']:.0f} % | {100 * figures['update']:.0f} % |", flush=True)
+
+
+if __name__ == "__main__":
+    main()
