@@ -247,7 +247,8 @@ class SingularTrajectory:
         wanted = torch.from_numpy(targets).to(self.device)
         ctx = torch.empty(len(obs), self.refiner.cfg.dim, device=self.device)
         for idx in chunks:  # the interaction layer within whole windows; then every target denoised in one batch
-            ctx[idx] = self.refiner.context(t["history"][idx], t["anchors"][idx], t["group"][idx])
+            ctx[idx[wanted[idx]]] = self.refiner.context(t["history"][idx], t["anchors"][idx], t["group"][idx],
+                                                         wanted[idx])
         anchors_scaled = t["anchors"][wanted]
         residual = self.refiner.sample(anchors_scaled, ctx[wanted], noise[wanted], steps)
         local = self.paths_local(anchors_scaled, residual, t["population"][wanted])

@@ -68,6 +68,16 @@ def linear_alpha_bar(steps: int) -> torch.Tensor:
     return torch.cat([torch.ones(1, dtype=torch.float64), torch.cumprod(1 - betas, 0)]).float()
 
 
+def _rank_within(window: torch.Tensor, sizes: torch.Tensor) -> torch.Tensor:
+    """(B,) the place of each of B items among the items of its window (in order), for window ids (B,) in
+    [0, W) and the windows' sizes (W,)."""
+    order = torch.argsort(window, stable=True)
+    rank = torch.empty_like(window)
+    rank[order] = torch.arange(len(window), device=window.device) - \
+        torch.repeat_interleave(torch.cumsum(sizes, 0) - sizes, sizes)
+    return rank
+
+
 def step_embedding(m: torch.Tensor, dim: int) -> torch.Tensor:
     """(B,) integer steps -> (B, dim) sinusoidal embedding."""
     half = dim // 2
@@ -101,40 +111,55 @@ class Refiner(nn.Module):
         self.register_buffer("alpha_bar", alpha_bar, persistent=False)
         self.register_buffer("step_table", step_embedding(torch.arange(cfg.steps + 1), d), persistent=False)
 
-    def context(self, history: torch.Tensor, anchors: torch.Tensor, group: torch.Tensor) -> torch.Tensor:
-        """Per-agent condition (B, dim) from history (B, F), anchors (B, S, K) and window ids (B,).
+    def context(self, history: torch.Tensor, anchors: torch.Tensor, group: torch.Tensor,
+                targets: torch.Tensor | None = None) -> torch.Tensor:
+        """Per-agent condition (B, dim) from history (B, F), anchors (B, S, K) and window ids (B,); with ``targets``
+        (B,) bool, the condition of those agents only (T, dim).
 
         Each agent attends only to the agents of its own window. The layers' projections and feed-forward run on
         the B agents; only the attention itself sees windows padded to the longest (W, longest, dim), which is
         about four times B in a shuffled training batch. Same weights and result as ``self.interact`` with the
-        other windows masked out.
+        other windows masked out. With ``targets``, the last layer runs its queries, attention output and
+        feed-forward for the targets alone: the other agents only lend their keys and values, as they would anyway.
         """
         tokens = self.encode_history(torch.cat([history, anchors.flatten(1)], dim=1))
         _, window, sizes = torch.unique(group, return_inverse=True, return_counts=True)
-        order = torch.argsort(window, stable=True)
-        slot = torch.empty_like(window)
-        slot[order] = torch.arange(len(group), device=group.device) - \
-            torch.repeat_interleave(torch.cumsum(sizes, 0) - sizes, sizes)
         longest = int(sizes.max())
         keys = torch.arange(longest, device=group.device) < sizes[:, None]  # (W, longest) True = an agent
-        cell = window * longest + slot  # (B,) each agent's place in the padded (W, longest) grid
-        for layer in self.interact.layers:
+        cell = window * longest + _rank_within(window, sizes)  # (B,) each agent's place in the padded grid
+        layers = list(self.interact.layers)
+        for layer in layers[:-1]:
             tokens = self._window_layer(layer, tokens, cell, keys)
-        return tokens
+        return self._window_layer(layers[-1], tokens, cell, keys, targets)
 
     def _window_layer(self, layer: nn.TransformerEncoderLayer, x: torch.Tensor, cell: torch.Tensor,
-                      keys: torch.Tensor) -> torch.Tensor:
+                      keys: torch.Tensor, queries: torch.Tensor | None = None) -> torch.Tensor:
         """One pre-norm encoder layer on tokens x (B, dim), agent i at ``cell[i]`` of the flattened (W, longest)
-        grid of windows ``keys``."""
+        grid of windows ``keys``; the new tokens of the agents ``queries`` (B,) bool (None: all)."""
         attention = layer.self_attn
         heads, dim = attention.num_heads, x.shape[1]
-        qkv = functional.linear(layer.norm1(x), attention.in_proj_weight, attention.in_proj_bias)  # (B, 3 dim)
-        rows = qkv.new_zeros(keys.numel(), 3 * dim).index_copy(0, cell, qkv)
-        q, k, v = rows.view(*keys.shape, 3, heads, dim // heads).permute(2, 0, 3, 1, 4)  # (W, heads, longest, .)
+        weight, bias = attention.in_proj_weight, attention.in_proj_bias
+        normed = layer.norm1(x)
+        if queries is None:
+            qkv = functional.linear(normed, weight, bias)
+            grid = qkv.new_zeros(keys.numel(), 3 * dim).index_copy(0, cell, qkv)
+            q, k, v = grid.view(*keys.shape, 3, heads, dim // heads).permute(2, 0, 3, 1, 4)  # (W, heads, longest, .)
+            queries, asked, width = slice(None), cell, keys.shape[1]
+        else:
+            kv = functional.linear(normed, weight[dim:], bias[dim:])  # every agent lends its key and value
+            grid = kv.new_zeros(keys.numel(), 2 * dim).index_copy(0, cell, kv)
+            k, v = grid.view(*keys.shape, 2, heads, dim // heads).permute(2, 0, 3, 1, 4)
+            window = torch.div(cell[queries], keys.shape[1], rounding_mode="floor")  # (T,) the targets' windows
+            counts = torch.bincount(window, minlength=len(keys))
+            width = max(int(counts.max()), 1)  # every window has an agent, so counts is never empty
+            asked = window * width + _rank_within(window, counts)
+            q = functional.linear(normed[queries], weight[:dim], bias[:dim])
+            q = q.new_zeros(len(keys) * width, dim).index_copy(0, asked, q)
+            q = q.view(len(keys), width, heads, dim // heads).transpose(1, 2)  # (W, heads, width, .)
         mixed = functional.scaled_dot_product_attention(q, k, v, attn_mask=keys[:, None, None, :],
                                                         dropout_p=attention.dropout if self.training else 0.0)
-        mixed = mixed.transpose(1, 2).reshape(keys.numel(), dim).index_select(0, cell)  # (B, dim)
-        x = x + layer.dropout1(attention.out_proj(mixed))
+        mixed = mixed.transpose(1, 2).reshape(len(keys) * width, dim).index_select(0, asked)  # (T, dim)
+        x = x[queries] + layer.dropout1(attention.out_proj(mixed))
         return x + layer.dropout2(layer.linear2(layer.dropout(layer.activation(layer.linear1(layer.norm2(x))))))
 
     def predict_x0(self, x_m: torch.Tensor, m: torch.Tensor, anchors: torch.Tensor, ctx: torch.Tensor) -> torch.Tensor:

@@ -59,6 +59,23 @@ def test_context_attends_within_each_window_only(windows: list[int], seed: int, 
     torch.testing.assert_close(refiner.context(history, anchors, group), masked, rtol=0, atol=1e-5)
 
 
+@settings(max_examples=25, deadline=None)
+@given(windows=st.lists(st.integers(0, 6), min_size=1, max_size=40), seed=st.integers(0, 2**31 - 1),
+       layers=st.integers(1, 2), share=st.floats(0.0, 1.0))
+def test_the_context_of_some_agents_is_theirs_in_the_context_of_all(windows: list[int], seed: int, layers: int,
+                                                                     share: float) -> None:
+    """``targets``: the last layer runs for the targets alone (the others lend keys and values), and gives them the
+    context they get when every agent's is computed; any share of targets, windows without one."""
+    torch.manual_seed(seed)
+    cfg = RefinerConfig(history_dim=6, num_samples=3, k=4, dim=16, denoiser_dim=16, heads=2, layers=layers, steps=4)
+    refiner = Refiner(cfg).eval()
+    group = torch.tensor(windows) * 3
+    history, anchors = torch.randn(len(group), 6), torch.randn(len(group), 3, 4)
+    targets = torch.rand(len(group), generator=torch.Generator().manual_seed(seed)) < share
+    every = refiner.context(history, anchors, group)
+    torch.testing.assert_close(refiner.context(history, anchors, group, targets), every[targets], rtol=0, atol=1e-5)
+
+
 @pytest.mark.parametrize("denoiser_dim, sampler", [(32, "x0-cosine"), (64, "x0-cosine"), (32, "eps-linear")])
 def test_sampler_matches_textbook_ddim(denoiser_dim: int, sampler: str) -> None:
     torch.manual_seed(0)
