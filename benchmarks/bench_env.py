@@ -109,12 +109,13 @@ def goal_seeking(obs: dict[str, np.ndarray], rng: np.random.Generator) -> np.nda
     return (velocity + rng.normal(0.0, 0.5, velocity.shape)).astype(np.float32)
 
 
-def single_rate(steps: int, seed: int, model, threads: int | None) -> float:
-    """Env steps per second of one SimCrossing-v1 env (5 m sensing) at ``threads`` torch threads (None: default)."""
+def single_rate(steps: int, seed: int, model, threads: int | None, sensor_range_m: float = SENSOR_RANGE_M) -> float:
+    """Env steps per second of one SimCrossing-v1 env (``sensor_range_m`` sensing) with a goal-seeking noisy robot, at
+    ``threads`` torch threads (None: default)."""
     default = torch.get_num_threads()
     torch.set_num_threads(threads or DEFAULT_THREADS)
     try:
-        env = gym.make("STCrowd-SimCrossing-v1", predictor=model, config=EnvConfig(sensor_range_m=SENSOR_RANGE_M))
+        env = gym.make("STCrowd-SimCrossing-v1", predictor=model, config=EnvConfig(sensor_range_m=sensor_range_m))
         rng = np.random.default_rng(seed)
         obs, _ = env.reset(seed=seed)
         start = time.perf_counter()

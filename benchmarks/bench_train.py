@@ -5,7 +5,8 @@ and of one env at one thread, with where the training's time goes.
     python benchmarks/bench_train.py --minutes 3 --shards 1 2 --no-predictions
 
 One env is SimCrossing-v1 as the shipped recipe sees it (SingularTrajectory forecasting every pedestrian, no sensor
-limit), stepped by a goal-seeking robot with noise (the policy PPO meets early in training) at one torch thread.
+limit), stepped by a goal-seeking robot with noise (the policy PPO meets early in training) at one torch thread
+(``bench_env.single_rate``; CVM for ``--no-predictions``).
 Training is ``python -m st_sim.apps.navigation.train_ppo`` with the shipped recipe's features (``--sensor-range inf
 --closest-approach --extractor attention``) and its defaults otherwise (64 sub-envs, the given shards), from scratch
 (short episodes: the most resets) for ``--minutes`` of wall time; its figure is the env steps it learnt per second,
@@ -18,41 +19,15 @@ from __future__ import annotations
 import argparse
 import json
 import tempfile
-import time
 from pathlib import Path
 
-import gymnasium as gym
-import numpy as np
-import torch
+from bench_env import single_rate  # benchmarks/ is the script's folder, first on sys.path
 
-import envs  # noqa: F401  (registers the ids)
-from envs.common.config import EnvConfig
+import predictor
+from predictor.baselines import ConstantVelocity
 from st_sim.apps.navigation import train_ppo
 
 ENV_ID = "STCrowd-SimCrossing-v1"
-
-
-def goal_seeking(obs: dict[str, np.ndarray], rng: np.random.Generator) -> np.ndarray:
-    """(2,) float32 full speed toward the goal plus N(0, 0.5 m/s) noise per axis [m/s]."""
-    to_goal = obs["ego"][4:6] - obs["ego"][:2]
-    velocity = 1.5 * to_goal / max(float(np.linalg.norm(to_goal)), 1e-6)
-    return (velocity + rng.normal(0.0, 0.5, 2)).astype(np.float32)
-
-
-def one_env_rate(steps: int, seed: int, use_predictions: bool) -> float:
-    """Env steps per second of one env as the recipe sees it (every pedestrian forecast), one torch thread."""
-    torch.set_num_threads(1)
-    env = gym.make(ENV_ID, predictor="singular" if use_predictions else "cvm", config=EnvConfig(), device="cpu")
-    rng = np.random.default_rng(seed)
-    obs, _ = env.reset(seed=seed)
-    start = time.perf_counter()
-    for _ in range(steps):
-        obs, _, terminated, truncated, _ = env.step(goal_seeking(obs, rng))
-        if terminated or truncated:
-            obs, _ = env.reset()
-    rate = steps / (time.perf_counter() - start)
-    env.close()
-    return rate
 
 
 def training_rate(minutes: float, shards: int, seed: int, use_predictions: bool, out: Path) -> dict:
@@ -76,17 +51,20 @@ def main() -> None:
     use_predictions = not args.no_predictions
     print(f"{ENV_ID}, {'with' if use_predictions else 'without'} forecasts of every pedestrian; training: the shipped "
           f"recipe's features, {args.minutes:g} min per run from scratch")
-    print("| repeat | configuration | env steps/s | ratio to one env | rollouts | PPO updates |\n|---|---|---|---|---|---|")
+    print("| repeat | configuration | env steps/s | ratio to one env | rollouts | PPO updates |")
+    print("|---|---|---|---|---|---|")
     with tempfile.TemporaryDirectory() as scratch:
         for repeat in range(args.repeats):
-            single = one_env_rate(args.single_steps, repeat, use_predictions)
+            model = predictor.load_pretrained("universal") if use_predictions else ConstantVelocity()
+            single = single_rate(args.single_steps, repeat, model, 1, sensor_range_m=float("inf"))
             print(f"| {repeat + 1} | one env, 1 thread | {single:.0f} | 1.00 | – | – |", flush=True)
             for shards in args.shards:
                 figures = training_rate(args.minutes, shards, repeat, use_predictions,
                                         Path(scratch) / f"run{repeat}-{shards}")
                 rate = figures["env_steps_per_s"]
-                print(f"| {repeat + 1} | train_ppo, 64 sub-envs, {shards} shard(s) | {rate:.0f} | {rate / single:.2f} | "
-                      f"{100 * figures['rollout']:.0f} % | {100 * figures['update']:.0f} % |", flush=True)
+                print(f"| {repeat + 1} | train_ppo, 64 sub-envs, {shards} shard(s) | {rate:.0f} | "
+                      f"{rate / single:.2f} | {100 * figures['rollout']:.0f} % | {100 * figures['update']:.0f} % |",
+                      flush=True)
 
 
 if __name__ == "__main__":

@@ -1,17 +1,23 @@
 """Train the PPO navigation policy (stable-baselines3) on vectorised STCrowd envs, with or without predictions.
 
-    python -m st_sim.apps.navigation.train_ppo --timesteps 1000000 --out runs/nav/ppo-predictions
-    python -m st_sim.apps.navigation.train_ppo --no-predictions --timesteps 1000000 --out runs/nav/ppo-no-predictions
+    python -m st_sim.apps.navigation.train_ppo --timesteps 10000000 --sensor-range inf --closest-approach \
+        --extractor attention --out runs/nav/ppo-scratch            # PPO from scratch
+    python -m st_sim.apps.navigation.train_ppo --timesteps 0 --demo-steps 40000 ... --out runs/nav/clone-with
+    python -m st_sim.apps.navigation.train_ppo --init-policy runs/nav/clone-with/policy.pt --critic-rollouts 5 \
+        --learning-rate 1e-4 --target-kl 0.02 --log-std-init -2.5 ... --out runs/nav/ft-with   # PPO from a clone
 
-The ``--num-envs`` sub-envs run as one native vector env (``training_envs.FeatureVecEnv``: one batched
-SingularTrajectory call per step for all of them, only for the pedestrians within ``--sensor-range`` of the
-robot). PPO starts from scratch; ``--demo-steps N`` instead starts from a teacher: N steps of the sampling MPC
-with SingularTrajectory are collected once into ``--demos`` (reused by the other variant) and cloned into the
-actor-critic (``demonstrations``; its features see every pedestrian, so it needs ``--sensor-range inf``).
-``--dagger-rounds K`` then runs K DAgger rounds: the clone drives ``--dagger-steps`` steps, the teacher labels every
-state it reaches, and the clone is fitted again on all labels so far (each round's steps are kept in --out).
-``--timesteps 0`` stops there (a clone without PPO). ``--minutes`` stops the run after that much wall time (then
-writes everything as at the end of the budget).
+The ``--num-envs`` sub-envs (64) run as native vector envs in ``--shards`` worker processes (2, a core each;
+``training_envs.FeatureVecEnv``): one batched SingularTrajectory call per step in each, for the pedestrians the
+features read (the nearest six within ``--sensor-range``), conditioned on every sensed one. PPO starts from scratch;
+``--demo-steps N`` instead starts from a teacher: N steps of the sampling MPC with SingularTrajectory are collected
+once into ``--demos`` (reused by the other variant) and cloned into the actor-critic (``demonstrations``; its features
+see every pedestrian, so it needs ``--sensor-range inf``). ``--dagger-rounds K`` then runs K DAgger rounds: the clone
+drives ``--dagger-steps`` steps, the teacher labels every state it reaches, and the clone is fitted again on all labels
+so far (each round's steps are kept in --out). ``--timesteps 0`` stops there (a clone without PPO); ``--init-policy``
+starts PPO (of any seed) from such a clone's ``policy.pt``, and ``--critic-rollouts R`` fits its critic to the
+training reward for R updates before the actor moves (``critic_first.CriticFirstPPO``). ``--minutes`` stops the run
+after that much wall time (then writes everything as at the end of the budget); ``--device`` puts PPO and the
+forecasts on a GPU where torch sees one (``auto``, the default) or where it is told.
 
 Writes into --out: ``policy.pt`` (loadable with ``ppo.load_policy``), ``curve.png`` and ``curve.json`` (the
 learning curve: success, collision and return over the last 100 training episodes against env steps) and
@@ -107,7 +113,8 @@ class TrainConfig:
     """where PPO and the envs' forecasts run: auto (a CUDA GPU when torch sees one, else the CPU), cpu, cuda, cuda:N
     or mps (``predictor.devices``)"""
     log_std_init: float = -0.5
-    """initial log standard deviation of the Gaussian actions (std 0.61 of the speed limit)"""
+    """initial log standard deviation of the Gaussian actions (std 0.61 of the speed limit), also for a run that
+    starts from a policy file"""
     initial_forward: float = 0.7
     """without demonstrations: initial mean action along the path to the goal, in speed limits"""
     init_policy: str | None = None
@@ -259,12 +266,15 @@ def clone_teacher(policy: Any, cfg: TrainConfig, net_arch: list[int]) -> dict[st
 
 
 def start_from(policy: Any, cfg: TrainConfig, net_arch: list[int]) -> None:
-    """Load the weights of the policy file ``cfg.init_policy`` into ``policy``.
+    """Load the weights of the policy file ``cfg.init_policy`` into ``policy``, its action noise set to
+    ``cfg.log_std_init``.
 
     Raises:
         ValueError: the file's policy reads other features or has another extractor or network (``PolicyFileError``
             for a missing or damaged file).
     """
+    import torch
+
     saved, features = load_policy(cfg.init_policy)
     if features != cfg.features:
         raise ValueError(f"--init-policy {cfg.init_policy}: the policy reads {features}, this run {cfg.features}")
@@ -274,6 +284,8 @@ def start_from(policy: Any, cfg: TrainConfig, net_arch: list[int]) -> None:
         raise ValueError(f"--init-policy {cfg.init_policy}: its network differs from this run's (--extractor "
                          f"{cfg.extractor}, net_arch {net_arch})")
     policy.load_state_dict(theirs)
+    with torch.no_grad():  # PPO's exploration starts where the run says, whatever the file's policy had
+        policy.log_std.fill_(cfg.log_std_init)
 
 
 def plot_curve(curves: dict[str, list[dict] | list[list[dict]]], path: Path, title: str) -> Path | None:
@@ -403,6 +415,29 @@ def ship(policy_path: Path, name: str, record: dict) -> Path:
     return target
 
 
+COUNTS: tuple[tuple[str, int, str], ...] = (
+    ("timesteps", 0, "PPO env steps, 0: stop after cloning"),
+    ("num_envs", 1, "sub-envs"),
+    ("shards", 1, "worker processes the sub-envs are split into"),
+    ("n_steps", 2, "steps per sub-env per rollout"),
+    ("batch_size", 2, "minibatch size"),
+    ("n_epochs", 1, "passes over each rollout"),
+    ("critic_rollouts", 0, "first updates that fit only the critic, the actor held (for a cloned policy)"),
+    ("demo_steps", 0, "teacher steps cloned before PPO, 0 for none"),
+    ("bc_epochs", 1, "passes of behaviour cloning over the labels, per round"),
+    ("dagger_rounds", 0, "DAgger rounds after cloning, with --demo-steps"),
+    ("dagger_steps", 1, "env steps the clone drives per DAgger round"),
+    ("save_every", 1, "rollouts between saves of the resumable state"),
+)
+"""integer settings with a flag each: TrainConfig field, least value, what it sets"""
+RATES: tuple[tuple[str, str], ...] = (
+    ("learning_rate", "Adam learning rate"),
+    ("clip_range", "PPO's clipping of the probability ratio"),
+    ("target_kl", "stop an update's epochs once the policy's KL from the rollout's exceeds this (default: no limit)"),
+)
+"""settings in (0, 1) with a flag each: TrainConfig field, what it sets"""
+
+
 def parse_args(argv: list[str] | None = None) -> TrainConfig:
     """TrainConfig from command-line flags (defaults as in the dataclass)."""
     d = TrainConfig()
@@ -410,25 +445,12 @@ def parse_args(argv: list[str] | None = None) -> TrainConfig:
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--no-predictions", action="store_true", help="train without the predicted futures")
     parser.add_argument("--env-id", default=d.env_id, help=f"training env (default: {d.env_id})")
-    parser.add_argument("--timesteps", type=int, default=d.timesteps,
-                        help=f"PPO env steps, 0: stop after cloning (default: {d.timesteps})")
-    parser.add_argument("--num-envs", type=int, default=d.num_envs, help=f"parallel envs (default: {d.num_envs})")
-    parser.add_argument("--n-steps", type=int, default=d.n_steps,
-                        help=f"steps per env per rollout (default: {d.n_steps})")
-    parser.add_argument("--batch-size", type=int, default=d.batch_size,
-                        help=f"minibatch size (default: {d.batch_size})")
-    parser.add_argument("--n-epochs", type=int, default=d.n_epochs,
-                        help=f"passes over each rollout (default: {d.n_epochs})")
-    parser.add_argument("--learning-rate", type=float, default=d.learning_rate,
-                        help=f"Adam learning rate (default: {d.learning_rate})")
-    parser.add_argument("--clip-range", type=float, default=d.clip_range,
-                        help=f"PPO's clipping of the probability ratio (default: {d.clip_range})")
-    parser.add_argument("--target-kl", type=float, default=d.target_kl,
-                        help="stop an update's epochs once the policy's KL from the rollout's exceeds this "
-                             "(default: no limit)")
-    parser.add_argument("--critic-rollouts", type=int, default=d.critic_rollouts,
-                        help=f"first updates that fit only the critic, the actor held; for a cloned policy "
-                             f"(default: {d.critic_rollouts})")
+    for name, _, what in COUNTS:
+        parser.add_argument(f"--{name.replace('_', '-')}", type=int, default=getattr(d, name),
+                            help=f"{what} (default: {getattr(d, name)})")
+    for name, what in RATES:
+        parser.add_argument(f"--{name.replace('_', '-')}", type=float, default=getattr(d, name),
+                            help=what if getattr(d, name) is None else f"{what} (default: {getattr(d, name)})")
     parser.add_argument("--sensor-range", type=float, default=d.sensor_range_m,
                         help=f"pedestrians sensed and forecast within this distance [m], inf: all (default: "
                         f"{d.sensor_range_m})")
@@ -437,21 +459,11 @@ def parse_args(argv: list[str] | None = None) -> TrainConfig:
     parser.add_argument("--seed", type=int, default=d.seed, help=f"seed (default: {d.seed})")
     parser.add_argument("--init-policy", default=None, metavar="PATH",
                         help="start PPO from this policy file (a clone's policy.pt) instead of cloning or scratch")
-    parser.add_argument("--demo-steps", type=int, default=d.demo_steps,
-                        help=f"teacher steps cloned before PPO, 0 for none (default: {d.demo_steps})")
-    parser.add_argument("--bc-epochs", type=int, default=d.bc_epochs,
-                        help=f"passes of behaviour cloning over the labels, per round (default: {d.bc_epochs})")
-    parser.add_argument("--dagger-rounds", type=int, default=d.dagger_rounds,
-                        help=f"DAgger rounds after cloning, with --demo-steps (default: {d.dagger_rounds})")
-    parser.add_argument("--dagger-steps", type=int, default=d.dagger_steps,
-                        help=f"env steps the clone drives per DAgger round (default: {d.dagger_steps})")
     parser.add_argument("--log-std-init", type=float, default=d.log_std_init,
                         help=f"initial log standard deviation of PPO's actions, in speed limits (default: "
                         f"{d.log_std_init}; lower keeps a cloned policy closer to its teacher)")
     parser.add_argument("--demos", default=d.demos, help=f"demonstrations file, shared by both variants "
                         f"(default: {d.demos})")
-    parser.add_argument("--save-every", type=int, default=d.save_every,
-                        help=f"rollouts between saves of the resumable state (default: {d.save_every})")
     parser.add_argument("--out", default=d.out, help=f"output folder (default: {d.out})")
     parser.add_argument("--ship", default=None, help="also copy the policy into pretrained/ under this name")
     parser.add_argument("--extractor", choices=EXTRACTORS, default=d.extractor,
@@ -460,28 +472,20 @@ def parse_args(argv: list[str] | None = None) -> TrainConfig:
                         help="add each pedestrian's predicted closest approach to the robot's course to its features")
     parser.add_argument("--prediction-reward", type=float, default=0.0, metavar="W",
                         help="weight of the prediction-aware reward part predicted_collision (default: 0, off)")
-    parser.add_argument("--shards", type=int, default=d.shards,
-                        help=f"worker processes the training envs are split into (default: {d.shards})")
     parser.add_argument("--device", default=d.device, help=f"where PPO and the envs' forecasts run: {DEVICE_HELP} "
                         f"(default: {d.device})")
     parser.add_argument("--tensorboard", default=None, metavar="DIR",
                         help="also log training figures to TensorBoard in DIR (pip install -e '.[tensorboard]')")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     args = parser.parse_args(argv)
-    for flag, value, least in (("--timesteps", args.timesteps, 0), ("--num-envs", args.num_envs, 1),
-                               ("--n-steps", args.n_steps, 2), ("--batch-size", args.batch_size, 2),
-                               ("--n-epochs", args.n_epochs, 1), ("--critic-rollouts", args.critic_rollouts, 0),
-                               ("--demo-steps", args.demo_steps, 0), ("--save-every", args.save_every, 1),
-                               ("--shards", args.shards, 1), ("--dagger-rounds", args.dagger_rounds, 0),
-                               ("--dagger-steps", args.dagger_steps, 1), ("--bc-epochs", args.bc_epochs, 1)):
-        if value < least:
-            parser.error(f"{flag}={value}: expected an integer >= {least}")
+    for name, least, _ in COUNTS:
+        if getattr(args, name) < least:
+            parser.error(f"--{name.replace('_', '-')}={getattr(args, name)}: expected an integer >= {least}")
+    for name, _ in RATES:
+        if getattr(args, name) is not None and not 0 < getattr(args, name) < 1:  # also refuses NaN
+            parser.error(f"--{name.replace('_', '-')}={getattr(args, name)}: expected a number in (0, 1)")
     if not args.sensor_range > 0:  # also refuses NaN
         parser.error(f"--sensor-range={args.sensor_range}: expected a distance > 0 (or inf)")
-    for flag, value in (("--learning-rate", args.learning_rate), ("--clip-range", args.clip_range),
-                        ("--target-kl", 0.5 if args.target_kl is None else args.target_kl)):
-        if not 0 < value < 1:  # also refuses NaN
-            parser.error(f"{flag}={value}: expected a number in (0, 1)")
     if not args.minutes > 0:
         parser.error(f"--minutes={args.minutes}: expected a duration > 0")
     if args.init_policy is not None and args.demo_steps > 0:
@@ -498,20 +502,14 @@ def parse_args(argv: list[str] | None = None) -> TrainConfig:
         resolve_device(args.device)
     except DeviceError as err:
         parser.error(f"--device: {err}")
-    use_predictions = not args.no_predictions
     if not np.isfinite(args.prediction_reward):
         parser.error(f"--prediction-reward={args.prediction_reward}: expected a finite weight")
-    return TrainConfig(use_predictions=use_predictions, env_id=args.env_id, timesteps=args.timesteps,
-                       num_envs=args.num_envs, sensor_range_m=args.sensor_range, seed=args.seed,
-                       reward=replace(d.reward, prediction=args.prediction_reward), extractor=args.extractor,
-                       closest_approach=args.closest_approach, shards=args.shards, tensorboard=args.tensorboard,
-                       demo_steps=args.demo_steps, demos=args.demos, minutes=args.minutes,
-                       dagger_rounds=args.dagger_rounds, dagger_steps=args.dagger_steps, log_std_init=args.log_std_init,
-                       bc_epochs=args.bc_epochs, device=args.device, n_steps=args.n_steps,
-                       batch_size=args.batch_size, n_epochs=args.n_epochs, learning_rate=args.learning_rate,
-                       clip_range=args.clip_range, target_kl=args.target_kl, critic_rollouts=args.critic_rollouts,
-                       init_policy=args.init_policy,
-                       save_every=args.save_every, out=args.out, ship_as=args.ship, progress=not args.quiet)
+    return TrainConfig(use_predictions=not args.no_predictions, env_id=args.env_id, sensor_range_m=args.sensor_range,
+                       seed=args.seed, reward=replace(d.reward, prediction=args.prediction_reward),
+                       extractor=args.extractor, closest_approach=args.closest_approach, tensorboard=args.tensorboard,
+                       demos=args.demos, minutes=args.minutes, log_std_init=args.log_std_init, device=args.device,
+                       init_policy=args.init_policy, out=args.out, ship_as=args.ship, progress=not args.quiet,
+                       **{name: getattr(args, name) for name, *_ in (*COUNTS, *RATES)})
 
 
 def cli(argv: list[str] | None = None) -> int:
