@@ -18,6 +18,7 @@ from st_sim.apps.navigation.training_envs import FeatureVecEnv, sub_env_info
 from st_sim.apps.navigation.world import world_of
 
 ENV_ID = "STCrowd-SimCrossing-v1"
+FORECAST_ATOL = 2e-3  # metres and unit features; see the sharded test
 
 
 @settings(max_examples=3, deadline=None)
@@ -50,25 +51,28 @@ def test_feature_vec_env_equals_dummy_vec_env_over_single_envs(seed: int, num_en
 
 
 def test_feature_vec_env_in_worker_processes_equals_the_one_process_one() -> None:
-    """Shards: the same features (up to the rounding of smaller forecast batches), rewards, ends and final infos, and
-    attributes read from the sub-env that holds them."""
+    """Shards: the same features, rewards, ends and final infos, and attributes read from the sub-env that holds them.
+
+    Features that come from forecasts agree to FORECAST_ATOL only: a shard forecasts a smaller batch, and how float32
+    sums round with the batch's shape depends on the CPU's kernels (2e-4 seen on one CI machine)."""
     features = FeatureConfig(True, closest_approach=True)
     local, sharded = FeatureVecEnv(ENV_ID, 5, features), FeatureVecEnv(ENV_ID, 5, features, shards=2)
     local.seed(7), sharded.seed(7)
-    np.testing.assert_allclose(local.reset(), sharded.reset(), rtol=0, atol=1e-4)
+    np.testing.assert_allclose(local.reset(), sharded.reset(), rtol=0, atol=FORECAST_ATOL)
     rng, ended = np.random.default_rng(7), 0
     for t in range(40):
         actions = rng.uniform(-1.0, 1.0, (5, 2)).astype(np.float32)
         actions[:, 0] = np.abs(actions[:, 0])
         local.step_async(actions), sharded.step_async(actions)
         (obs, rewards, dones, infos), (obs_s, rewards_s, dones_s, infos_s) = local.step_wait(), sharded.step_wait()
-        np.testing.assert_allclose(obs, obs_s, rtol=0, atol=1e-4, err_msg=f"step {t}")
+        np.testing.assert_allclose(obs, obs_s, rtol=0, atol=FORECAST_ATOL, err_msg=f"step {t}")
         np.testing.assert_array_equal(rewards, rewards_s, err_msg=f"step {t}")
         np.testing.assert_array_equal(dones, dones_s, err_msg=f"step {t}")
         for i in np.flatnonzero(dones):
             ended += 1
             assert infos[i]["termination"] == infos_s[i]["termination"]
-            np.testing.assert_allclose(infos[i]["terminal_observation"], infos_s[i]["terminal_observation"], atol=1e-4)
+            np.testing.assert_allclose(infos[i]["terminal_observation"], infos_s[i]["terminal_observation"],
+                                       rtol=0, atol=FORECAST_ATOL)
     assert ended > 0
     assert sharded.get_attr("num_samples", [0, 4]) == local.get_attr("num_samples", [0, 4]) == [20, 20]
     assert [layout.name for layout in sharded.get_attr("layout", 3)] == ["crossing"]
