@@ -1,6 +1,7 @@
 # Two commands for a fresh machine (each sets up only what is missing, then runs):
 #   make demo   the virtual environment, CPU-only PyTorch, the project; then the demo
-#   make test   the same, plus the ETH/UCY data (unless STCROWD_DATA points at a copy); then the test suite
+#   make test   the same, plus the ETH/UCY and CITR data (unless STCROWD_DATA / STCROWD_CITR point at copies); then
+#               the test suite
 # On a machine whose pip already offers a CPU build of torch: make demo TORCH="torch==2.13.0"
 # Then:
 #   make docs   the documentation site, as CI builds it (mkdocs build --strict, into site/)
@@ -50,3 +51,6 @@ data: setup
 	@if [ -n "$$STCROWD_DATA" ]; then echo "== ETH/UCY data: STCROWD_DATA=$$STCROWD_DATA"; \
 	else echo "== ETH/UCY data: python -m replays fetch (skips files already fetched and checked)"; \
 		$(PY) -m replays fetch --quiet; fi
+	@if [ -n "$$STCROWD_CITR" ]; then echo "== CITR data: STCROWD_CITR=$$STCROWD_CITR"; \
+	else echo "== CITR data: python -m replays fetch --dataset citr (skips files already fetched and checked)"; \
+		$(PY) -m replays fetch --dataset citr --quiet; fi

@@ -1,4 +1,5 @@
-"""``python -m replays <command>``: fetch the ETH/UCY files into a data root, verify a data root.
+"""``python -m replays <command>``: fetch a data set's files (ETH/UCY, or CITR with ``--dataset citr``) into a data
+root, verify a data root.
 
 Every failure prints one ``error: ...`` line and exits with code 1; ``--debug`` shows the traceback instead.
 """
@@ -9,7 +10,7 @@ import argparse
 import os
 import sys
 
-from replays.data_root import DEFAULT_CACHE, ENV_VAR, data_root, verify_data_root
+from replays.data_root import DATASETS, ETH_UCY, data_root, verify_data_root
 from replays.errors import DataFormatError, DataRootError
 from replays.fetch import FetchError, fetch
 
@@ -18,8 +19,9 @@ USER_ERRORS = (FetchError, DataRootError, DataFormatError, OSError)  # OSError: 
 
 def run_fetch(args: argparse.Namespace) -> int:
     """Fetch and verify every file; an interrupted run resumes where it stopped."""
+    dataset = DATASETS[args.dataset]
     try:
-        report = fetch(args.source, args.dest, quiet=args.quiet)
+        report = fetch(args.source, args.dest, quiet=args.quiet, dataset=dataset)
     except KeyboardInterrupt:
         if args.debug:
             raise
@@ -31,17 +33,18 @@ def run_fetch(args: argparse.Namespace) -> int:
     if not args.quiet:
         print(f"OK: {report.fetched} files fetched, {report.skipped} already present, "
               f"{report.bytes_moved / 1e6:.1f} MB moved, into {report.dest}")
-        env_root = os.environ.get(ENV_VAR)
+        env_root = os.environ.get(dataset.env_var)
         if env_root and data_root(env_root, check=False) != report.dest:
-            print(f"note: ${ENV_VAR}={env_root} takes precedence over {report.dest}; unset it to use this copy")
+            print(f"note: ${dataset.env_var}={env_root} takes precedence over {report.dest}; unset it to use this copy")
     return 0
 
 
 def run_verify(args: argparse.Namespace) -> int:
     """Check every file's SHA-256; print OK or the first bad file."""
-    root = data_root(args.root, check=False)
-    verify_data_root(root)
-    print(f"OK: every file in {root} matches the project's SHA-256 sums")
+    dataset = DATASETS[args.dataset]
+    root = data_root(args.root, check=False, dataset=dataset)
+    verify_data_root(root, dataset)
+    print(f"OK: every file in {root} matches the project's {dataset.title} SHA-256 sums")
     return 0
 
 
@@ -53,21 +56,25 @@ def build_parser() -> argparse.ArgumentParser:
     commands = parser.add_subparsers(dest="command", required=True)
     common = argparse.ArgumentParser(add_help=False)
     common.add_argument("--debug", action="store_true", help="show tracebacks instead of one error line (default: off)")
+    common.add_argument("--dataset", choices=list(DATASETS), default=ETH_UCY.key,
+                        help="eth_ucy: the ETH/UCY benchmark; citr: CITR's pedestrians and vehicle (Yang et al., IV "
+                             "2019), which validate the reactive pedestrians (default: eth_ucy)")
 
     fetch_cmd = commands.add_parser("fetch", parents=[common],
-                                    help="download or copy the ETH/UCY files and verify their SHA-256")
+                                    help="download or copy a data set's files and verify their SHA-256")
     fetch_cmd.add_argument("--from", dest="source", metavar="DIR_OR_ARCHIVE_OR_URL", default=None,
                            help="a folder laid out like the data root, a .zip/.tar(.gz) archive of one, or an "
-                                "http(s) base URL (default: the public mirrors, Social-STGCNN and LMTrajectory "
-                                "on GitHub)")
-    fetch_cmd.add_argument("--dest", metavar="DIR", default=str(DEFAULT_CACHE),
-                           help=f"data root to fill (default: {DEFAULT_CACHE})")
+                                "http(s) base URL (default: the public mirrors: for ETH/UCY Social-STGCNN and "
+                                "LMTrajectory on GitHub, for CITR its authors' repository at commit b6a9806)")
+    fetch_cmd.add_argument("--dest", metavar="DIR", default=None,
+                           help="data root to fill (default: ~/.cache/stcrowd/<dataset>)")
     fetch_cmd.add_argument("--quiet", action="store_true", help="no progress bar or summary (default: off)")
 
     verify = commands.add_parser("verify", parents=[common],
                                  help="check every file of a data root against the project's SHA-256 sums")
     verify.add_argument("--root", metavar="DIR", default=None,
-                        help=f"data root to check (default: ${ENV_VAR} if set, else {DEFAULT_CACHE})")
+                        help="data root to check (default: $STCROWD_DATA for eth_ucy, $STCROWD_CITR for citr, if "
+                             "set, else ~/.cache/stcrowd/<dataset>)")
     return parser
 
 

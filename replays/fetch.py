@@ -1,8 +1,9 @@
-"""Fetch the ETH/UCY files into a data root, checking each against the project's SHA-256 sums.
+"""Fetch a data set's files (ETH/UCY or CITR) into a data root, checking each against the project's SHA-256 sums.
 
-Sources (``python -m replays fetch --from ...``):
+Sources (``python -m replays fetch [--dataset citr] --from ...``):
 
-- nothing: the public mirrors, one row per folder in ``MIRRORS``;
+- nothing: the public mirrors: for ETH/UCY one row per folder in ``MIRRORS``, for CITR its authors' repository at
+  a fixed commit (``CITR_URL``);
 - an http(s) URL: one base URL laid out like the data root (same download code as the mirrors);
 - a folder laid out like the data root (e.g. ``../shared/datasets/eth_ucy``);
 - a ``.zip`` / ``.tar`` / ``.tar.gz`` archive of such a folder, at its top or under one folder.
@@ -36,7 +37,7 @@ from urllib.request import Request, urlopen
 
 from tqdm import tqdm
 
-from replays.data_root import DEFAULT_CACHE, expected_sums, sha256_of
+from replays.data_root import CITR, ETH_UCY, Dataset, expected_sums, sha256_of
 from replays.errors import DataFormatError
 from replays.files import open_regular
 
@@ -53,10 +54,13 @@ MIRRORS: Final[tuple[tuple[str, str, tuple[str, str] | None], ...]] = (
     ("homography/", LMTRAJECTORY_URL, None),
     ("image/", LMTRAJECTORY_URL, ("_map.png", "_oracle.png")),  # LMTrajectory calls the maps *_oracle.png
 )
+CITR_URL: Final = ("https://raw.githubusercontent.com/dongfang-steven-yang/vci-dataset-citr/"
+                   "b6a980628f48e7c80c748c3e333979ca3a6b0301/data/trajectories_filtered/")
+"""CITR's filtered trajectories at the authors' commit b6a9806 (2019-04-19), laid out as our data root"""
 TIMEOUT_S: Final = 30.0  # per connection attempt and per blocking read
 RETRY_DELAYS_S: Final = (0.5, 2.0)  # pauses before the 2nd and 3rd attempt at one file
 CHUNK_BYTES: Final = 1 << 16
-MAX_FILE_BYTES: Final = 64 << 20  # no file of the data set comes near this (the largest is 0.9 MB) [B]
+MAX_FILE_BYTES: Final = 64 << 20  # no file of either data set comes near this (the largest is 0.9 MB) [B]
 MODIFIED_SUFFIX: Final = ".modified"  # an existing file with other bytes is renamed <file>.modified
 USER_AGENT: Final = "stcrowd-fetch/0.1 (python urllib)"
 ARCHIVE_ERRORS: Final = (tarfile.TarError, zipfile.BadZipFile, EOFError, zlib.error)  # damaged archive
@@ -103,8 +107,10 @@ class Source(Protocol):
     def open(self, name: str, offset: int) -> AbstractContextManager[Opened]: ...
 
 
-def mirror_url(name: str) -> str:
+def mirror_url(name: str, dataset: Dataset = ETH_UCY) -> str:
     """Public-mirror URL of one file of our layout (``image/seq_eth_map.png`` -> ``.../seq_eth_oracle.png``)."""
+    if dataset is CITR:
+        return CITR_URL + quote(name)
     for folder, base_url, rename in MIRRORS:
         if name.startswith(folder):
             if rename is not None and name.endswith(rename[0]):
@@ -181,12 +187,13 @@ class FolderSource:
 class ArchiveSource:
     """Files read from a zip or tar archive holding the data-root layout at its top or under one folder."""
 
-    def __init__(self, path: Path, members: dict, open_member: Callable, position: Callable) -> None:
+    def __init__(self, path: Path, members: dict, open_member: Callable, position: Callable,
+                 names: Iterable[str]) -> None:
         self.path = path
         self._members = {posixpath.normpath(name): member for name, member in members.items()}
         self._open_member = open_member
         self._position = position
-        self.prefix = _layout_prefix(self._members, expected_sums())
+        self.prefix = _layout_prefix(self._members, names)
 
     def where(self, name: str) -> str:
         return f"{self.path}:{self.prefix + name}"
@@ -215,10 +222,11 @@ def _layout_prefix(members: Iterable[str], names: Iterable[str]) -> str:
 
 
 @contextmanager
-def open_source(spec: str | os.PathLike | None) -> Iterator[Source]:
-    """Open the source named by ``--from``: None (public mirrors), an http(s) URL, a folder or an archive."""
+def open_source(spec: str | os.PathLike | None, dataset: Dataset = ETH_UCY) -> Iterator[Source]:
+    """Open the source named by ``--from``: None (the data set's public mirrors), an http(s) URL, a folder or an
+    archive."""
     if spec is None:
-        yield UrlSource(mirror_url)
+        yield UrlSource(lambda name: mirror_url(name, dataset))
         return
     text = os.fspath(spec)
     if text.startswith(("http://", "https://")):
@@ -230,7 +238,7 @@ def open_source(spec: str | os.PathLike | None) -> Iterator[Source]:
         yield FolderSource(path)
     elif path.is_file() and (zipfile.is_zipfile(path) or tarfile.is_tarfile(path)):
         try:
-            with _open_archive(path) as archive_source:
+            with _open_archive(path, expected_sums(dataset)) as archive_source:
                 yield archive_source
         except ARCHIVE_ERRORS as err:  # raised while listing; per-file read errors are reported by _transfer
             raise FetchError(f"{path}: damaged or truncated archive ({err}). Get a fresh copy of it.") from err
@@ -239,25 +247,26 @@ def open_source(spec: str | os.PathLike | None) -> Iterator[Source]:
 
 
 @contextmanager
-def _open_archive(path: Path) -> Iterator[ArchiveSource]:
+def _open_archive(path: Path, names: Iterable[str]) -> Iterator[ArchiveSource]:
     if zipfile.is_zipfile(path):
         with zipfile.ZipFile(path) as archive:
             members = {info.filename: info for info in archive.infolist() if not info.is_dir()}
-            yield ArchiveSource(path, members, archive.open, lambda info: info.header_offset)
+            yield ArchiveSource(path, members, archive.open, lambda info: info.header_offset, names)
     else:
         with tarfile.open(path, "r:*") as archive:
             members = {m.name: m for m in archive.getmembers() if m.isfile()}
-            yield ArchiveSource(path, members, archive.extractfile, lambda m: m.offset)
+            yield ArchiveSource(path, members, archive.extractfile, lambda m: m.offset, names)
 
 
 def fetch(source: str | os.PathLike | None = None, dest: str | os.PathLike | None = None, *,
-          quiet: bool = False) -> FetchReport:
-    """Fill ``dest`` with every file of the project's SHA-256 list, verified.
+          quiet: bool = False, dataset: Dataset = ETH_UCY) -> FetchReport:
+    """Fill ``dest`` with every file of the data set's SHA-256 list, verified.
 
     Args:
         source: None for the public mirrors, an http(s) base URL, a folder or an archive (see module doc).
-        dest: data root to fill; default ``~/.cache/stcrowd/eth_ucy``.
+        dest: data root to fill; default the data set's cache (``~/.cache/stcrowd/eth_ucy``, ``.../citr``).
         quiet: no progress bar.
+        dataset: which data set (``replays.data_root.ETH_UCY`` or ``CITR``).
 
     Returns:
         Counts of fetched and skipped files.
@@ -265,14 +274,14 @@ def fetch(source: str | os.PathLike | None = None, dest: str | os.PathLike | Non
     Raises:
         FetchError: on the first file that cannot be fetched or fails its check; files verified so far stay.
     """
-    dest = Path(dest if dest is not None else DEFAULT_CACHE).expanduser().resolve()
+    dest = Path(dest if dest is not None else dataset.default_cache).expanduser().resolve()
     if source is not None and Path(source).expanduser().resolve() == dest:
         raise FetchError(f"--from and --dest are the same folder ({dest}): nothing can be fetched from a folder "
                          f"into itself. Fetch from another copy, or check it with `python -m replays verify`.")
-    sums = expected_sums()
+    sums = expected_sums(dataset)
     fetched = skipped = moved = 0
     aside: list[Path] = []
-    with open_source(source) as src, tqdm(total=len(sums), unit="file", desc="fetch", disable=quiet) as bar:
+    with open_source(source, dataset) as src, tqdm(total=len(sums), unit="file", desc="fetch", disable=quiet) as bar:
         for name in src.order(list(sums)):
             final = dest / name
             if _holds(final, sums[name]):
