@@ -177,7 +177,8 @@ def test_an_empty_collection_is_refused_before_any_work() -> None:
 
 
 def test_a_stopped_training_continues_from_its_saved_state(tmp_path: Path) -> None:
-    """A finished 256-step run, started again with a 512-step budget, continues at 256; other settings refuse."""
+    """A finished 256-step run, started again with a 512-step budget, continues at 256; the finished run started again
+    with a budget it reached stands as it was; other settings and smaller budgets refuse."""
     from st_sim.apps.navigation.train_ppo import main, parse_args
 
     args = ["--no-predictions", "--num-envs", "2", "--demo-steps", "0", "--save-every", "1", "--out",
@@ -189,6 +190,10 @@ def test_a_stopped_training_continues_from_its_saved_state(tmp_path: Path) -> No
     curve = json.loads((tmp_path / "run" / "curve.json").read_text())
     assert record["resumed_from"] == 256 and curve[:len(first)] == first
     assert curve[-1]["timesteps"] == 512
+    finished = (tmp_path / "run" / "training.json").read_bytes()
+    for budget in ("512", "300"):  # the same budget again, or one its last rollout passed: nothing moves
+        main(parse_args([*args, "--timesteps", budget]))
+        assert (tmp_path / "run" / "training.json").read_bytes() == finished
     with pytest.raises(ValueError, match=r"resume\.zip: saved by a run with other settings \(seed\)"):
         main(parse_args([*args, "--timesteps", "768", "--seed", "1"]))
     with pytest.raises(ValueError, match=r"holds a run of 512 env steps; --timesteps 256 cannot shrink it"):

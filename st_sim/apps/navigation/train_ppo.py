@@ -350,10 +350,17 @@ def main(cfg: TrainConfig) -> Path:
     if saved is not None:
         model = CriticFirstPPO.load(saved[0], env=vec, device=device)
         resumed_from, curve = int(model.num_timesteps), saved[1]
-        if resumed_from > cfg.timesteps:
+        rollout = cfg.n_steps * cfg.num_envs  # PPO learns whole rollouts: a budget of T ends within one past T
+        if resumed_from >= cfg.timesteps + rollout:
             vec.close()
             raise ValueError(f"{out} holds a run of {resumed_from} env steps; --timesteps {cfg.timesteps} cannot "
                              "shrink it (ask for more to extend it, or use another --out)")
+        if resumed_from >= cfg.timesteps and (out / "training.json").is_file() and (out / "policy.pt").is_file():
+            vec.close()  # the same command again: the finished run stands as it was (and is shipped if asked)
+            if cfg.ship_as:
+                ship(out / "policy.pt", cfg.ship_as, json.loads((out / "training.json").read_text()))
+            print(f"{out} finished at {resumed_from} env steps; its policy.pt and training.json stand")
+            return out / "policy.pt"
         print(f"resuming {saved[0]} at {resumed_from} env steps")
         if (out / "cloning.json").is_file():
             cloning = json.loads((out / "cloning.json").read_text())
