@@ -51,11 +51,15 @@ class Dataset:
         return Path(f"~/.cache/stcrowd/{self.key}")
 
     @property
+    def fetch_command(self) -> str:
+        """The command that fetches this data set (``python -m replays fetch [--dataset KEY]``)."""
+        return "python -m replays fetch" + ("" if self is ETH_UCY else f" --dataset {self.key}")
+
+    @property
     def fix_hint(self) -> str:
         """How to get the files, for error messages."""
-        flag = "" if self is ETH_UCY else f" --dataset {self.key}"
-        return (f"Fetch the data with `python -m replays fetch{flag}` (or `python -m replays fetch{flag} --from "
-                f"DIR_OR_ARCHIVE`), or point {self.env_var} at a folder holding the {self.title} files.")
+        return (f"Fetch the data with `{self.fetch_command}` (or `{self.fetch_command} --from DIR_OR_ARCHIVE`), or "
+                f"point {self.env_var} at a folder holding the {self.title} files.")
 
 
 ETH_UCY: Final = Dataset("eth_ucy", "ETH/UCY", "STCROWD_DATA", ".txt")
@@ -143,8 +147,7 @@ def _accept_or_refuse(root: Path, source: str, modified: dict[str, str], verify:
         raise DataRootError(
             f"{dataset.title} data root {root} (from {source}) differs from the project's SHA-256 sums in "
             f"{len(modified)} file(s): {listed}{more}. Results from it would not be the benchmark's. Restore the "
-            f"files with `python -m replays fetch{'' if dataset is ETH_UCY else ' --dataset ' + dataset.key} "
-            f"--dest {root}` (edited files are kept as NAME.modified), or, to "
+            f"files with `{dataset.fetch_command} --dest {root}` (edited files are kept as NAME.modified), or, to "
             f"use an edited copy on purpose, set {ALLOW_MODIFIED_ENV_VAR}=1 or pass verify=False."
         )
     print(f"WARNING: using the MODIFIED {dataset.title} data root {root}: {len(modified)} file(s) differ from the "
