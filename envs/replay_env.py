@@ -14,6 +14,7 @@ from envs.common.config import EnvConfig
 from envs.common.crowd_env import CrowdEnv, check_flag
 from envs.common.ego import move_within, spawn_start_goal, walkable_points
 from envs.common.errors import EnvInputError, ResetOptionsError
+from envs.common.footprint import Body
 from envs.common.predictors import shipped_checkpoint
 from envs.common.reactive import ReactiveCrowd
 from envs.common.tracks import Frame
@@ -88,8 +89,10 @@ class ReplayCrowdEnv(CrowdEnv):
     ego is a point robot of radius 0.3 m that moves at the commanded velocity at once (``ego_max_accel_mps2`` is
     inf) and cannot leave the arena (recorded area + 1 m, within the scene's image: a move off the image keeps
     only the axis that stays on it). With ``pedestrians="log"`` (default) the pedestrians walk exactly as recorded
-    and do not react to it; with ``"reactive"`` each one walks its own log until the robot is in its way, then
-    steps aside or slows down along its logged route and catches up with its log (``envs.common.reactive``).
+    and do not react to it; with ``"reactive"`` each one walks its own log until it has noticed the robot (in its
+    field of view or hearing), reacted (a reaction time later) and the robot is in its way, then steps aside or slows
+    down along its logged route and catches up with its log; noticed or not, nobody walks into the robot's body
+    (``envs.common.reactive``; the reaction fitted on CITR, ``envs.common.reaction``).
 
     ## Action Space
     Box(-1.5, 1.5, (2,), float32): ego velocity (vx, vy) [m/s], world frame; scaled down to
@@ -161,7 +164,9 @@ class ReplayCrowdEnv(CrowdEnv):
     "cpu", "cuda", "cuda:N" or "mps"; a predictor object passed in runs where it is).
 
     ## Version History
-    - v0: initial version. 2026-11-25, same id (the default is unchanged): ``pedestrians="reactive"``,
+    - v0: initial version. 2026-11-26, same id (the default is unchanged): reactive pedestrians notice the robot
+      within a field of view or hearing, react a reaction time later and keep a room that grows with the robot's
+      speed, all fitted on CITR. 2026-11-25, same id (the default is unchanged): ``pedestrians="reactive"``,
       ``info["pedestrians"]``, ``info["off_log"]``, ``info["log_deviation_m"]``. 2026-11-23, same id
       (reward, observation and dynamics unchanged): ``info["termination"]``, the ``collision`` reward part
       renamed ``pedestrian_collision`` (and a ``wall_collision`` part, always 0), the ``ego_max_accel_mps2``
@@ -203,7 +208,7 @@ class ReplayCrowdEnv(CrowdEnv):
         self.reactive: ReactiveCrowd | None = None
         if pedestrians == "reactive":
             self.reactive = ReactiveCrowd(self.replay.xy_m, self.replay.present, scene_depth(info.name, root),
-                                          self.cfg.ego_radius_m + self.cfg.pedestrian_radius_m)
+                                          Body(radius_m=self.cfg.ego_radius_m), self.cfg.pedestrian_radius_m)
 
     def _check_options(self, options: dict[str, Any]) -> None:
         if "start_index" not in options:

@@ -15,13 +15,16 @@ from hypothesis import strategies as st
 import envs  # noqa: F401  (registers the ids)
 from envs import REPLAY_SCENES
 from envs.common.errors import EnvInputError
-from envs.common.reactive import ReactiveCrowd
+from envs.common.footprint import Body
+from envs.common.reaction import Reaction
+from envs.common.reactive import ROBOT_MARGIN_M, ReactiveCrowd
 from replays.scenes import Scene
 from st_sim.sim.map_depth import MapDepth
 from st_sim.sim.sweep import closest_approach
 
 REPLAY_IDS = [f"STCrowd-{scene}-v0" for scene in REPLAY_SCENES]
 CONTACT_M = 0.55  # the replays' robot-pedestrian contact distance (0.3 m + 0.25 m)
+ROBOT = Body(radius_m=0.3)  # the replays' robot; a pedestrian touches it within 0.25 m of its body
 
 
 @pytest.mark.parametrize("env_id", REPLAY_IDS, ids=REPLAY_IDS)
@@ -152,15 +155,16 @@ def _straight_logs(seed: int, walkers: int, speed: float, frames: int = 80) -> n
 
 
 def _walk_past_a_standing_robot(seed: int, walkers: int, speed: float, depth: MapDepth | None = None,
-                                robot: np.ndarray | None = None) -> tuple[ReactiveCrowd, np.ndarray, np.ndarray]:
-    """Straight logs past a robot standing at ``robot`` (default the origin); returns the crowd, every frame's
-    positions (F, W, 2) and the logs (F, W, 2)."""
+                                robot: np.ndarray | None = None, body: Body = ROBOT, reaction: Reaction | None = None,
+                                heading: float = 0.0) -> tuple[ReactiveCrowd, np.ndarray, np.ndarray]:
+    """Straight logs past a robot (``body``, turned to ``heading``) standing at ``robot`` (default the origin);
+    returns the crowd, every frame's positions (F, W, 2) and the logs (F, W, 2)."""
     log = _straight_logs(seed, walkers, speed)
     robot = np.zeros(2) if robot is None else robot
-    crowd = ReactiveCrowd(log, np.ones(log.shape[:2], bool), depth or _open_square(), CONTACT_M)
+    crowd = ReactiveCrowd(log, np.ones(log.shape[:2], bool), depth or _open_square(), body, 0.25, reaction)
     path = [crowd.reset(0).copy()]
     for index in range(1, len(log)):
-        path.append(crowd.step(index, robot, robot).copy())
+        path.append(crowd.step(index, robot, robot, heading).copy())
     return crowd, np.array(path), log
 
 
@@ -177,6 +181,12 @@ def _frozen(path: np.ndarray, log: np.ndarray) -> list[tuple[int, int]]:
 
 REACTIVE_DRAWS = settings(max_examples=25, deadline=None)
 walk = {"seed": st.integers(0, 2**32 - 1), "walkers": st.integers(1, 12), "speed": st.floats(0.5, 2.0)}
+reactions = st.builds(Reaction, fov_deg=st.floats(0.0, 180.0), hearing_m=st.floats(0.0, 6.0),
+                      reaction_s=st.floats(0.0, 2.0), anticipation_s=st.floats(0.4, 4.0),
+                      clearance_m=st.floats(0.0, 1.5), head_on_s=st.floats(0.0, 1.5), behind_s=st.floats(0.0, 1.5),
+                      crossing_s=st.floats(0.0, 1.5))
+UNAWARE = Reaction(fov_deg=0.0, hearing_m=0.0, reaction_s=0.0, anticipation_s=1.2, clearance_m=0.3, head_on_s=0.3,
+                   behind_s=0.3, crossing_s=0.3)  # notices nothing: only the safety rule moves it
 
 
 @REACTIVE_DRAWS
@@ -228,10 +238,10 @@ def test_a_log_that_ends_where_the_robot_stands_leaves_beside_it() -> None:
     """Logs that end at the robot's spot: their pedestrians leave the scene beside the robot, not far away."""
     log = _straight_logs(4, 6, 1.2, frames=30)
     robot = log[-1, 0].copy()  # on the end of walker 0's log
-    crowd = ReactiveCrowd(log, np.ones(log.shape[:2], bool), _open_square(), CONTACT_M)
+    crowd = ReactiveCrowd(log, np.ones(log.shape[:2], bool), _open_square(), ROBOT, 0.25)
     present = np.ones(log.shape[:2], bool)
     present[-5:, 0] = False  # walker 0's log ends 5 frames before the others'
-    crowd = ReactiveCrowd(np.where(present[..., None], log, np.nan), present, _open_square(), CONTACT_M)
+    crowd = ReactiveCrowd(np.where(present[..., None], log, np.nan), present, _open_square(), ROBOT, 0.25)
     crowd.reset(0)
     last_seen = None
     for index in range(1, len(log)):
@@ -240,3 +250,86 @@ def test_a_log_that_ends_where_the_robot_stands_leaves_beside_it() -> None:
             last_seen = xy[0].copy()
     assert not crowd.state.present[0], "walker 0 never left"
     assert np.linalg.norm(last_seen - log[-6, 0]) <= 1.0 + 1e-9
+
+
+@REACTIVE_DRAWS
+@given(**walk, reaction=reactions, length=st.floats(0.0, 3.0), width=st.floats(0.0, 1.5), heading=st.floats(-3.2, 3.2))
+def test_whatever_they_notice_nobody_walks_into_a_standing_robot_or_a_box(seed: int, walkers: int, speed: float,
+                                                                          reaction: Reaction, length: float,
+                                                                          width: float, heading: float) -> None:
+    """The safety rule: with any reaction (blind and deaf ones included) and a disc or a vehicle's box, the
+    pedestrians stay ``ROBOT_MARGIN_M`` clear of touching a standing body along every step, nobody freezes, nobody
+    presses into anybody where the logs do not, and all are back on their logs by the end."""
+    body = Body(length, width, 0.3 if length == width == 0 else 0.0)
+    crowd, path, log = _walk_past_a_standing_robot(seed, walkers, speed, body=body, reaction=reaction,
+                                                   heading=heading)
+    gap = body.swept_gap_m(path[:-1], path[1:], heading)  # the body at the origin
+    assert gap.min() >= 0.25 + ROBOT_MARGIN_M - 1e-9, f"a pedestrian came {gap.min():.3f} m from the body"
+    assert not _frozen(path, log), f"frozen (frame, walker): {_frozen(path, log)[:5]}"
+    apart = np.linalg.norm(path[:, :, None] - path[:, None], axis=-1)
+    logged = np.linalg.norm(log[:, :, None] - log[:, None], axis=-1)
+    assert not ((apart < 0.3) & (logged >= 0.3)).any(), "a pair overlaps by more than 10 cm where its logs do not"
+    assert not crowd.state.off_log.any(), f"{crowd.state.off_log.sum()} pedestrians never rejoined their logs"
+
+
+def _walker_and_moving_robot(lateral_m: float, robot_speed: float, start_m: float, reaction: Reaction,
+                             frames: int = 40) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """One walker along +x at 1.2 m/s from the origin; a robot on a line ``lateral_m`` to its side, starting at
+    x = ``start_m`` and driving toward the walker's side of it (head-on from ahead, along from behind) at
+    ``robot_speed`` [m/s]. Returns the walker's path (F, 2), its log (F, 2) and the robot's positions (F, 2); at
+    every step the crowd sees the robot's true move."""
+    log = np.c_[np.arange(frames) * 0.4 * 1.2, np.zeros(frames)][:, None]  # (F, 1, 2)
+    direction = -np.sign(start_m)
+    robot = np.array([start_m, lateral_m]) + direction * robot_speed * 0.4 * np.c_[np.arange(frames), np.zeros(frames)]
+    crowd = ReactiveCrowd(log, np.ones((frames, 1), bool), _open_square(30.0), ROBOT, 0.25, reaction)
+    path = [crowd.reset(0)[0].copy()]
+    for index in range(1, frames):
+        path.append(crowd.step(index, robot[index - 1], robot[index])[0].copy())
+    return np.array(path), log[:, 0], robot
+
+
+@REACTIVE_DRAWS
+@given(lateral=st.floats(0.0, 0.4), robot_speed=st.floats(1.3, 3.0), fov=st.floats(0.0, 80.0),
+       hearing=st.floats(0.0, 3.0))
+def test_a_robot_coming_from_behind_is_noticed_only_within_hearing(lateral: float, robot_speed: float, fov: float,
+                                                                    hearing: float) -> None:
+    """Field of view and hearing: a robot closing in from behind, outside the walker's field of view, is noticed only
+    within hearing; until then the walker keeps to its log exactly (but for the safety rule, once the robot's body
+    is within a log step of its log)."""
+    reaction = Reaction(fov_deg=fov, hearing_m=hearing, reaction_s=0.0, anticipation_s=1.6, clearance_m=0.5,
+                        head_on_s=0.5, behind_s=0.5, crossing_s=0.5)
+    path, log, robot = _walker_and_moving_robot(lateral, robot_speed, -8.0, reaction)
+    gap = np.linalg.norm(log - robot, axis=1) - 0.3
+    heard = np.flatnonzero(gap <= max(hearing, 0.25 + ROBOT_MARGIN_M + 0.48))  # 0.48 m: a step of its log
+    quiet = int(heard[0]) if heard.size else len(path) - 1  # steps up to here start with the robot unheard
+    assert np.array_equal(path[:quiet + 1], log[:quiet + 1]), "the walker left its log before it heard the robot"
+
+
+def test_a_robot_driving_along_the_log_of_a_walker_that_notices_nothing_reaches_it() -> None:
+    """Inattention has a price: nothing keeps a fast robot from behind off a walker that neither sees nor hears it."""
+    path, _, robot = _walker_and_moving_robot(0.0, 2.5, -8.0, UNAWARE)
+    assert (np.linalg.norm(path - robot, axis=1) < CONTACT_M).any()
+
+
+@REACTIVE_DRAWS
+@given(lateral=st.floats(1.0, 2.0), robot_speed=st.floats(0.5, 2.0), reaction_s=st.floats(0.0, 2.0))
+def test_a_walker_reacts_no_sooner_than_a_reaction_time_after_it_notices_the_robot(lateral: float,
+                                                                                    robot_speed: float,
+                                                                                    reaction_s: float) -> None:
+    """Reaction time: a robot coming head-on beside the walker's log (which never touches the robot's body) is in
+    view from the first step; the walker keeps to its log until ``reaction_s`` has passed (to the 0.4 s step it falls
+    in), and then makes room."""
+    reaction = Reaction(fov_deg=90.0, hearing_m=0.0, reaction_s=reaction_s, anticipation_s=4.0, clearance_m=1.5,
+                        head_on_s=0.5, behind_s=0.5, crossing_s=0.5)
+    path, log, _ = _walker_and_moving_robot(lateral, robot_speed, 10.0, reaction)
+    strayed = np.flatnonzero(np.linalg.norm(path - log, axis=1) > 1e-9)
+    assert strayed.size, "the walker never made room for the robot"
+    assert 0.4 * strayed[0] > reaction_s - 1e-9, f"left its log at step {strayed[0]}, reaction time {reaction_s} s"
+
+
+def test_a_walker_blind_and_deaf_still_goes_round_a_robot_standing_on_its_log() -> None:
+    """The safety rule needs no attention: a robot standing on the log is gone round by a walker that notices
+    nothing, just clear of touching it."""
+    _, path, _ = _walk_past_a_standing_robot(3, 6, 1.2, reaction=UNAWARE)
+    gap, _ = closest_approach(path[:-1], path[1:])
+    assert CONTACT_M + ROBOT_MARGIN_M - 1e-9 <= gap.min() < CONTACT_M + 0.3, f"closest {gap.min():.3f} m"

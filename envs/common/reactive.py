@@ -1,24 +1,37 @@
-"""Reactive replay: recorded pedestrians walk their own logged routes, stepping aside or slowing down for the robot.
+"""Reactive replay: recorded pedestrians walk their own logged routes, stepping aside or slowing down for a robot they
+have noticed, and never into its body.
 
-Every pedestrian follows its recording exactly until its logged path over the next ``LOOK_AHEAD_STEPS`` frames
-would bring it within ``CLEARANCE_M`` of the robot's body (the robot taken at its current velocity) or of a
-pedestrian already off its log. From then on it stays on its logged *route* and only chooses where along it and how
-far to its side: its place is the log at a fractional frame ``tau`` (never ahead of the log) moved ``offset_m`` to
-the left of the route's direction there (a Frenet frame along the log). Each 0.4 s step it picks, among a grid of
-progress along its route (from half a step back to as far as it can walk in one, or to where its log is now) and
-side offsets (up to ``MAX_OFFSET_M``), the place that loses the least time
-and strays the least while
+**What a pedestrian knows of the robot.** Where its body is (``footprint.Body``: a disc for STCrowd's robot, a box for
+a vehicle) and how it moved in the last step: it expects the robot to hold that velocity over the step. **When it
+reacts** (``reaction.Reaction``, fitted on CITR): it notices the robot within its field of view or hearing, reacts a
+reaction time later, and from then on keeps room round the robot that grows with the robot's speed, depending on
+whether it comes head-on, from behind or across.
+
+Every pedestrian follows its recording exactly until either
+
+- it reacts to the robot and its log over the next ``anticipation_s`` would bring it within its room of the robot's
+  expected course, or its log comes within ``PAIR_CLEARANCE_M`` of a pedestrian already off its log; or
+- (the **safety rule**, noticed or not) its log's step would take it within ``ROBOT_MARGIN_M`` of touching the
+  robot's body where it stands: nobody walks into the robot.
+
+From then on it stays on its logged *route* and only chooses where along it and how far to its side: its place is
+the log at a fractional frame ``tau`` (never ahead of the log) moved ``offset_m`` to the left of the route's direction
+there (a Frenet frame along the log). Each 0.4 s step it picks, among a grid of progress along its route (from half a
+step back to as far as it can walk in one, or to where its log is now) and side offsets (up to ``MAX_OFFSET_M``), the
+place that loses the least time and strays the least while
 
 - it walks no faster than it can catch up (``CATCH_UP_MPS``, or ``CATCH_UP_FACTOR`` times its log's speed);
 - along its step it is never deeper in the scene's non-walkable area, nor farther off the image, than the nearest
   point of its log (near that point of its route, ``DEPTH_WINDOW``) or its log close to that point of the route
   (``CROSSING_WINDOW``): a log that crosses a traced wall lets it cross there too and traps nobody, while nobody is
   pushed into a wall beside a log, nor jumps over a thin one;
-- along the whole step, moving in a straight line, it keeps ``ROBOT_MARGIN_M`` beyond the env's contact distance
-  from the robot (moving in its straight line) and ``2 BODY_RADIUS_M - PAIR_GIVE_M`` from everybody else (or at
-  least the gap it already had);
-- it keeps clear of where the robot and the others will be over the next ``ANTICIPATION_STEPS`` (a cost, so that
-  it steps aside early rather than at the last moment).
+- along the whole step, moving in a straight line, it keeps ``ROBOT_MARGIN_M`` beyond touching the robot's body (as
+  it expects the robot to move once it reacts; as the robot stands before) and ``2 BODY_RADIUS_M - PAIR_GIVE_M`` from
+  everybody else (or at least the gap it already had);
+- once it reacts, it keeps its room from where the robot will be over the next ``anticipation_s``; before, it keeps
+  ``COMFORT_M`` from the robot's body where it stands (a body in its way, not a robot it expects to move); and it
+  keeps its body's width from where the others off their logs will be over ``ANTICIPATION_STEPS`` (costs, so that it
+  steps aside early rather than at the last moment).
 
 The pedestrians off their log choose one after another, the one nearest the robot first, each seeing the choices
 already made. Once a pedestrian is within ``REJOIN_M`` of where its log is now and nothing is in its way, it is on
@@ -31,36 +44,38 @@ out of everyone's way, the replay is the recording exactly.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Final
+from typing import Final, Protocol
 
 import numpy as np
 
+from envs.common.footprint import Body
+from envs.common.reaction import MOVING_MPS, Reaction, attend, fitted_reaction, notices
 from replays.constants import STEP_S
-from st_sim.sim.map_depth import MapDepth
 from st_sim.sim.sweep import closest_approach
 
-LOOK_AHEAD_STEPS: Final[int] = 3  # a pedestrian looks this many 0.4 s steps along its log for the robot [-]
-CLEARANCE_M: Final[float] = 0.2  # ... and leaves its log if that path passes closer than this to a body [m]
+PAIR_LOOK_AHEAD_STEPS: Final[int] = 3  # a pedestrian looks this many 0.4 s steps along its log for others off theirs
+PAIR_CLEARANCE_M: Final[float] = 0.2  # ... and leaves its log if that path passes closer than this to a body [m]
 REJOIN_M: Final[float] = 0.1  # back on its log (or out of the scene, at the log's end) when this close to it [m]
 BODY_RADIUS_M: Final[float] = 0.2  # radius of a reactive pedestrian's body [m]
-ROBOT_MARGIN_M: Final[float] = 0.05  # reactive pedestrians keep this much beyond the env's contact distance [m]
+ROBOT_MARGIN_M: Final[float] = 0.05  # reactive pedestrians keep this much beyond touching the robot's body [m]
 PAIR_GIVE_M: Final[float] = 0.05  # two pedestrians may come this far inside body contact (shoulders turn) [m]
 CATCH_UP_MPS: Final[float] = 1.8  # fastest a pedestrian walks to catch up with its log [m/s] ...
 CATCH_UP_FACTOR: Final[float] = 1.25  # ... or this multiple of its log's own speed, if that is faster [-]
-MAX_OFFSET_M: Final[float] = 1.2  # farthest a pedestrian steps to the side of its route [m]
+MAX_OFFSET_M: Final[float] = 3.0  # farthest a pedestrian steps to the side of its route [m]
 PROGRESS_SHARES: Final[np.ndarray] = np.linspace(-0.5, 1.0, 25)  # progress along the route it may choose per step,
 """as shares of the farthest it can walk in one (and catching up with its log at once); back up to half a step [-]"""
-OFFSETS_M: Final[np.ndarray] = np.linspace(-MAX_OFFSET_M, MAX_OFFSET_M, 13)  # side offsets it may choose [m]
+OFFSETS_M: Final[np.ndarray] = np.linspace(-MAX_OFFSET_M, MAX_OFFSET_M, 31)  # side offsets it may choose [m]
 DEPTH_TOLERANCE_M: Final[float] = 0.0  # it may stand this much deeper in the non-walkable area than its log [m]
 MAX_LINGER_STEPS: Final[int] = 25  # a pedestrian behind its log leaves at most this many steps after the log ends
 LEAVE_BLOCKED_M: Final[float] = 0.9  # one who cannot get closer to where its log ends leaves this close to it [m]
-ANTICIPATION_STEPS: Final[int] = 3  # it keeps clear of where the others will be over this many steps [-]
-COMFORT_M: Final[float] = 0.3  # ... by this much beyond contact [m]
+ANTICIPATION_STEPS: Final[int] = 3  # it keeps clear of where the others off their logs will be over this many steps
+COMFORT_M: Final[float] = 0.3  # ... by this much beyond contact, as from a robot's body it has not noticed [m]
 LAG_COST: Final[float] = 1.0  # cost of a frame (0.4 s) of delay against its log [1/frame]
 OFFSET_COST: Final[float] = 0.5  # cost of standing a metre to the side of its route [1/m]
 SWAY_COST: Final[float] = 0.2  # cost of changing its side offset by a metre in one step [1/m]
-RISK_COST: Final[float] = 10.0  # cost of the anticipated intrusions into the comfort gap [1/m^2]
-STUCK_COST: Final[float] = 0.5  # cost of standing still again, per step it already stood still off its log [-]
+RISK_COST: Final[float] = 10.0  # cost of the anticipated intrusions into the room round the robot and others [1/m^2]
+STUCK_COST: Final[float] = 0.5  # cost of making no headway again, per step it already made none off its log [-]
+HEADWAY_FRAMES: Final[float] = 0.1  # ... a step that moves it less far along its route than this makes none [frame]
 STILL_M: Final[float] = 0.02  # a pedestrian moving less than this in a step stands still [m]
 MIN_STEP_M: Final[float] = 0.01  # log steps shorter than this give no direction [m]
 PATH_SAMPLES: Final[tuple[float, ...]] = (0.25, 0.5, 0.75, 1.0)  # where along a step the map bound is checked [-]
@@ -71,16 +86,38 @@ TANGENT_WINDOW: Final[int] = 2  # a route's direction is averaged over this many
 WALL_WEIGHT: Final[float] = 100.0  # with no candidate within every bound: a metre into a wall weighs 100 of the rest
 
 
+class Depth(Protocol):
+    """How deep points lie in a scene's non-walkable area (``st_sim.sim.map_depth.MapDepth``, or ``OpenGround``)."""
+
+    def at(self, xy_m: np.ndarray) -> np.ndarray:
+        """(...) depth [m] of points (..., 2) [m]: 0 on walkable ground, inf off the scene's image."""
+        ...
+
+
+class OpenGround:
+    """Ground walkable everywhere (a parking lot): every point at depth 0."""
+
+    def at(self, xy_m: np.ndarray) -> np.ndarray:
+        return np.zeros(np.shape(xy_m)[:-1])
+
+
 @dataclass(frozen=True)
 class Robot:
-    """The robot's move over the step: from ``from_m`` to ``to_m`` (2,) [m] in a straight line."""
+    """The robot's move over the step as the pedestrians expect it: from ``from_m`` to ``to_m`` (2,) [m] in a straight
+    line, its body turned to ``heading_rad``."""
 
     from_m: np.ndarray
     to_m: np.ndarray
+    heading_rad: float
 
     @property
     def velocity_mps(self) -> np.ndarray:
         return (self.to_m - self.from_m) / STEP_S
+
+    @property
+    def heading(self) -> np.ndarray:
+        """(2,) unit heading."""
+        return np.array([np.cos(self.heading_rad), np.sin(self.heading_rad)])
 
 
 @dataclass(frozen=True, eq=False)
@@ -92,7 +129,9 @@ class Step:
         start: (A, 2) positions before the step [m].  xy: (A, 2) positions after it, as far as chosen (the log for
             those on it, the choice for those who chose, the start for those yet to choose) [m].
         present, off_log, chosen: (A,) bool.  velocity_mps: (A, 2) velocities over the previous step [m/s].
-        stuck: (A,) steps each has stood still off its log.
+        stuck: (A,) steps in a row each has made no headway along its route off its log.  farthest: (A,) the farthest
+            route point (fractional frame) each has reached since it left its log.
+        weight: (A,) how far each reacts to the robot in this step, in [0, 1].  room_m: (A,) the room it keeps [m].
     """
 
     index: int
@@ -103,7 +142,10 @@ class Step:
     chosen: np.ndarray
     velocity_mps: np.ndarray
     stuck: np.ndarray
+    farthest: np.ndarray
     robot: Robot
+    weight: np.ndarray
+    room_m: np.ndarray
 
 
 @dataclass(frozen=True, eq=False)
@@ -131,7 +173,12 @@ class ReactiveState:
         tau: (A,) fractional frame index of the log point that a pedestrian's place is taken from (off its log).
         offset_m: (A,) how far left of the route's direction at ``tau`` it stands [m] (off its log).
         linger: (A,) steps since its log ended (a pedestrian still on its way out), 0 otherwise.
-        stuck: (A,) steps in a row a pedestrian off its log has stood still (moved under ``STILL_M``).
+        stuck: (A,) steps in a row a pedestrian off its log has made no headway (its route point got less than
+            ``HEADWAY_FRAMES`` beyond the farthest it had reached), standing still or stepping to and fro.
+        farthest: (A,) the farthest route point (fractional frame) it has reached since it left its log.
+        noticed_s: (A,) how long it has had the robot in mind [s] (0: it has not noticed it).
+        unseen_s: (A,) how long since it last noticed the robot, while it keeps it in mind [s].
+        weight: (A,) how far it reacted to the robot in the last step, in [0, 1].
     """
 
     xy_m: np.ndarray
@@ -142,6 +189,10 @@ class ReactiveState:
     offset_m: np.ndarray
     linger: np.ndarray
     stuck: np.ndarray
+    farthest: np.ndarray
+    noticed_s: np.ndarray
+    unseen_s: np.ndarray
+    weight: np.ndarray
 
 
 class ReactiveCrowd:
@@ -149,13 +200,18 @@ class ReactiveCrowd:
 
     Args:
         log_xy_m: (F, A, 2) logged positions [m], NaN where absent.  present: (F, A) bool.
-        depth: the scene's non-walkable depth map (``MapDepth``).
-        contact_m: centre distance at which the env counts a robot-pedestrian contact [m].
+        depth: the scene's non-walkable depth (``MapDepth``; ``OpenGround`` where nothing is out of bounds).
+        body: the robot's footprint.
+        touch_m: gap to the robot's body [m] within which a pedestrian's centre touches it (the pedestrian radius of
+            the env's contact rule).
+        reaction: when the pedestrians notice the robot and react, and the room they keep (default: the fitted one).
     """
 
-    def __init__(self, log_xy_m: np.ndarray, present: np.ndarray, depth: MapDepth, contact_m: float):
-        self.log_xy_m, self.present, self.depth = log_xy_m, present, depth
-        self.robot_reach_m = contact_m + ROBOT_MARGIN_M  # centre distance a pedestrian keeps from the robot
+    def __init__(self, log_xy_m: np.ndarray, present: np.ndarray, depth: Depth, body: Body, touch_m: float,
+                 reaction: Reaction | None = None):
+        self.log_xy_m, self.present, self.depth, self.body = log_xy_m, present, depth, body
+        self.reaction = fitted_reaction() if reaction is None else reaction
+        self.robot_reach_m = touch_m + ROBOT_MARGIN_M  # gap a pedestrian keeps from the robot's body
         agents = present.shape[1]
         step = np.diff(np.nan_to_num(log_xy_m), axis=0)  # (F - 1, A, 2)
         moving = present[:-1] & present[1:]
@@ -188,11 +244,13 @@ class ReactiveCrowd:
         now = self.present[index]
         xy = np.where(now[:, None], self.log_xy_m[index], np.nan)
         agents = len(now)
+        zero = np.zeros(agents)
         return ReactiveState(xy, np.zeros_like(xy), now.copy(), np.zeros(agents, bool), np.full(agents, float(index)),
-                             np.zeros(agents), np.zeros(agents, int), np.zeros(agents, int))
+                             zero, np.zeros(agents, int), np.zeros(agents, int), np.full(agents, float(index)), zero,
+                             zero, zero)
 
     def reset(self, index: int) -> np.ndarray:
-        """Everybody on their log at frame ``index``; returns the (A, 2) positions."""
+        """Everybody on their log at frame ``index``, nobody has noticed the robot; returns the (A, 2) positions."""
         self.state = self._on_log(index)
         return self.state.xy_m
 
@@ -204,52 +262,62 @@ class ReactiveCrowd:
         frames = np.where(self.present[index, cols], index, ended)
         return np.linalg.norm(self.state.xy_m[cols] - self.log_xy_m[frames, cols], axis=1)
 
-    def step(self, index: int, robot_from_m: np.ndarray | None, robot_to_m: np.ndarray | None) -> np.ndarray:
+    def step(self, index: int, robot_from_m: np.ndarray | None, robot_to_m: np.ndarray | None,
+             robot_heading_rad: float | None = None) -> np.ndarray:
         """Advance from frame ``index - 1`` to ``index`` while, as the pedestrians expect, the robot moves from
         ``robot_from_m`` to ``robot_to_m`` (2,) [m] (None: no robot; the replay env passes the robot's last velocity
-        held, not its command); returns the (A, 2) positions at ``index`` (NaN: absent; who is present is
-        ``state.present``)."""
+        held, not its command), its body turned to ``robot_heading_rad`` (default: along that move); returns the
+        (A, 2) positions at ``index`` (NaN: absent; who is present is ``state.present``)."""
         old = self.state
         logged, log_now = self.present[index], self.log_xy_m[index]
         if robot_to_m is None:
             self.state = self._on_log(index)
             self.state.velocity_mps[:] = velocity(self.state.xy_m, old.xy_m, old.present & logged)
             return self.state.xy_m
-        robot = Robot(robot_from_m, robot_to_m)
+        robot = Robot(np.asarray(robot_from_m, np.float64), np.asarray(robot_to_m, np.float64),
+                      heading_of(robot_from_m, robot_to_m, robot_heading_rad))
+        walking = self._walking(old)
+        noticed, unseen = attend(old.noticed_s, old.unseen_s, self._notices(old, robot, walking))
+        weight = np.where(old.present, self.reaction.weight(noticed), 0.0)
+        room = self.reaction.room_m(robot.velocity_mps, robot.heading, walking,
+                                    np.nan_to_num((old.xy_m - robot.from_m) @ robot.velocity_mps) > 0)
         lingering = old.present & old.off_log & ~logged & (old.linger < MAX_LINGER_STEPS)  # on their way out
         present = logged | lingering
         off_log = (old.off_log & old.present & logged & (old.linger == 0)) | lingering  # a log that starts again: on
         start = np.where(old.present[:, None], old.xy_m, log_now)  # (A, 2) where each one is before the step
-        going = old.present & logged & ~off_log & self._in_the_way(index, robot.to_m, robot.velocity_mps, old)
+        going = old.present & logged & ~off_log & (self._robot_in_the_way(index, robot, weight, room)
+                                                   | self._others_in_the_way(index, old))
         off_log |= going
         tau = np.where(off_log, old.tau, float(index))
         tau[going] = index - 1.0  # from where they stood: their log at the previous frame
+        farthest = np.where(off_log, np.where(going, tau, old.farthest), float(index))
         offset = np.where(off_log, old.offset_m, 0.0)
         xy = np.where(off_log[:, None], start, log_now)
         xy[~present] = np.nan
         step = Step(index, start, xy, present, off_log, np.zeros(len(present), bool), old.velocity_mps, old.stuck,
-                    robot)
-        reach = np.linalg.norm(np.nan_to_num(log_now - robot.to_m, nan=np.inf), axis=1)
+                    farthest, robot, weight, room)
+        clear = self._clear_of_robot(log_now, robot)
         for agent in np.flatnonzero(logged & ~old.present):  # appears where the robot or one off its log stands?
             taken = start[off_log & present]
-            if reach[agent] >= self.robot_reach_m and \
+            if clear[agent] and \
                     not (np.linalg.norm(taken - log_now[agent], axis=1) < 2 * BODY_RADIUS_M - PAIR_GIVE_M).any():
                 continue
-            offset[agent] = self._clear_offset(agent, index, robot.to_m, taken)
+            offset[agent] = self._clear_offset(agent, index, robot, taken)
             xy[agent] = start[agent] = self._place(np.array([agent]), np.array([float(index)]), offset[[agent]],
                                                    index)[0]
             off_log[agent] = step.chosen[agent] = True
         order = np.flatnonzero(off_log & ~step.chosen)
-        order = order[np.argsort(np.linalg.norm(start[order] - robot.to_m, axis=1), kind="stable")]
+        order = order[np.argsort(self.body.gap_m(start[order] - robot.from_m, robot.heading_rad), kind="stable")]
         for agent in order:  # the nearest to the robot first, each seeing the choices made before it
             tau[agent], offset[agent], xy[agent] = self._choose(agent, tau[agent], offset[agent], step)
             step.chosen[agent] = True
         # back on the log: caught up, beside it, and nothing in the way; out of the scene: where the log ended
         ahead = ReactiveState(xy, velocity(xy, old.xy_m, old.present & present), present, off_log, tau, offset,
-                              old.linger, old.stuck)
+                              old.linger, old.stuck, farthest, noticed, unseen, weight)
+        after = Robot(robot.to_m, 2 * robot.to_m - robot.from_m, robot.heading_rad)
         rejoin = (off_log & logged & (np.linalg.norm(np.nan_to_num(xy - log_now, nan=np.inf), axis=1) <= REJOIN_M)
-                  & ~self._in_the_way(index + 1, robot.to_m + robot.velocity_mps * STEP_S, robot.velocity_mps, ahead)
-                  & (reach >= self.robot_reach_m))
+                  & ~self._robot_in_the_way(index + 1, after, weight, room) & ~self._others_in_the_way(index + 1, ahead)
+                  & clear)
         xy[rejoin] = log_now[rejoin]
         off_log &= ~rejoin
         cols = np.arange(len(tau))
@@ -259,11 +327,37 @@ class ReactiveCrowd:
         present &= ~(lingering & ((to_end <= REJOIN_M) | (blocked & (to_end <= LEAVE_BLOCKED_M))))
         off_log &= present
         xy[~present] = np.nan
-        still = off_log & (np.linalg.norm(np.nan_to_num(xy - start), axis=1) < STILL_M)
+        no_headway = off_log & (tau < farthest + HEADWAY_FRAMES)
         self.state = ReactiveState(xy, velocity(xy, old.xy_m, old.present & present), present, off_log,
                                    np.where(off_log, tau, float(index)), np.where(off_log, offset, 0.0),
-                                   np.where(present & lingering, old.linger + 1, 0), np.where(still, old.stuck + 1, 0))
+                                   np.where(present & lingering, old.linger + 1, 0),
+                                   np.where(no_headway, old.stuck + 1, 0),
+                                   np.where(off_log, np.maximum(farthest, tau), float(index)),
+                                   np.where(present, noticed, 0.0), np.where(present, unseen, 0.0), weight)
         return xy
+
+    # ------------------------------------------------------------------------------------------------ noticing
+    def _walking(self, state: ReactiveState) -> np.ndarray:
+        """(A, 2) unit walking directions: the velocity of those faster than ``MOVING_MPS``, else the route's
+        direction where they are on it."""
+        speed = np.linalg.norm(state.velocity_mps, axis=1, keepdims=True)
+        frame = np.clip(np.floor(state.tau), 0, len(self.present) - 1).astype(int)
+        route = self.tangent[frame, np.arange(len(frame))]
+        return np.where(speed > MOVING_MPS, state.velocity_mps / np.maximum(speed, 1e-12), route)
+
+    def _notices(self, state: ReactiveState, robot: Robot, walking: np.ndarray) -> np.ndarray:
+        """(A,) bool: the pedestrians present that notice the robot at the start of the step (``reaction.notices``)."""
+        offset = state.xy_m - robot.from_m
+        toward = robot.from_m + self.body.nearest_point_m(offset, robot.heading_rad) - state.xy_m
+        bearing = np.arctan2(walking[:, 0] * toward[:, 1] - walking[:, 1] * toward[:, 0], (walking * toward).sum(1))
+        gap = np.nan_to_num(self.body.gap_m(offset, robot.heading_rad), nan=np.inf)
+        return state.present & notices(self.reaction, gap, np.nan_to_num(bearing, nan=np.pi))
+
+    def _clear_of_robot(self, xy_m: np.ndarray, robot: Robot) -> np.ndarray:
+        """(A,) bool: points (A, 2) at least ``robot_reach_m`` from the robot's body where it stands and where it is
+        expected at the end of the step (NaN points are clear)."""
+        gaps = [self.body.gap_m(xy_m - where, robot.heading_rad) for where in (robot.from_m, robot.to_m)]
+        return np.nan_to_num(np.minimum(*gaps), nan=np.inf) >= self.robot_reach_m
 
     # ------------------------------------------------------------------------------------------------ choosing
     def _route(self, agents: np.ndarray, tau: np.ndarray, run_frame: int) -> tuple[np.ndarray, np.ndarray]:
@@ -299,15 +393,15 @@ class ReactiveCrowd:
         point, normal = self._route(agents, tau, run_frame)
         return point + offset_m[..., None] * normal
 
-    def _clear_offset(self, agent: int, index: int, robot_m: np.ndarray, others_m: np.ndarray) -> float:
-        """The smallest side offset [m] at frame ``index`` that clears the robot and the pedestrians at ``others_m``
-        (K, 2) and stays as walkable as the log (0 if none does)."""
+    def _clear_offset(self, agent: int, index: int, robot: Robot, others_m: np.ndarray) -> float:
+        """The smallest side offset [m] at frame ``index`` that clears the robot (where it stands and where it is
+        expected) and the pedestrians at ``others_m`` (K, 2), and stays as walkable as the log (0 if none does)."""
         offsets = OFFSETS_M[np.argsort(np.abs(OFFSETS_M), kind="stable")]
         who, taus = np.full(len(offsets), agent), np.full(len(offsets), float(index))
         places = self._place(who, taus, offsets, index)
         apart = np.linalg.norm(places[:, None] - others_m[None], axis=-1).min(axis=1, initial=np.inf)
-        fine = ((np.linalg.norm(places - robot_m, axis=1) >= self.robot_reach_m)
-                & (apart >= 2 * BODY_RADIUS_M - PAIR_GIVE_M) & (self._too_deep_m(agent, index, places, index) == 0))
+        fine = (self._clear_of_robot(places, robot) & (apart >= 2 * BODY_RADIUS_M - PAIR_GIVE_M)
+                & (self._too_deep_m(agent, index, places, index) == 0))
         return float(offsets[np.argmax(fine)]) if fine.any() else 0.0
 
     def _too_deep_m(self, agent: int, tau: float, places: np.ndarray, run_frame: int) -> np.ndarray:
@@ -349,7 +443,8 @@ class ReactiveCrowd:
         too_fast = np.maximum(np.linalg.norm(places - here, axis=1) - reach_m, 0.0)
         too_deep = np.max([self._too_deep_m(agent, tau, here + share * (places - here), run_frame)
                            for share in PATH_SAMPLES], axis=0)  # along the way: no jumping over a thin wall
-        robot_gap, _ = closest_approach(here - step.robot.from_m, places - step.robot.to_m)
+        robot_to = step.robot.to_m if step.weight[agent] > 0 else step.robot.from_m  # noticed, or only its body
+        robot_gap = self.body.swept_gap_m(here - step.robot.from_m, places - robot_to, step.robot.heading_rad)
         too_close = np.maximum(self.robot_reach_m - robot_gap, 0.0)
         others = np.flatnonzero(step.present & (np.arange(len(step.present)) != agent))
         if others.size:
@@ -357,7 +452,7 @@ class ReactiveCrowd:
             allowed = np.minimum(2 * BODY_RADIUS_M - PAIR_GIVE_M, np.linalg.norm(their_from - here, axis=1) - 1e-6)
             pair_gap, _ = closest_approach(here - their_from, places[:, None] - their_to[None])  # (C, O)
             too_close = too_close + np.maximum(allowed - pair_gap, 0.0).sum(axis=1)
-        staying = np.linalg.norm(places - here, axis=1) < STILL_M  # stuck for a while: try another way round
+        staying = c_tau < step.farthest[agent] + HEADWAY_FRAMES  # stuck for a while: try another way round
         cost = (LAG_COST * (step.index - c_tau) + OFFSET_COST * np.abs(c_off) + SWAY_COST * np.abs(c_off - offset)
                 + RISK_COST * self._risk(agent, c_tau, c_off, others, step, run_frame)
                 + STUCK_COST * step.stuck[agent] * staying)
@@ -365,41 +460,82 @@ class ReactiveCrowd:
 
     def _risk(self, agent: int, c_tau: np.ndarray, c_off: np.ndarray, others: np.ndarray, step: Step,
               run_frame: int) -> np.ndarray:
-        """(C,) squared intrusions [m^2] into the comfort gap round the robot and the others off their logs over the
-        next ``ANTICIPATION_STEPS``, if the agent walks on along its route at its log's pace from each candidate and
-        they go on at their velocities."""
-        ahead = np.arange(1, ANTICIPATION_STEPS + 1, dtype=np.float64)  # (H,)
+        """(C,) squared intrusions [m^2], if the agent walks on along its route at its log's pace from each candidate:
+        into its room round the robot going on at its velocity over ``anticipation_s`` (as far as it reacts), or into
+        ``COMFORT_M`` round the robot's body standing where it is over ``ANTICIPATION_STEPS`` (as far as it does not:
+        a body in the way); and into the comfort gap round the others off their logs going on at their velocities
+        over ``ANTICIPATION_STEPS``."""
+        weight = step.weight[agent]
+        robot_steps = self.reaction.anticipation_steps if weight > 0 else 0
+        ahead = np.arange(max(robot_steps, ANTICIPATION_STEPS) + 1, dtype=np.float64)  # (H + 1,) from now on
         later = self._place(np.full((len(c_tau), len(ahead)), agent), c_tau[:, None] + ahead,
-                            np.repeat(c_off[:, None], len(ahead), 1), run_frame)  # (C, H, 2)
-        robot = step.robot.to_m + ahead[:, None] * STEP_S * step.robot.velocity_mps  # (H, 2)
-        risk = (np.maximum(self.robot_reach_m + COMFORT_M - np.linalg.norm(later - robot, axis=-1), 0.0) ** 2).sum(1)
+                            np.repeat(c_off[:, None], len(ahead), 1), run_frame)  # (C, H + 1, 2)
+        heading = step.robot.heading_rad
+        standing = later[:, :ANTICIPATION_STEPS + 1] - step.robot.from_m  # (C, H_s + 1, 2) from the body standing
+        gap = self.body.swept_gap_m(standing[:, :-1], standing[:, 1:], heading)  # (C, H_s) along each step
+        risk = (1.0 - weight) * (np.maximum(self.robot_reach_m + COMFORT_M - gap, 0.0) ** 2).sum(axis=1)
+        if robot_steps:
+            robot = step.robot.to_m + ahead[:robot_steps + 1, None] * STEP_S * step.robot.velocity_mps  # (H_r + 1, 2)
+            moving = later[:, :robot_steps + 1] - robot  # (C, H_r + 1, 2) from the body on its course
+            gap = self.body.swept_gap_m(moving[:, :-1], moving[:, 1:], heading)  # (C, H_r)
+            room = self.robot_reach_m + step.room_m[agent]
+            risk += weight * (np.maximum(room - gap, 0.0) ** 2).sum(axis=1)
         off_log = others[step.off_log[others]]  # those on their logs keep to them: the hard bounds cover them
         if off_log.size:
-            moving = step.xy[off_log][None] + ahead[:, None, None] * STEP_S * step.velocity_mps[off_log][None]
-            pair = np.linalg.norm(later[:, :, None] - moving[None], axis=-1)  # (C, H, O)
+            pair_ahead = ahead[1:ANTICIPATION_STEPS + 1]
+            moving = step.xy[off_log][None] + pair_ahead[:, None, None] * STEP_S * step.velocity_mps[off_log][None]
+            pair = np.linalg.norm(later[:, 1:ANTICIPATION_STEPS + 1, None] - moving[None], axis=-1)  # (C, H, O)
             risk += (np.maximum(2 * BODY_RADIUS_M + COMFORT_M / 2 - pair, 0.0) ** 2).sum(axis=(1, 2))
         return risk
 
-    def _in_the_way(self, index: int, robot_m: np.ndarray, robot_v: np.ndarray, state: ReactiveState) -> np.ndarray:
-        """(A,) bool: agents whose log from frame ``index`` on comes within CLEARANCE_M of the robot's body (at its
-        velocity) or of a pedestrian off its log (at theirs) within LOOK_AHEAD_STEPS."""
-        frames = min(LOOK_AHEAD_STEPS, len(self.present) - index)
-        if frames <= 0:
+    def _robot_in_the_way(self, index: int, robot: Robot, weight: np.ndarray, room_m: np.ndarray) -> np.ndarray:
+        """(A,) bool: agents whose log's step into frame ``index`` would take them within ``robot_reach_m`` of the
+        robot's body (where it stands, for those that do not react; on its expected course, for those that do), or,
+        for those that react, whose log from frame ``index`` on comes within their room (A,) [m] of the robot's
+        expected course over ``anticipation_s``."""
+        hit = np.zeros(len(weight), bool)
+        if index >= len(self.present):
+            return hit
+        reacting = weight > 0
+        robot_to = np.where(reacting[:, None], robot.to_m, robot.from_m)
+        if index > 0:
+            gap = self.body.swept_gap_m(self.log_xy_m[index - 1] - robot.from_m, self.log_xy_m[index] - robot_to,
+                                        robot.heading_rad)
+            hit |= np.nan_to_num(gap, nan=np.inf) < self.robot_reach_m
+        frames = min(self.reaction.anticipation_steps, len(self.present) - index)
+        first = max(index - 1, 0)  # along every step of the log ahead, from where it stands now
+        course = robot.to_m + np.arange(first - index, frames)[:, None] * STEP_S * robot.velocity_mps  # (H', 2)
+        offset = self.log_xy_m[first:index + frames] - course[:, None]  # (H', A, 2)
+        if len(offset) > 1:
+            gap = self.body.swept_gap_m(offset[:-1], offset[1:], robot.heading_rad)  # (H' - 1, A)
+        else:
+            gap = self.body.gap_m(offset, robot.heading_rad)
+        return hit | (reacting & (np.nan_to_num(gap, nan=np.inf).min(axis=0) < self.robot_reach_m + room_m))
+
+    def _others_in_the_way(self, index: int, state: ReactiveState) -> np.ndarray:
+        """(A,) bool: agents whose log from frame ``index`` on comes within ``PAIR_CLEARANCE_M`` of a pedestrian off
+        its log (going on at its velocity) within ``PAIR_LOOK_AHEAD_STEPS``, where it comes closer than their own
+        logs would."""
+        frames = min(PAIR_LOOK_AHEAD_STEPS, len(self.present) - index)
+        others = np.flatnonzero(state.off_log & state.present)
+        if frames <= 0 or not others.size:
             return np.zeros(len(state.off_log), bool)
         ahead = np.arange(frames)[:, None] * STEP_S  # (H, 1) seconds
         log = self.log_xy_m[index:index + frames]  # (H, A, 2), NaN where absent
-        robot = robot_m + ahead * robot_v  # (H, 2)
-        gap = np.linalg.norm(log - robot[:, None], axis=-1) - self.robot_reach_m
-        hit = np.nan_to_num(gap, nan=np.inf).min(axis=0) < CLEARANCE_M
-        others = np.flatnonzero(state.off_log & state.present)
-        if others.size:  # a pedestrian off its log is in the way where it comes closer than its own log would
-            where = state.xy_m[others] + ahead[:, :, None] * state.velocity_mps[others]  # (H, O, 2)
-            gap = np.linalg.norm(log[:, :, None] - where[:, None], axis=-1)  # (H, A, O)
-            logged_gap = np.linalg.norm(log[:, :, None] - log[:, others][:, None], axis=-1)
-            bound = np.minimum(2 * BODY_RADIUS_M + CLEARANCE_M, np.nan_to_num(logged_gap, nan=np.inf) - PAIR_GIVE_M)
-            gap[:, others, np.arange(others.size)] = np.inf  # nobody is in their own way
-            hit |= (np.nan_to_num(gap, nan=np.inf) < bound).any(axis=(0, 2))
-        return hit
+        where = state.xy_m[others] + ahead[:, :, None] * state.velocity_mps[others]  # (H, O, 2)
+        gap = np.linalg.norm(log[:, :, None] - where[:, None], axis=-1)  # (H, A, O)
+        logged_gap = np.linalg.norm(log[:, :, None] - log[:, others][:, None], axis=-1)
+        bound = np.minimum(2 * BODY_RADIUS_M + PAIR_CLEARANCE_M, np.nan_to_num(logged_gap, nan=np.inf) - PAIR_GIVE_M)
+        gap[:, others, np.arange(others.size)] = np.inf  # nobody is in their own way
+        return (np.nan_to_num(gap, nan=np.inf) < bound).any(axis=(0, 2))
+
+
+def heading_of(from_m: np.ndarray, to_m: np.ndarray, heading_rad: float | None = None) -> float:
+    """``heading_rad`` if given, else the direction of the move ``from_m`` -> ``to_m`` (2,) [rad] (0 for no move)."""
+    if heading_rad is not None:
+        return float(heading_rad)
+    move = np.asarray(to_m, np.float64) - np.asarray(from_m, np.float64)
+    return float(np.arctan2(move[1], move[0])) if np.hypot(*move) > 1e-9 else 0.0
 
 
 def velocity(xy: np.ndarray, old_xy: np.ndarray, stays: np.ndarray) -> np.ndarray:

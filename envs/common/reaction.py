@@ -1,0 +1,99 @@
+"""When a reactive pedestrian notices the robot, when it reacts, and how much room it then keeps: the fitted part of
+the reactive pedestrians (``envs.common.reactive`` does the walking).
+
+- **Noticing.** A pedestrian notices the robot when the nearest point of the robot's body lies within its field of
+  view (``fov_deg`` either side of its walking direction, at any distance) or within ``hearing_m`` of it, whatever
+  the bearing. One that stops noticing it keeps it in mind for ``MEMORY_S``, then forgets it.
+- **Reacting.** It reacts ``reaction_s`` after it first noticed the robot, fractions of a 0.4 s step by
+  interpolation: its reaction's weight grows from 0 to 1 over the step in which that time passes.
+- **Room.** A reacting pedestrian keeps ``clearance_m`` from the robot's body, plus, while the robot comes toward it,
+  the robot's speed times ``head_on_s`` (the robot's heading opposite to its own walking direction), ``behind_s``
+  (the same direction) or ``crossing_s`` (square to it), blended by the cosine of the angle between the two; it looks
+  ``anticipation_s`` ahead along its route and the robot's expected course.
+
+The values are fitted on CITR's pedestrians reacting to a golf cart (``benchmarks/fit_reaction.py``, written to
+``reaction_fit.json`` beside this module, which ``fitted_reaction`` reads); they are not a safety rule. The safety
+rules (nobody walks into the robot's body, noticed or not) are in ``envs.common.reactive``.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, fields
+from functools import cache
+from pathlib import Path
+from typing import Final
+
+import numpy as np
+
+from replays.constants import STEP_S
+
+FIT_PATH: Final[Path] = Path(__file__).with_name("reaction_fit.json")
+MEMORY_S: Final[float] = 2.0  # a pedestrian that stops noticing the robot keeps it in mind this long [s]
+MOVING_MPS: Final[float] = 0.2  # walking direction: its velocity when faster than this, else its route's [m/s]
+
+
+@dataclass(frozen=True)
+class Reaction:
+    """How reactive pedestrians notice and keep clear of the robot (module docstring); every field is fitted."""
+
+    fov_deg: float
+    """half-angle of the field of view round the walking direction [deg]"""
+    hearing_m: float
+    """the robot is noticed within this gap of its body whatever its bearing [m]"""
+    reaction_s: float
+    """from noticing the robot to reacting to it [s]"""
+    anticipation_s: float
+    """how far ahead a reacting pedestrian checks its route against the robot's expected course [s]"""
+    clearance_m: float
+    """room kept from the body of a robot that stands or moves away [m]"""
+    head_on_s: float
+    """more room per m/s of a robot coming head-on [s]"""
+    behind_s: float
+    """more room per m/s of a robot coming from behind [s]"""
+    crossing_s: float
+    """more room per m/s of a robot crossing the pedestrian's way [s]"""
+
+    @property
+    def anticipation_steps(self) -> int:
+        """``anticipation_s`` in whole 0.4 s steps (at least 1)."""
+        return max(1, round(self.anticipation_s / STEP_S))
+
+    def weight(self, noticed_s: np.ndarray) -> np.ndarray:
+        """(A,) how far each pedestrian reacts over this step, in [0, 1], from the time ``noticed_s`` (A,) it has had
+        the robot in mind at the end of the step [s]."""
+        return np.clip((noticed_s - self.reaction_s) / STEP_S, 0.0, 1.0)
+
+    def room_m(self, robot_velocity_mps: np.ndarray, robot_heading: np.ndarray, walking: np.ndarray,
+               coming: np.ndarray) -> np.ndarray:
+        """(A,) room each pedestrian keeps from the robot's body [m].
+
+        Args:
+            robot_velocity_mps: (2,) the robot's expected velocity [m/s].  robot_heading: (2,) its unit heading.
+            walking: (A, 2) unit walking directions.  coming: (A,) bool, the robot comes toward the pedestrian.
+        """
+        cosine = walking @ robot_heading  # -1 head-on, +1 from behind, 0 crossing
+        per_mps = (self.head_on_s * np.maximum(-cosine, 0.0) + self.behind_s * np.maximum(cosine, 0.0)
+                   + self.crossing_s * (1.0 - np.abs(cosine)))
+        return self.clearance_m + np.where(coming, np.linalg.norm(robot_velocity_mps) * per_mps, 0.0)
+
+
+@cache
+def fitted_reaction() -> Reaction:
+    """The fitted reaction (``reaction_fit.json``), read once per process."""
+    table = json.loads(FIT_PATH.read_text())
+    return Reaction(**{field.name: float(table["params"][field.name]) for field in fields(Reaction)})
+
+
+def notices(reaction: Reaction, gap_m: np.ndarray, bearing_rad: np.ndarray) -> np.ndarray:
+    """(A,) bool: pedestrians that notice the robot, from the gap to its body (A,) [m] and the angle (A,) [rad]
+    between their walking direction and the direction to the body's nearest point."""
+    return (gap_m <= reaction.hearing_m) | (np.abs(bearing_rad) <= np.radians(reaction.fov_deg))
+
+
+def attend(noticed_s: np.ndarray, unseen_s: np.ndarray, noticing: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Advance each pedestrian's attention by one step: (time it has had the robot in mind, time since it last
+    noticed it) [s], both (A,), after a step in which it does or does not notice it (``noticing``, (A,) bool)."""
+    unseen = np.where(noticing, 0.0, unseen_s + STEP_S)
+    kept = noticing | ((noticed_s > 0) & (unseen <= MEMORY_S))
+    return np.where(kept, noticed_s + STEP_S, 0.0), np.where(kept, unseen, 0.0)
