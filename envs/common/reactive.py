@@ -70,12 +70,16 @@ MAX_LINGER_STEPS: Final[int] = 25  # a pedestrian behind its log leaves at most 
 LEAVE_BLOCKED_M: Final[float] = 0.9  # one who cannot get closer to where its log ends leaves this close to it [m]
 ANTICIPATION_STEPS: Final[int] = 3  # it keeps clear of where the others off their logs will be over this many steps
 COMFORT_M: Final[float] = 0.3  # ... by this much beyond contact, as from a robot's body it has not noticed [m]
-LAG_COST: Final[float] = 1.0  # cost of a frame (0.4 s) of delay against its log [1/frame]
+LAG_COST: Final[float] = 1.0  # cost of a frame (0.4 s) of delay against its log [1/frame] ...
+LAG_PACE_MPS: Final[float] = 1.0  # ... the delay being at most the time to walk what it is behind at this pace [m/s]
 OFFSET_COST: Final[float] = 0.5  # cost of standing a metre to the side of its route [1/m]
 SWAY_COST: Final[float] = 0.2  # cost of changing its side offset by a metre in one step [1/m]
 RISK_COST: Final[float] = 10.0  # cost of the anticipated intrusions into the room round the robot and others [1/m^2]
 STUCK_COST: Final[float] = 0.5  # cost of making no headway again, per step it already made none off its log [-]
-HEADWAY_FRAMES: Final[float] = 0.1  # ... a step that moves it less far along its route than this makes none [frame]
+HEADWAY_M: Final[float] = 0.05  # ... a step makes none that gets it less than this farther along its route than it has
+"""been, or nearer to its log (metres behind it along the route plus metres aside) than in its last ``RECENT_STEPS``
+[m]"""
+RECENT_STEPS: Final[int] = 5  # ... steps (2 s)
 STILL_M: Final[float] = 0.02  # a pedestrian moving less than this in a step stands still [m]
 MIN_STEP_M: Final[float] = 0.01  # log steps shorter than this give no direction [m]
 PATH_SAMPLES: Final[tuple[float, ...]] = (0.25, 0.5, 0.75, 1.0)  # where along a step the map bound is checked [-]
@@ -129,8 +133,9 @@ class Step:
         start: (A, 2) positions before the step [m].  xy: (A, 2) positions after it, as far as chosen (the log for
             those on it, the choice for those who chose, the start for those yet to choose) [m].
         present, off_log, chosen: (A,) bool.  velocity_mps: (A, 2) velocities over the previous step [m/s].
-        stuck: (A,) steps in a row each has made no headway along its route off its log.  farthest: (A,) the farthest
-            route point (fractional frame) each has reached since it left its log.
+        stuck: (A,) steps in a row each has made no headway off its log.  farthest: (A,) the farthest route point
+            (fractional frame) each has reached since it left its log.  recent_m: (A, RECENT_STEPS) how near it was to
+            its log after each of its last steps [m] (inf before it left its log).
         weight: (A,) how far each reacts to the robot in this step, in [0, 1].  room_m: (A,) the room it keeps [m].
     """
 
@@ -143,6 +148,7 @@ class Step:
     velocity_mps: np.ndarray
     stuck: np.ndarray
     farthest: np.ndarray
+    recent_m: np.ndarray
     robot: Robot
     weight: np.ndarray
     room_m: np.ndarray
@@ -173,9 +179,11 @@ class ReactiveState:
         tau: (A,) fractional frame index of the log point that a pedestrian's place is taken from (off its log).
         offset_m: (A,) how far left of the route's direction at ``tau`` it stands [m] (off its log).
         linger: (A,) steps since its log ended (a pedestrian still on its way out), 0 otherwise.
-        stuck: (A,) steps in a row a pedestrian off its log has made no headway (its route point got less than
-            ``HEADWAY_FRAMES`` beyond the farthest it had reached), standing still or stepping to and fro.
+        stuck: (A,) steps in a row a pedestrian off its log has made no headway (got neither ``HEADWAY_M`` farther
+            along its route nor nearer to its log than it had been), standing still or stepping to and fro.
         farthest: (A,) the farthest route point (fractional frame) it has reached since it left its log.
+        recent_m: (A, RECENT_STEPS) how near it was to its log after each of its last steps (metres behind along the
+            route plus aside) [m]; inf before it left its log.
         noticed_s: (A,) how long it has had the robot in mind [s] (0: it has not noticed it).
         unseen_s: (A,) how long since it last noticed the robot, while it keeps it in mind [s].
         weight: (A,) how far it reacted to the robot in the last step, in [0, 1].
@@ -190,6 +198,7 @@ class ReactiveState:
     linger: np.ndarray
     stuck: np.ndarray
     farthest: np.ndarray
+    recent_m: np.ndarray
     noticed_s: np.ndarray
     unseen_s: np.ndarray
     weight: np.ndarray
@@ -246,8 +255,8 @@ class ReactiveCrowd:
         agents = len(now)
         zero = np.zeros(agents)
         return ReactiveState(xy, np.zeros_like(xy), now.copy(), np.zeros(agents, bool), np.full(agents, float(index)),
-                             zero, np.zeros(agents, int), np.zeros(agents, int), np.full(agents, float(index)), zero,
-                             zero, zero)
+                             zero, np.zeros(agents, int), np.zeros(agents, int), np.full(agents, float(index)),
+                             np.full((agents, RECENT_STEPS), np.inf), zero, zero, zero)
 
     def reset(self, index: int) -> np.ndarray:
         """Everybody on their log at frame ``index``, nobody has noticed the robot; returns the (A, 2) positions."""
@@ -291,11 +300,12 @@ class ReactiveCrowd:
         tau = np.where(off_log, old.tau, float(index))
         tau[going] = index - 1.0  # from where they stood: their log at the previous frame
         farthest = np.where(off_log, np.where(going, tau, old.farthest), float(index))
+        recent = np.where((off_log & ~going)[:, None], old.recent_m, np.inf)
         offset = np.where(off_log, old.offset_m, 0.0)
         xy = np.where(off_log[:, None], start, log_now)
         xy[~present] = np.nan
         step = Step(index, start, xy, present, off_log, np.zeros(len(present), bool), old.velocity_mps, old.stuck,
-                    farthest, robot, weight, room)
+                    farthest, recent, robot, weight, room)
         clear = self._clear_of_robot(log_now, robot)
         for agent in np.flatnonzero(logged & ~old.present):  # appears where the robot or one off its log stands?
             taken = start[off_log & present]
@@ -313,7 +323,7 @@ class ReactiveCrowd:
             step.chosen[agent] = True
         # back on the log: caught up, beside it, and nothing in the way; out of the scene: where the log ended
         ahead = ReactiveState(xy, velocity(xy, old.xy_m, old.present & present), present, off_log, tau, offset,
-                              old.linger, old.stuck, farthest, noticed, unseen, weight)
+                              old.linger, old.stuck, farthest, recent, noticed, unseen, weight)
         after = Robot(robot.to_m, 2 * robot.to_m - robot.from_m, robot.heading_rad)
         rejoin = (off_log & logged & (np.linalg.norm(np.nan_to_num(xy - log_now, nan=np.inf), axis=1) <= REJOIN_M)
                   & ~self._robot_in_the_way(index + 1, after, weight, room) & ~self._others_in_the_way(index + 1, ahead)
@@ -327,12 +337,17 @@ class ReactiveCrowd:
         present &= ~(lingering & ((to_end <= REJOIN_M) | (blocked & (to_end <= LEAVE_BLOCKED_M))))
         off_log &= present
         xy[~present] = np.nan
-        no_headway = off_log & (tau < farthest + HEADWAY_FRAMES)
+        headway, behind = np.ones(len(tau), bool), np.full(len(tau), np.inf)
+        for agent in np.flatnonzero(off_log):
+            gain, away = self._headway(agent, tau[[agent]], offset[[agent]], farthest[agent], index)
+            headway[agent] = gain[0] >= HEADWAY_M or away[0] <= recent[agent].min() - HEADWAY_M
+            behind[agent] = away[0]
         self.state = ReactiveState(xy, velocity(xy, old.xy_m, old.present & present), present, off_log,
                                    np.where(off_log, tau, float(index)), np.where(off_log, offset, 0.0),
                                    np.where(present & lingering, old.linger + 1, 0),
-                                   np.where(no_headway, old.stuck + 1, 0),
+                                   np.where(off_log & ~headway, old.stuck + 1, 0),
                                    np.where(off_log, np.maximum(farthest, tau), float(index)),
+                                   np.c_[recent[:, 1:], behind],
                                    np.where(present, noticed, 0.0), np.where(present, unseen, 0.0), weight)
         return xy
 
@@ -379,13 +394,30 @@ class ReactiveCrowd:
         logged route than ``tau`` (through any stretch where the log stood still), within the run of ``run_frame``."""
         first, last = self.run_first[run_frame, agent], self.run_last[run_frame, agent]
         arc = self.arc_m[first:last + 1, agent]
-        frame = int(np.floor(tau))
-        here = arc[frame - first] + (tau - frame) * (arc[min(frame + 1, last) - first] - arc[frame - first])
-        target = here + ahead_m
+        target = self._arc(agent, np.array([tau]), run_frame)[0] + ahead_m
         k = np.clip(np.searchsorted(arc, target, side="right") - 1, 0, len(arc) - 1)
         step = np.diff(arc, append=arc[-1])[k]
         share = np.where(step > 0, np.clip((target - arc[k]) / np.where(step > 0, step, 1.0), 0.0, 1.0), 0.0)
         return first + k + share
+
+    def _arc(self, agent: int, tau: np.ndarray, run_frame: int) -> np.ndarray:
+        """(K,) metres along the agent's logged route at fractional frames ``tau`` (K,), within the run of
+        ``run_frame``."""
+        first, last = self.run_first[run_frame, agent], self.run_last[run_frame, agent]
+        tau = np.clip(tau, first, last)
+        frame = np.floor(tau).astype(int)
+        arc = self.arc_m[:, agent]
+        return arc[frame] + (tau - frame) * (arc[np.minimum(frame + 1, last)] - arc[frame])
+
+    def _headway(self, agent: int, tau: np.ndarray, offset_m: np.ndarray, farthest: float,
+                 index: int) -> tuple[np.ndarray, np.ndarray]:
+        """For places at route points ``tau`` (K,) moved ``offset_m`` (K,) aside: how much farther along the route than
+        ``farthest`` they are [m], and how far from the log at frame ``index`` (metres behind it along the route plus
+        metres aside) [m]."""
+        run_frame = int(farthest)
+        now = min(float(index), float(self.run_last[run_frame, agent]))  # where its log is now, or where it ended
+        arc = self._arc(agent, np.r_[tau, farthest, now], run_frame)
+        return arc[:-2] - arc[-2], np.maximum(arc[-1] - arc[:-2], 0.0) + np.abs(offset_m)
 
     def _place(self, agents: np.ndarray, tau: np.ndarray, offset_m: np.ndarray, run_frame: int) -> np.ndarray:
         """(..., 2) positions at route points ``tau`` (within the run holding ``run_frame``) moved ``offset_m`` to the
@@ -449,11 +481,18 @@ class ReactiveCrowd:
         others = np.flatnonzero(step.present & (np.arange(len(step.present)) != agent))
         if others.size:
             their_from, their_to = step.start[others], step.xy[others]  # the log now, a choice, or where they stand
-            allowed = np.minimum(2 * BODY_RADIUS_M - PAIR_GIVE_M, np.linalg.norm(their_from - here, axis=1) - 1e-6)
+            body_m = 2 * BODY_RADIUS_M - PAIR_GIVE_M
+            allowed = np.minimum(body_m, np.linalg.norm(their_from - here, axis=1) - 1e-6)
             pair_gap, _ = closest_approach(here - their_from, places[:, None] - their_to[None])  # (C, O)
             too_close = too_close + np.maximum(allowed - pair_gap, 0.0).sum(axis=1)
-        staying = c_tau < step.farthest[agent] + HEADWAY_FRAMES  # stuck for a while: try another way round
-        cost = (LAG_COST * (step.index - c_tau) + OFFSET_COST * np.abs(c_off) + SWAY_COST * np.abs(c_off - offset)
+            logged = np.linalg.norm(self.log_xy_m[step.index, agent] - self.log_xy_m[step.index, others], axis=1)
+            apart = np.minimum(body_m, np.nan_to_num(logged, nan=np.inf))  # closer than that now: part as the logs do
+            end_gap = np.linalg.norm(places[:, None] - their_to[None], axis=-1)  # (C, O)
+            too_close = too_close + np.maximum(apart - end_gap, 0.0).sum(axis=1)
+        gain, away = self._headway(agent, c_tau, c_off, step.farthest[agent], step.index)
+        staying = (gain < HEADWAY_M) & (away > step.recent_m[agent].min() - HEADWAY_M)  # stuck: try another way
+        delay = np.minimum(step.index - c_tau, (away - np.abs(c_off)) / (STEP_S * LAG_PACE_MPS))  # [frame]
+        cost = (LAG_COST * delay + OFFSET_COST * np.abs(c_off) + SWAY_COST * np.abs(c_off - offset)
                 + RISK_COST * self._risk(agent, c_tau, c_off, others, step, run_frame)
                 + STUCK_COST * step.stuck[agent] * staying)
         return Candidates(c_tau, c_off, places, too_fast + too_close + WALL_WEIGHT * too_deep, cost)
