@@ -27,11 +27,13 @@ place that loses the least time and strays the least while
   pushed into a wall beside a log, nor jumps over a thin one;
 - along the whole step, moving in a straight line, it keeps ``ROBOT_MARGIN_M`` beyond touching the robot's body (as
   it expects the robot to move once it reacts; as the robot stands before) and ``2 BODY_RADIUS_M - PAIR_GIVE_M`` from
-  everybody else (or at least the gap it already had);
+  everybody else (or at least the gap it already had, and that much again by the end of the step where their logs
+  are that far apart);
 - once it reacts, it keeps its room from where the robot will be over the next ``anticipation_s``; before, it keeps
   ``COMFORT_M`` from the robot's body where it stands (a body in its way, not a robot it expects to move); and it
   keeps its body's width from where the others off their logs will be over ``ANTICIPATION_STEPS`` (costs, so that it
-  steps aside early rather than at the last moment).
+  steps aside early rather than at the last moment); one that has made no headway for a while (``HEADWAY_M``) pays
+  ``STUCK_COST`` per such step for making none again, so that it tries another way round.
 
 The pedestrians off their log choose one after another, the one nearest the robot first, each seeing the choices
 already made. Once a pedestrian is within ``REJOIN_M`` of where its log is now and nothing is in its way, it is on
