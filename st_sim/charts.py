@@ -270,3 +270,35 @@ def band_chart(x_label: str, y_label: str, reference: tuple[str, np.ndarray, np.
     if title:
         ax.set_title(title)
     return figure
+
+
+def identity_scatter(x_label: str, y_label: str, panels: Mapping[str, Mapping[str, tuple[np.ndarray, np.ndarray]]],
+                     title: str = "") -> Figure:
+    """Measured against reference values, one panel per entry of ``panels`` (panel title -> {series label: (x (P,),
+    y (P,))}), with the line y = x: points on it match.
+
+    Raises:
+        ValueError: a series' x and y differ in length, or a panel has no point.
+    """
+    figure = new_figure(figsize=(PANEL_IN[0] * 0.8 * len(panels), PANEL_IN[0] * 0.8))
+    axes = figure.subplots(1, len(panels), squeeze=False)
+    for ax, (panel, series) in zip(axes[0], panels.items(), strict=True):
+        values = [np.asarray(v, np.float64) for xy in series.values() for v in xy]
+        if not any(len(v) for v in values):
+            raise ValueError(f"identity_scatter: panel {panel!r} has no point")
+        for index, (label, (x, y)) in enumerate(series.items()):
+            if len(x) != len(y):
+                raise ValueError(f"identity_scatter: panel {panel!r}, series {label!r}: {len(x)} x, {len(y)} y")
+            ax.plot(x, y, marker=MARKERS[index % len(MARKERS)], linestyle="none", markersize=4, alpha=0.6,
+                    label=f"{label} ({len(x)})")
+        low, high = min(float(v.min()) for v in values if len(v)), max(float(v.max()) for v in values if len(v))
+        ax.plot([low, high], [low, high], color="black", linewidth=1, label="y = x")
+        ax.set_title(panel)
+        ax.set_xlabel(x_label)
+        ax.set_ylabel(y_label)
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.grid(alpha=0.3)
+        ax.legend(loc="best", fontsize="small")
+    if title:
+        figure.suptitle(title)
+    return figure

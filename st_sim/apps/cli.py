@@ -1,4 +1,5 @@
-"""``python -m st_sim <command>`` (or ``stcrowd <command>``): evaluate predictors, plot a window, run the demo."""
+"""``python -m st_sim <command>`` (or ``stcrowd <command>``): evaluate predictors, plot a window, run the demo,
+navigate, validate the reactive pedestrians."""
 
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ from typing import TYPE_CHECKING
 
 from replays.atomic import write_text_atomic
 from replays.constants import TASKS
+from st_sim.apps import reactive_validate
 from st_sim.apps.navigation import cli as navigation_cli
 from st_sim.command_line import CliError, add_debug_flag, check_writable, positive_int, run_guarded
 
@@ -179,7 +181,7 @@ def write_json_atomic(path: Path, data: dict) -> None:
 
 
 COMMANDS = {"evaluate": run_evaluate, "demo": run_demo, "plot": run_plot, "figures": run_figures,
-            "navigate": navigation_cli.run}
+            "navigate": navigation_cli.run, "reactive-validate": reactive_validate.run}
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -240,6 +242,7 @@ def build_parser() -> argparse.ArgumentParser:
     figures.add_argument("--data-root", default=None, help="ETH/UCY folder (default: $STCROWD_DATA or the cache)")
 
     navigation_cli.add_parser(commands)
+    reactive_validate.add_parser(commands)
     demo = commands.add_parser("demo", help="simulated crossing with an ego robot and predictions (no data needed)")
     demo.add_argument("--steps", type=positive_int, default=150,
                       help="step budget of 0.4 s env steps; whole episodes run until it is used (default: 150)")

@@ -1,0 +1,80 @@
+"""When reactive pedestrians notice the robot, when they react and how much room they keep
+(``envs.common.reaction``), and the fitted values that ship."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from envs.common.reaction import FIT_PATH, MEMORY_S, Reaction, attend, fitted_reaction, notices
+
+DRAWS = settings(max_examples=50, deadline=None)
+reactions = st.builds(Reaction, fov_deg=st.floats(0.0, 180.0), hearing_m=st.floats(0.0, 10.0),
+                      reaction_s=st.floats(0.0, 3.0), anticipation_s=st.floats(0.0, 5.0),
+                      clearance_m=st.floats(0.0, 2.0), head_on_s=st.floats(0.0, 2.0), behind_s=st.floats(0.0, 2.0),
+                      crossing_s=st.floats(0.0, 2.0))
+
+
+@DRAWS
+@given(reaction=reactions, noticed_s=st.floats(0.0, 10.0))
+def test_the_reaction_starts_a_reaction_time_after_noticing_and_grows_over_one_step(reaction: Reaction,
+                                                                                   noticed_s: float) -> None:
+    weight = float(reaction.weight(np.array([noticed_s]))[0])
+    assert 0.0 <= weight <= 1.0
+    assert (weight == 0.0) == (noticed_s <= reaction.reaction_s)
+    assert (weight == 1.0) == (noticed_s >= reaction.reaction_s + 0.4)
+    assert reaction.anticipation_steps >= 1
+
+
+@DRAWS
+@given(reaction=reactions, gap=st.floats(0.0, 30.0), bearing=st.floats(-np.pi, np.pi))
+def test_the_robot_is_noticed_in_view_or_within_hearing(reaction: Reaction, gap: float, bearing: float) -> None:
+    seen = bool(notices(reaction, np.array([gap]), np.array([bearing]))[0])
+    assert seen == (gap <= reaction.hearing_m or abs(bearing) <= np.radians(reaction.fov_deg))
+
+
+@DRAWS
+@given(pattern=st.lists(st.booleans(), min_size=1, max_size=40))
+def test_attention_lasts_while_noticing_and_a_memory_after(pattern: list[bool]) -> None:
+    noticed, unseen = np.zeros(1), np.zeros(1)
+    held, since = 0.0, None
+    for noticing in pattern:
+        noticed, unseen = attend(noticed, unseen, np.array([noticing]))
+        if noticing:
+            since = 0.0
+        elif since is not None:
+            since += 0.4
+        if since is not None and since > MEMORY_S + 1e-9:
+            since = None
+        held = 0.0 if since is None else held + 0.4
+        assert np.isclose(noticed[0], held), (pattern, noticed[0], held)
+
+
+@DRAWS
+@given(reaction=reactions, speed=st.floats(0.0, 5.0), angle=st.floats(-np.pi, np.pi))
+def test_the_room_grows_with_the_robots_speed_by_its_approach(reaction: Reaction, speed: float,
+                                                              angle: float) -> None:
+    heading = np.array([1.0, 0.0])
+    walking = np.array([[np.cos(angle), np.sin(angle)]])
+    coming, leaving = (reaction.room_m(speed * heading, heading, walking, np.array([flag]))[0]
+                       for flag in (True, False))
+    assert np.isclose(leaving, reaction.clearance_m)
+    cosine = np.cos(angle)
+    per_mps = (reaction.head_on_s * max(-cosine, 0.0) + reaction.behind_s * max(cosine, 0.0)
+               + reaction.crossing_s * (1 - abs(cosine)))
+    assert np.isclose(coming, reaction.clearance_m + speed * per_mps)
+    coefficients = (reaction.head_on_s, reaction.behind_s, reaction.crossing_s)  # blended, never beyond them
+    assert min(coefficients) * speed - 1e-9 <= coming - reaction.clearance_m <= max(coefficients) * speed + 1e-9
+
+
+def test_the_shipped_reaction_is_fitted_and_says_how() -> None:
+    table = json.loads(FIT_PATH.read_text())
+    reaction = fitted_reaction()
+    assert dataclasses.asdict(reaction) == table["params"]
+    assert table["fitted_by"].startswith("benchmarks/fit_reaction.py")
+    assert table["fitted_on"] == ["vci_back", "vci_front", "vci_lat_uni"] and table["held_out"] == ["vci_lat_bi"]
+    assert 0.0 <= reaction.fov_deg <= 180.0 and reaction.reaction_s >= 0.0 and reaction.clearance_m >= 0.0
