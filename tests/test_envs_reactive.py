@@ -9,7 +9,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 import envs  # noqa: F401  (registers the ids)
@@ -220,6 +220,8 @@ def test_two_pedestrians_detouring_round_a_standing_robot_from_both_sides_rejoin
 
 @REACTIVE_DRAWS
 @given(**walk, wall_x=st.floats(1.5, 3.5), side=st.sampled_from([-1, 1]), thickness=st.floats(0.1, 0.6))
+@example(seed=404072, walkers=9, speed=0.55078125, wall_x=1.75, side=1, thickness=0.5)  # slid along the band
+@example(seed=404073, walkers=9, speed=0.5511564525973631, wall_x=1.6875, side=-1, thickness=0.5)
 def test_a_log_across_a_traced_wall_traps_nobody_and_nobody_goes_deeper_than_its_log(
         seed: int, walkers: int, speed: float, wall_x: float, side: int, thickness: float) -> None:
     """A non-walkable band across the logs (a wall traced where people did walk), beside the standing robot: the
@@ -333,3 +335,35 @@ def test_a_walker_blind_and_deaf_still_goes_round_a_robot_standing_on_its_log() 
     _, path, _ = _walk_past_a_standing_robot(3, 6, 1.2, reaction=UNAWARE)
     gap, _ = closest_approach(path[:-1], path[1:])
     assert CONTACT_M + ROBOT_MARGIN_M - 1e-9 <= gap.min() < CONTACT_M + 0.3, f"closest {gap.min():.3f} m"
+
+
+def _pocket(wall_x: float, half_m: float = 8.0) -> MapDepth:
+    """An open square with the non-walkable area y >= 0.5 m, x <= ``wall_x`` [m]: a robot standing at the origin
+    leaves no room between its body and that wall, and a pocket between the two on the wall's open side."""
+    size = int(2 * half_m / 0.05)
+    walkable = np.ones((size, size), bool)
+    walkable[int((0.5 + half_m) / 0.05):, :int((wall_x + half_m) / 0.05)] = False
+    H = np.array([[0.05, 0.0, -half_m], [0.0, 0.05, -half_m], [0.0, 0.0, 1.0]])
+    return MapDepth(Scene("pocket", H, walkable))
+
+
+@REACTIVE_DRAWS
+@given(lateral=st.floats(0.0, 0.45), wall_x=st.floats(-0.5, 1.0), speed=st.floats(0.6, 1.8))
+def test_a_walker_in_a_pocket_between_a_standing_robot_and_a_wall_walks_back_out_and_round(
+        lateral: float, wall_x: float, speed: float) -> None:
+    """A log along y = ``lateral`` from x = 6 m to x = -6 m, through a robot standing at the origin whose far side a
+    wall closes: the walker may step into the pocket above the robot first, but it comes out and goes round below,
+    never freezes and is back on its log by the end (a pedestrian froze so beside a robot at ZARA1's busiest spot)."""
+    frames = 70
+    x = np.maximum(6.0 - np.arange(frames) * 0.4 * speed, -6.0)
+    log = np.stack([x, np.full(frames, lateral)], axis=-1)[:, None]  # (F, 1, 2)
+    depth = _pocket(wall_x)
+    crowd = ReactiveCrowd(log, np.ones((frames, 1), bool), depth, ROBOT, 0.25)
+    path = [crowd.reset(0).copy()]
+    for index in range(1, frames):
+        path.append(crowd.step(index, np.zeros(2), np.zeros(2)).copy())
+    path = np.array(path)
+    assert not _frozen(path, log), f"frozen (frame, walker): {_frozen(path, log)[:5]}"
+    gap, _ = closest_approach(path[:-1], path[1:])
+    assert gap.min() >= CONTACT_M, f"came {gap.min():.3f} m from the robot's centre"
+    assert not crowd.state.off_log.any(), f"still off its log at the end, at {path[-1, 0]}"

@@ -33,7 +33,14 @@ place that loses the least time and strays the least while
   ``COMFORT_M`` from the robot's body where it stands (a body in its way, not a robot it expects to move); and it
   keeps its body's width from where the others off their logs will be over ``ANTICIPATION_STEPS`` (costs, so that it
   steps aside early rather than at the last moment); one that has made no headway for a while (``HEADWAY_M``) pays
-  ``STUCK_COST`` per such step for making none again, so that it tries another way round.
+  ``STUCK_COST`` per such step for making none again, so that it tries another way round; after
+  ``DETOUR_AFTER_STEPS`` such steps, and until it gets farther along its route, it also pays ``DETOUR_COST`` per
+  metre it would have to walk from the place to its route a few metres ahead, round the robot's body and the walls
+  (``detour.walking_distance_m``): from a pocket between the robot and a wall it walks back out and round.
+
+When no place keeps every bound, it takes the one that breaks them least, a metre into the robot's margin weighing
+``ROBOT_WEIGHT`` (it stands still rather than step into the robot), into a wall ``WALL_WEIGHT``, into the others or
+beyond its pace 1.
 
 The pedestrians off their log choose one after another, the one nearest the robot first, each seeing the choices
 already made. Once a pedestrian is within ``REJOIN_M`` of where its log is now and nothing is in its way, it is on
@@ -50,6 +57,7 @@ from typing import Final, Protocol
 
 import numpy as np
 
+from envs.common.detour import grid_cells, walking_distance_m
 from envs.common.footprint import Body
 from envs.common.reaction import MOVING_MPS, Reaction, attend, fitted_reaction, notices
 from replays.constants import STEP_S
@@ -90,6 +98,13 @@ CROSSING_WINDOW: Final[int] = 2  # ... or its deepest within this many frames of
 TRACE_SHARES: Final[tuple[float, ...]] = (0.0, 0.25, 0.5, 0.75)  # points of a log between two frames it is traced at
 TANGENT_WINDOW: Final[int] = 2  # a route's direction is averaged over this many frames either side [-]
 WALL_WEIGHT: Final[float] = 100.0  # with no candidate within every bound: a metre into a wall weighs 100 of the rest
+ROBOT_WEIGHT: Final[float] = 1e4  # ... and a metre into the robot's margin 10^4 (it stands still rather than step in)
+DETOUR_AFTER_STEPS: Final[int] = 2  # one that has made no headway for this many steps plans a way round [-] ...
+DETOUR_AHEAD_M: Final[tuple[float, ...]] = (3.0, 3.5, 4.0, 4.5, 5.0)  # ... to the first of these points of its route
+"""beyond the farthest it has reached that is clear of the robot (or to where its log ends, if nearer) [m]"""
+DETOUR_MARGIN_M: Final[float] = 1.5  # ... on a grid reaching this far round it, the goal and its candidates [m]
+DETOUR_BACK_FRAMES: Final[int] = 16  # ... and round its route from this many frames behind its route point [-]
+DETOUR_COST: Final[float] = 10.0  # ... and pays this per metre it would then have to walk to that point [1/m]
 
 
 class Depth(Protocol):
@@ -137,7 +152,8 @@ class Step:
         present, off_log, chosen: (A,) bool.  velocity_mps: (A, 2) velocities over the previous step [m/s].
         stuck: (A,) steps in a row each has made no headway off its log.  farthest: (A,) the farthest route point
             (fractional frame) each has reached since it left its log.  recent_m: (A, RECENT_STEPS) how near it was to
-            its log after each of its last steps [m] (inf before it left its log).
+            its log after each of its last steps [m] (inf before it left its log).  detour: (A,) bool, planning a way
+            round (``ReactiveState.detour``).
         weight: (A,) how far each reacts to the robot in this step, in [0, 1].  room_m: (A,) the room it keeps [m].
     """
 
@@ -151,6 +167,7 @@ class Step:
     stuck: np.ndarray
     farthest: np.ndarray
     recent_m: np.ndarray
+    detour: np.ndarray
     robot: Robot
     weight: np.ndarray
     room_m: np.ndarray
@@ -160,7 +177,7 @@ class Step:
 class Candidates:
     """The places a pedestrian off its log may choose in one step: route point ``tau`` (C,), side ``offset_m`` (C,),
     position ``xy_m`` (C, 2) [m], ``violation`` (C,) of the bounds (0: keeps them all; a metre into a wall weighs
-    ``WALL_WEIGHT``) and ``cost`` (C,) [-]."""
+    ``WALL_WEIGHT``, into the robot's margin ``ROBOT_WEIGHT``) and ``cost`` (C,) [-]."""
 
     tau: np.ndarray
     offset_m: np.ndarray
@@ -186,6 +203,8 @@ class ReactiveState:
         farthest: (A,) the farthest route point (fractional frame) it has reached since it left its log.
         recent_m: (A, RECENT_STEPS) how near it was to its log after each of its last steps (metres behind along the
             route plus aside) [m]; inf before it left its log.
+        detour: (A,) bool, a pedestrian off its log that made no headway for ``DETOUR_AFTER_STEPS`` and has not got
+            farther along its route since: it plans a way round the robot.
         noticed_s: (A,) how long it has had the robot in mind [s] (0: it has not noticed it).
         unseen_s: (A,) how long since it last noticed the robot, while it keeps it in mind [s].
         weight: (A,) how far it reacted to the robot in the last step, in [0, 1].
@@ -201,6 +220,7 @@ class ReactiveState:
     stuck: np.ndarray
     farthest: np.ndarray
     recent_m: np.ndarray
+    detour: np.ndarray
     noticed_s: np.ndarray
     unseen_s: np.ndarray
     weight: np.ndarray
@@ -258,7 +278,7 @@ class ReactiveCrowd:
         zero = np.zeros(agents)
         return ReactiveState(xy, np.zeros_like(xy), now.copy(), np.zeros(agents, bool), np.full(agents, float(index)),
                              zero, np.zeros(agents, int), np.zeros(agents, int), np.full(agents, float(index)),
-                             np.full((agents, RECENT_STEPS), np.inf), zero, zero, zero)
+                             np.full((agents, RECENT_STEPS), np.inf), np.zeros(agents, bool), zero, zero, zero)
 
     def reset(self, index: int) -> np.ndarray:
         """Everybody on their log at frame ``index``, nobody has noticed the robot; returns the (A, 2) positions."""
@@ -303,11 +323,12 @@ class ReactiveCrowd:
         tau[going] = index - 1.0  # from where they stood: their log at the previous frame
         farthest = np.where(off_log, np.where(going, tau, old.farthest), float(index))
         recent = np.where((off_log & ~going)[:, None], old.recent_m, np.inf)
+        detour = off_log & ~going & (old.detour | (old.stuck >= DETOUR_AFTER_STEPS))
         offset = np.where(off_log, old.offset_m, 0.0)
         xy = np.where(off_log[:, None], start, log_now)
         xy[~present] = np.nan
         step = Step(index, start, xy, present, off_log, np.zeros(len(present), bool), old.velocity_mps, old.stuck,
-                    farthest, recent, robot, weight, room)
+                    farthest, recent, detour, robot, weight, room)
         clear = self._clear_of_robot(log_now, robot)
         for agent in np.flatnonzero(logged & ~old.present):  # appears where the robot or one off its log stands?
             taken = start[off_log & present]
@@ -325,7 +346,7 @@ class ReactiveCrowd:
             step.chosen[agent] = True
         # back on the log: caught up, beside it, and nothing in the way; out of the scene: where the log ended
         ahead = ReactiveState(xy, velocity(xy, old.xy_m, old.present & present), present, off_log, tau, offset,
-                              old.linger, old.stuck, farthest, recent, noticed, unseen, weight)
+                              old.linger, old.stuck, farthest, recent, detour, noticed, unseen, weight)
         after = Robot(robot.to_m, 2 * robot.to_m - robot.from_m, robot.heading_rad)
         rejoin = (off_log & logged & (np.linalg.norm(np.nan_to_num(xy - log_now, nan=np.inf), axis=1) <= REJOIN_M)
                   & ~self._robot_in_the_way(index + 1, after, weight, room) & ~self._others_in_the_way(index + 1, ahead)
@@ -339,17 +360,21 @@ class ReactiveCrowd:
         present &= ~(lingering & ((to_end <= REJOIN_M) | (blocked & (to_end <= LEAVE_BLOCKED_M))))
         off_log &= present
         xy[~present] = np.nan
-        headway, behind = np.ones(len(tau), bool), np.full(len(tau), np.inf)
+        headway, farther, behind = np.ones(len(tau), bool), np.ones(len(tau), bool), np.full(len(tau), np.inf)
         for agent in np.flatnonzero(off_log):
             gain, away = self._headway(agent, tau[[agent]], offset[[agent]], farthest[agent], index)
-            headway[agent] = gain[0] >= HEADWAY_M or away[0] <= recent[agent].min() - HEADWAY_M
+            farther[agent] = gain[0] >= HEADWAY_M
+            headway[agent] = farther[agent] or away[0] <= recent[agent].min() - HEADWAY_M
             behind[agent] = away[0]
+        stuck = np.where(off_log & ~headway, old.stuck + 1, 0)
+        detour &= off_log & ~farther
+        detour |= stuck >= DETOUR_AFTER_STEPS
         self.state = ReactiveState(xy, velocity(xy, old.xy_m, old.present & present), present, off_log,
                                    np.where(off_log, tau, float(index)), np.where(off_log, offset, 0.0),
                                    np.where(present & lingering, old.linger + 1, 0),
-                                   np.where(off_log & ~headway, old.stuck + 1, 0),
+                                   stuck,
                                    np.where(off_log, np.maximum(farthest, tau), float(index)),
-                                   np.c_[recent[:, 1:], behind],
+                                   np.c_[recent[:, 1:], behind], detour,
                                    np.where(present, noticed, 0.0), np.where(present, unseen, 0.0), weight)
         return xy
 
@@ -438,19 +463,25 @@ class ReactiveCrowd:
                 & (self._too_deep_m(agent, index, places, index) == 0))
         return float(offsets[np.argmax(fine)]) if fine.any() else 0.0
 
-    def _too_deep_m(self, agent: int, tau: float, places: np.ndarray, run_frame: int) -> np.ndarray:
+    def _too_deep_m(self, agent: int, tau: float, places: np.ndarray, run_frame: int,
+                    through: float | None = None) -> np.ndarray:
         """(...) how much deeper in the non-walkable area each place (..., 2) is than the agent's log: than the point
         of its log nearest to it within ``DEPTH_WINDOW`` frames of route point ``tau``, or the log's deepest point
-        within ``CROSSING_WINDOW`` frames of it (a crossing of a thin wall, beside it) [m]; 0 where that point is off
-        the image, 1000 for a place off the image beside a log on it."""
+        within ``CROSSING_WINDOW`` frames of it (a crossing of a thin wall, beside it) [m]; with ``through``, than the
+        point of its log nearest to it on the route from ``tau`` through ``through`` (and ``DEPTH_WINDOW`` frames
+        beyond) alone; 0 where that point is off the image, 1000 for a place off the image beside a log on it."""
         first, last = self.run_first[run_frame, agent], self.run_last[run_frame, agent]
         frame = int(np.floor(tau))
-        window = slice(max(first, frame - DEPTH_WINDOW), min(last, frame + DEPTH_WINDOW) + 1)
+        start = frame - DEPTH_WINDOW if through is None else frame
+        end = frame if through is None else max(frame, int(np.floor(through)))
+        window = slice(max(first, start), min(last, end + DEPTH_WINDOW) + 1)
         trace = self.trace_m[window, agent].reshape(-1, 2)
         trace_depth = self.trace_depth_m[window, agent].reshape(-1)
         nearest = np.argmin(np.linalg.norm(places[..., None, :] - trace, axis=-1), axis=-1)
-        close = slice(max(first, frame - CROSSING_WINDOW), min(last, frame + CROSSING_WINDOW) + 1)
-        log_depth = np.maximum(trace_depth[nearest], self.trace_depth_m[close, agent].max())
+        log_depth = trace_depth[nearest]
+        if through is None:
+            close = slice(max(first, frame - CROSSING_WINDOW), min(last, frame + CROSSING_WINDOW) + 1)
+            log_depth = np.maximum(log_depth, self.trace_depth_m[close, agent].max())
         excess = np.maximum(self.depth.at(places) - log_depth - DEPTH_TOLERANCE_M, 0.0)
         return np.where(np.isinf(log_depth), 0.0, np.minimum(excess, 1e3))
 
@@ -479,7 +510,8 @@ class ReactiveCrowd:
                            for share in PATH_SAMPLES], axis=0)  # along the way: no jumping over a thin wall
         robot_to = step.robot.to_m if step.weight[agent] > 0 else step.robot.from_m  # noticed, or only its body
         robot_gap = self.body.swept_gap_m(here - step.robot.from_m, places - robot_to, step.robot.heading_rad)
-        too_close = np.maximum(self.robot_reach_m - robot_gap, 0.0)
+        into_robot = np.maximum(self.robot_reach_m - robot_gap, 0.0)
+        too_close = np.zeros(len(places))  # into the others
         others = np.flatnonzero(step.present & (np.arange(len(step.present)) != agent))
         if others.size:
             their_from, their_to = step.start[others], step.xy[others]  # the log now, a choice, or where they stand
@@ -497,7 +529,36 @@ class ReactiveCrowd:
         cost = (LAG_COST * delay + OFFSET_COST * np.abs(c_off) + SWAY_COST * np.abs(c_off - offset)
                 + RISK_COST * self._risk(agent, c_tau, c_off, others, step, run_frame)
                 + STUCK_COST * step.stuck[agent] * staying)
-        return Candidates(c_tau, c_off, places, too_fast + too_close + WALL_WEIGHT * too_deep, cost)
+        if step.detour[agent]:
+            cost = cost + DETOUR_COST * self._way_round_m(agent, tau, step, places, run_frame)
+        violation = too_fast + too_close + WALL_WEIGHT * too_deep + ROBOT_WEIGHT * into_robot
+        return Candidates(c_tau, c_off, places, violation, cost)
+
+    def _way_round_m(self, agent: int, tau: float, step: Step, places: np.ndarray, run_frame: int) -> np.ndarray:
+        """(C,) how far [m] the agent would have to walk from each of ``places`` (C, 2) to a point of its route ahead
+        (``DETOUR_AHEAD_M``) round the robot's body (where it stands and where it is expected), over ground no deeper
+        in the non-walkable area than its log there (its route from ``DETOUR_BACK_FRAMES`` behind route point ``tau``
+        to that point); counted from the nearest, and those cut off from that point 1 m beyond the farthest (0 for all
+        when no such point is known)."""
+        ahead = self._tau_ahead(agent, step.farthest[agent], np.array(DETOUR_AHEAD_M), run_frame)  # to its run's end
+        goals = self._place(np.full(len(ahead), agent), ahead, np.zeros(len(ahead)), run_frame)
+        clear = self._clear_of_robot(goals, step.robot)
+        if not clear.any():
+            return np.zeros(len(places))
+        goal_tau, goal = ahead[np.argmax(clear)], goals[np.argmax(clear)]
+        back = max(float(self.run_first[run_frame, agent]), tau - DETOUR_BACK_FRAMES)
+        route = self.log_xy_m[int(back):int(np.ceil(goal_tau)) + 1, agent]
+        around = np.vstack([places, route, goal[None], step.start[[agent]]])
+        cells = grid_cells(around.min(axis=0) - DETOUR_MARGIN_M, around.max(axis=0) + DETOUR_MARGIN_M)  # (H, W, 2)
+        flat = cells.reshape(-1, 2)
+        level = self._too_deep_m(agent, back, flat, run_frame, through=goal_tau) == 0
+        free = self._clear_of_robot(flat, step.robot) & level
+        walk_m = walking_distance_m(cells, free.reshape(cells.shape[:2]), goal, places)
+        known = np.isfinite(walk_m)
+        if not known.any():
+            return np.zeros(len(places))
+        nearest, farthest = walk_m[known].min(), walk_m[known].max()
+        return np.where(known, walk_m - nearest, farthest - nearest + 1.0)
 
     def _risk(self, agent: int, c_tau: np.ndarray, c_off: np.ndarray, others: np.ndarray, step: Step,
               run_frame: int) -> np.ndarray:

@@ -1,0 +1,59 @@
+"""Ways round: how far a pedestrian has to walk to a goal when a standing body and walls are in the way.
+
+A pedestrian that chooses its next place one step at a time can walk into a pocket (between a robot and a wall) from
+which no single step makes headway. ``walking_distance_m`` gives the length of the shortest walk on a local grid of
+free cells, so that a pedestrian stuck in such a pocket can prefer the places from which the goal is nearest on foot
+rather than as the crow flies.
+"""
+
+from __future__ import annotations
+
+from typing import Final
+
+import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import dijkstra
+
+CELL_M: Final[float] = 0.1  # side of a grid cell [m]
+NEIGHBOURS: Final[tuple[tuple[int, int], ...]] = ((0, 1), (1, 0), (1, 1), (1, -1))  # with their mirrors: 8 of them
+
+
+def grid_cells(low_m: np.ndarray, high_m: np.ndarray) -> np.ndarray:
+    """(H, W, 2) centres [m] of the ``CELL_M`` cells covering the box from ``low_m`` to ``high_m`` (2,) [m]."""
+    xs = np.arange(low_m[0], high_m[0] + CELL_M, CELL_M)
+    ys = np.arange(low_m[1], high_m[1] + CELL_M, CELL_M)
+    return np.stack(np.meshgrid(xs, ys, indexing="xy"), axis=-1)
+
+
+def walking_distance_m(cells_m: np.ndarray, free: np.ndarray, goal_m: np.ndarray, points_m: np.ndarray) -> np.ndarray:
+    """(P,) length [m] of the shortest walk through ``free`` cells (H, W) bool of the grid ``cells_m`` (H, W, 2) [m]
+    (eight neighbours) from each of ``points_m`` (P, 2) [m] to ``goal_m`` (2,) [m], counted from the cells holding
+    them; inf for points off the grid, in a cell that is not free or cut off from the goal (all inf when the goal's
+    cell is not free)."""
+    height, width = free.shape
+    origin = cells_m[0, 0]
+
+    def cell(xy_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        col, row = np.rint((np.asarray(xy_m, np.float64) - origin) / CELL_M).astype(np.intp).T
+        return row, col
+
+    rows, cols = cell(np.atleast_2d(points_m))
+    inside = (rows >= 0) & (rows < height) & (cols >= 0) & (cols < width)
+    goal_row, goal_col = cell(np.atleast_2d(goal_m))
+    if not (0 <= goal_row[0] < height and 0 <= goal_col[0] < width) or not free[goal_row[0], goal_col[0]]:
+        return np.full(len(rows), np.inf)
+    index = np.arange(height * width).reshape(height, width)
+    starts, ends, lengths = [], [], []
+    for d_row, d_col in NEIGHBOURS:
+        a = index[max(0, -d_row):height - max(0, d_row), max(0, -d_col):width - max(0, d_col)]
+        b = index[max(0, d_row):height + min(0, d_row), max(0, d_col):width + min(0, d_col)]
+        both = free.ravel()[a] & free.ravel()[b]
+        starts.append(a[both])
+        ends.append(b[both])
+        lengths.append(np.full(int(both.sum()), CELL_M * np.hypot(d_row, d_col)))
+    graph = coo_matrix((np.concatenate(lengths), (np.concatenate(starts), np.concatenate(ends))),
+                       shape=(height * width, height * width)).tocsr()
+    distance = dijkstra(graph, directed=False, indices=int(index[goal_row[0], goal_col[0]]))
+    found = np.full(len(rows), np.inf)
+    found[inside] = distance[index[rows[inside], cols[inside]]]
+    return found

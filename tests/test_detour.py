@@ -1,0 +1,59 @@
+"""Walking distances on a grid round obstacles (``envs.common.detour``)."""
+
+from __future__ import annotations
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from envs.common.detour import CELL_M, grid_cells, walking_distance_m
+
+CELLS = grid_cells(np.array([-3.0, -2.0]), np.array([3.0, 2.0]))  # (H, W, 2)
+point = st.tuples(st.floats(-2.9, 2.9), st.floats(-1.9, 1.9)).map(np.array)
+DRAWS = settings(max_examples=50, deadline=None)
+
+
+@DRAWS
+@given(start=point, goal=point)
+def test_on_open_ground_the_walk_is_the_straight_line_within_the_grid_s_grain(start: np.ndarray,
+                                                                               goal: np.ndarray) -> None:
+    free = np.ones(CELLS.shape[:2], bool)
+    walk = walking_distance_m(CELLS, free, goal, start[None])[0]
+    straight = np.linalg.norm(goal - start)
+    rounding = np.sqrt(2) * CELL_M  # both ends are moved to their cells' centres
+    assert straight - rounding - 1e-9 <= walk <= np.sqrt(4 - 2 * np.sqrt(2)) * straight + rounding + 1e-9
+
+
+@DRAWS
+@given(start=point, goal=point, wall_x=st.floats(-2.5, 2.5))
+def test_a_wall_across_the_grid_cuts_the_far_side_off(start: np.ndarray, goal: np.ndarray, wall_x: float) -> None:
+    free = np.abs(CELLS[..., 0] - wall_x) > CELL_M  # a band two or three cells wide, top to bottom
+    walk = walking_distance_m(CELLS, free, goal, start[None])[0]
+    start_side, goal_side = np.sign(start[0] - wall_x), np.sign(goal[0] - wall_x)
+    if abs(start[0] - wall_x) > 2 * CELL_M and abs(goal[0] - wall_x) > 2 * CELL_M:
+        assert np.isinf(walk) == (start_side != goal_side)
+
+
+@DRAWS
+@given(start=point, gap_y=st.floats(-1.5, 1.5))
+def test_a_walk_through_a_door_is_at_least_as_long_as_the_way_to_the_door_and_on(start: np.ndarray,
+                                                                                   gap_y: float) -> None:
+    free = (np.abs(CELLS[..., 0]) > CELL_M) | (np.abs(CELLS[..., 1] - gap_y) < 0.25)  # a wall at x = 0, a door
+    goal = np.array([2.5, 0.0])
+    walk = walking_distance_m(CELLS, free, goal, start[None])[0]
+    if not np.isfinite(walk):
+        assert abs(start[0]) <= 2 * CELL_M  # only a start inside the wall is cut off
+        return
+    door = np.array([0.0, gap_y])
+    if start[0] < -2 * CELL_M:
+        assert walk >= np.linalg.norm(door - start) + np.linalg.norm(goal - door) - 0.5 - 2 * CELL_M
+
+
+def test_no_walk_to_a_goal_in_a_wall_nor_from_a_point_off_the_grid() -> None:
+    free = np.ones(CELLS.shape[:2], bool)
+    free[20, 30] = False
+    goal_in_wall = CELLS[20, 30]
+    assert np.isinf(walking_distance_m(CELLS, free, goal_in_wall, np.array([[0.0, 0.0], [1.0, 1.0]]))).all()
+    walk = walking_distance_m(CELLS, np.ones(CELLS.shape[:2], bool), np.zeros(2),
+                              np.array([[10.0, 0.0], [0.0, -5.0], [0.5, 0.0]]))
+    assert np.isinf(walk[:2]).all() and np.isclose(walk[2], 0.5)
