@@ -323,7 +323,7 @@ class ReactiveCrowd:
         tau[going] = index - 1.0  # from where they stood: their log at the previous frame
         farthest = np.where(off_log, np.where(going, tau, old.farthest), float(index))
         recent = np.where((off_log & ~going)[:, None], old.recent_m, np.inf)
-        detour = off_log & ~going & (old.detour | (old.stuck >= DETOUR_AFTER_STEPS))
+        detour = off_log & ~going & old.detour
         offset = np.where(off_log, old.offset_m, 0.0)
         xy = np.where(off_log[:, None], start, log_now)
         xy[~present] = np.nan
