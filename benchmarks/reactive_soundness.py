@@ -118,6 +118,8 @@ def main() -> None:
     parser.add_argument("--episodes", type=int, default=50, help="episodes with the robot where it spawns")
     parser.add_argument("--busiest-episodes", type=int, default=30, help="episodes at the busiest clear spot")
     parser.add_argument("--seed", type=int, default=1000, help="episode i starts from reset(seed=seed + i)")
+    parser.add_argument("--per-episode", action="store_true",
+                        help="also print the seed and counts of every episode with something to count but wall steps")
     args = parser.parse_args()
     print("| scene | robot stands | episodes | frozen (episodes) | leave > 1 m from log end | overlapping pairs "
           "| steps in a wall (log walkable) | > 0.3 m deeper than log | off the image | robot hit (episodes) |")
@@ -129,8 +131,11 @@ def main() -> None:
             total: dict[str, int] = defaultdict(int)
             where = "busiest clear spot" if busiest else "at its spawn"
             for i in tqdm(range(episodes), desc=f"{scene} {where}", leave=False):
-                for key, value in run_episode(env, args.seed + i, busiest, depth).items():
+                counts = run_episode(env, args.seed + i, busiest, depth)
+                for key, value in counts.items():
                     total[key] += value
+                if args.per_episode and any(value for key, value in counts.items() if key != "in_wall"):
+                    tqdm.write(f"{scene}, {where}, seed {args.seed + i}: {counts}")
             print(f"| {scene} | {where} | {episodes} | {total['frozen']} | {total['leave_far']} | {total['overlap']} | "
                   f"{total['in_wall']} | {total['deep']} | {total['off_image']} | {total['hit']} |")
         env.close()
