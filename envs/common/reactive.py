@@ -551,8 +551,9 @@ class ReactiveCrowd:
         around = np.vstack([places, route, goal[None], step.start[[agent]]])
         cells = grid_cells(around.min(axis=0) - DETOUR_MARGIN_M, around.max(axis=0) + DETOUR_MARGIN_M)  # (H, W, 2)
         flat = cells.reshape(-1, 2)
-        level = self._too_deep_m(agent, back, flat, run_frame, through=goal_tau) == 0
-        free = self._clear_of_robot(flat, step.robot) & level
+        free = self._clear_of_robot(flat, step.robot)
+        walled = free & (self.depth.at(flat) > 0)  # only these can lie deeper than the log: check them alone
+        free[walled] = self._too_deep_m(agent, back, flat[walled], run_frame, through=goal_tau) == 0
         walk_m = walking_distance_m(cells, free.reshape(cells.shape[:2]), goal, places)
         known = np.isfinite(walk_m)
         if not known.any():
