@@ -470,6 +470,11 @@ class ReactiveCrowd:
         within ``CROSSING_WINDOW`` frames of it (a crossing of a thin wall, beside it) [m]; with ``through``, than the
         point of its log nearest to it on the route from ``tau`` through ``through`` (and ``DEPTH_WINDOW`` frames
         beyond) alone; 0 where that point is off the image, 1000 for a place off the image beside a log on it."""
+        depth = self.depth.at(places)
+        excess = np.zeros(depth.shape)
+        deep = depth > 0  # a place on walkable ground is never deeper than the log: compare only the others
+        if not deep.any():
+            return excess
         first, last = self.run_first[run_frame, agent], self.run_last[run_frame, agent]
         frame = int(np.floor(tau))
         start = frame - DEPTH_WINDOW if through is None else frame
@@ -477,13 +482,14 @@ class ReactiveCrowd:
         window = slice(max(first, start), min(last, end + DEPTH_WINDOW) + 1)
         trace = self.trace_m[window, agent].reshape(-1, 2)
         trace_depth = self.trace_depth_m[window, agent].reshape(-1)
-        nearest = np.argmin(np.linalg.norm(places[..., None, :] - trace, axis=-1), axis=-1)
+        nearest = np.argmin(np.linalg.norm(places[deep][:, None, :] - trace, axis=-1), axis=-1)
         log_depth = trace_depth[nearest]
         if through is None:
             close = slice(max(first, frame - CROSSING_WINDOW), min(last, frame + CROSSING_WINDOW) + 1)
             log_depth = np.maximum(log_depth, self.trace_depth_m[close, agent].max())
-        excess = np.maximum(self.depth.at(places) - log_depth - DEPTH_TOLERANCE_M, 0.0)
-        return np.where(np.isinf(log_depth), 0.0, np.minimum(excess, 1e3))
+        over = np.minimum(np.maximum(depth[deep] - log_depth - DEPTH_TOLERANCE_M, 0.0), 1e3)
+        excess[deep] = np.where(np.isinf(log_depth), 0.0, over)
+        return excess
 
     def _choose(self, agent: int, tau: float, offset: float, step: Step) -> tuple[float, float, np.ndarray]:
         """(tau, offset [m], position (2,)) of ``agent`` at frame ``step.index``: the cheapest candidate that keeps
@@ -552,8 +558,7 @@ class ReactiveCrowd:
         cells = grid_cells(around.min(axis=0) - DETOUR_MARGIN_M, around.max(axis=0) + DETOUR_MARGIN_M)  # (H, W, 2)
         flat = cells.reshape(-1, 2)
         free = self._clear_of_robot(flat, step.robot)
-        walled = free & (self.depth.at(flat) > 0)  # only these can lie deeper than the log: check them alone
-        free[walled] = self._too_deep_m(agent, back, flat[walled], run_frame, through=goal_tau) == 0
+        free[free] = self._too_deep_m(agent, back, flat[free], run_frame, through=goal_tau) == 0
         walk_m = walking_distance_m(cells, free.reshape(cells.shape[:2]), goal, places)
         known = np.isfinite(walk_m)
         if not known.any():
