@@ -1,11 +1,22 @@
-"""Navigation metrics: one episode's figures, their means with 95 % confidence intervals, a paired test.
+"""Navigation metrics in three groups (safety, efficiency, comfort), their means with 95 % intervals, paired tests.
 
-Rates (success, collisions, timeout) get Wilson score intervals; means get Student-t intervals over the
-episodes where the figure exists (time to goal and path ratio: successful episodes only). Two planners run
-on the same seeds are compared with McNemar's exact test on the episodes where only one of them collided.
+Each figure of one episode is defined in ``METRICS`` with its group, unit and the benchmarks that report it
+(``docs``: ``metrics_table``); the groups follow SEANavBench's safety / efficiency / socialness split, which Francis
+et al. 2023 recommend. Distances between people are body gaps (``social_metrics``). Rates (success, collisions,
+timeout) get Wilson score intervals; means get Student-t intervals over the episodes where the figure exists (time
+to goal and path ratio: successful episodes only). Two planners run on the same seeds are compared with McNemar's
+exact test on the episodes where only one of them collided.
 
 A collision is at fault (``collision_at_fault``) when the robot hit a wall, or hit a pedestrian while it was not
 stopped and the pedestrian was not behind it (the env's ``info["at_fault"]``, ``envs.common.fault``).
+
+Choices where the sources differ: intimate-zone entries are near misses, so they count as safety, personal-zone
+entries as comfort (SEANavBench counts both, split by who moved in); off-map steps are the replays' stand-in for
+touching a static obstacle (their walls are only marked), so safety; ``log_ade_m`` (how far a reactive crowd was
+pushed off its recorded paths) is the robot's cost to the crowd, so comfort, like HuNavSim's force on the agents.
+Path ratio and path irregularity are measured against the straight line (a straight path turns by 0), not against
+a search-based path as in SEANavBench and SocNavBench. Time to collision has no horizon: a pair far apart on a
+collision course counts with its long time.
 """
 
 from __future__ import annotations
@@ -13,14 +24,32 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from enum import Enum
+from typing import Literal
 
 import numpy as np
 from scipy import stats
 
+from envs.common.config import EnvConfig
 from replays.constants import STEP_S
+from st_sim.apps.navigation.social_metrics import (
+    INTIMATE_M,
+    PERSONAL_M,
+    SOCIAL_M,
+    STOPPED_MPS,
+    ZONES,
+    body_gaps_m,
+    group_intrusions,
+    group_spaces,
+    min_time_to_collision_s,
+    nearest_gap_m,
+    path_irregularity_rad,
+    zone_entries,
+    zone_shares,
+)
 
 DISCOMFORT_M = 0.2  # the ego is uncomfortably close when its body is this near a pedestrian's [m]
 CONFIDENCE = 0.95
+NAN = float("nan")
 
 
 class Outcome(str, Enum):
@@ -50,16 +79,22 @@ def outcome_of(termination: str | None, truncated: bool) -> Outcome | None:
 
 @dataclass(frozen=True, eq=False)
 class EpisodeTrace:
-    """One episode, reset included (T steps, T + 1 states).
+    """One episode, reset included (T steps, T + 1 states; N pedestrians seen in it).
 
     Attributes:
         ego_xy_m: (T + 1, 2) ego positions [m].  ego_velocity_mps: (T + 1, 2) ego velocities [m/s].
-        clearance_m: (T + 1,) gap between the ego's body and the nearest pedestrian's [m] (inf: nobody there).
+        clearance_m: (T + 1,) gap between the ego's body and the nearest pedestrian's [m] (inf: nobody there); the
+            nearest gap when ``pedestrians_xy_m`` is None (else the gaps come from the positions).
         off_map: (T + 1,) bool, the ego stood on non-walkable ground.
         goal_m: (2,) [m].  outcome: how it ended.
         at_fault: on a pedestrian collision, whether the robot was at fault (the env's ``info["at_fault"]``).
         log_deviation_m: (T,) mean distance of the pedestrians from their recorded paths after each step [m]
             (reactive replays; empty elsewhere).
+        pedestrians_xy_m: (T + 1, N, 2) float64 positions of every pedestrian seen, one column per pedestrian id,
+            NaN where absent [m]; None: not recorded (time to collision and zone entries are then NaN).
+        pedestrian_groups: (N,) int64 group id of each column (-1: alone); None: the env has no groups (the group
+            figures are then NaN).
+        ego_radius_m, pedestrian_radius_m: body radii [m].  step_s: seconds per step.
     """
 
     ego_xy_m: np.ndarray
@@ -70,50 +105,226 @@ class EpisodeTrace:
     outcome: Outcome
     at_fault: bool | None = None
     log_deviation_m: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    pedestrians_xy_m: np.ndarray | None = None
+    pedestrian_groups: np.ndarray | None = None
+    ego_radius_m: float = EnvConfig.ego_radius_m
+    pedestrian_radius_m: float = EnvConfig.pedestrian_radius_m
+    step_s: float = STEP_S
+
+    def __post_init__(self) -> None:
+        states = len(self.ego_xy_m)
+        peds = self.pedestrians_xy_m
+        if peds is not None and (peds.ndim != 3 or peds.shape[0] != states or peds.shape[2] != 2):
+            raise ValueError(f"pedestrians_xy_m: expected ({states}, N, 2) for {states} ego states, got {peds.shape}")
+        groups = self.pedestrian_groups
+        if groups is not None and (peds is None or groups.shape != peds.shape[1:2]):
+            raise ValueError(f"pedestrian_groups: expected one group id per pedestrians_xy_m column, got "
+                             f"{groups.shape} for {None if peds is None else peds.shape}")
+
+    @property
+    def contact_m(self) -> float:
+        """Centre distance at which the ego touches a pedestrian [m]."""
+        return self.ego_radius_m + self.pedestrian_radius_m
 
 
-def episode_metrics(trace: EpisodeTrace) -> dict[str, float | int | str]:
-    """Figures of one episode; NaN where a figure does not exist (e.g. time to goal of a failure).
+def episode_metrics(trace: EpisodeTrace) -> dict[str, float | int | str | bool]:
+    """Every figure of ``METRICS`` for one episode (NaN where it does not exist), plus its outcome.
 
-    Keys: outcome, at_fault (a wall collision, or a pedestrian collision the robot caused), steps,
-    time_to_goal_s, path_ratio (path length / start-goal distance), min_clearance_m (least body gap to a
-    pedestrian), discomfort (share of steps with a gap under 0.2 m), jerk_mps3 (mean norm of the velocity's second
-    difference / 0.4 s^2), off_map (share of steps off the walkable map), log_ade_m (reactive replays: mean
-    distance of the pedestrians from their recorded paths [m]; NaN elsewhere).
+    Per-step figures are taken at the steps' ends (states 1..T; the reset state alone when T = 0). Also holds
+    ``min_clearance_m``, the former name of ``min_distance_m`` (``FORMER_NAMES``), for callers that still read it.
     """
-    steps = len(trace.ego_xy_m) - 1
-    reached = trace.outcome is Outcome.GOAL
-    path_m = float(np.linalg.norm(np.diff(trace.ego_xy_m, axis=0), axis=1).sum())
-    straight_m = float(np.linalg.norm(trace.goal_m - trace.ego_xy_m[0]))
-    clearance = trace.clearance_m[1:] if steps else trace.clearance_m
-    jerk = np.linalg.norm(np.diff(trace.ego_velocity_mps, n=2, axis=0), axis=1) / STEP_S ** 2
-    finite = clearance[np.isfinite(clearance)]
+    gaps = None if trace.pedestrians_xy_m is None else body_gaps_m(trace.ego_xy_m, trace.pedestrians_xy_m,
+                                                                   trace.contact_m)
+    nearest = _step_ends(trace.clearance_m if gaps is None else nearest_gap_m(gaps))
+    figures = {"outcome": trace.outcome.value, **_safety(trace, gaps, nearest), **_efficiency(trace),
+               **_comfort(trace, gaps, nearest)}
+    return {**figures, **{former: figures[name] for name, former in FORMER_NAMES.items()}}
+
+
+def _safety(trace: EpisodeTrace, gaps: np.ndarray | None, nearest: np.ndarray) -> dict[str, float | int | bool]:
+    """Collision, at fault, least gap and time to collision, intimate-zone entries, off-map share."""
     at_fault = trace.outcome is Outcome.WALL or (trace.outcome is Outcome.PEDESTRIAN and trace.at_fault is not False)
-    return {
-        "outcome": trace.outcome.value,
-        "at_fault": bool(at_fault),
-        "steps": steps,
-        "time_to_goal_s": steps * STEP_S if reached else float("nan"),
-        "path_ratio": path_m / straight_m if reached and straight_m > 0 else float("nan"),
-        "min_clearance_m": float(finite.min()) if finite.size else float("nan"),
-        "discomfort": float(np.mean(clearance < DISCOMFORT_M)) if steps else 0.0,
-        "jerk_mps3": float(jerk.mean()) if jerk.size else float("nan"),
-        "off_map": float(np.mean(trace.off_map[1:])) if steps else 0.0,
-        "log_ade_m": float(trace.log_deviation_m.mean()) if trace.log_deviation_m.size else float("nan"),
-    }
+    finite = nearest[np.isfinite(nearest)]
+    ttc = NAN if gaps is None else min_time_to_collision_s(trace.ego_xy_m, trace.ego_velocity_mps,
+                                                           trace.pedestrians_xy_m, trace.contact_m, trace.step_s)
+    return {"collision": trace.outcome in (Outcome.PEDESTRIAN, Outcome.WALL), "at_fault": bool(at_fault),
+            "min_distance_m": float(finite.min()) if finite.size else NAN, "min_ttc_s": ttc,
+            **_entries(trace, gaps, INTIMATE_M, "intimate"), "off_map": float(np.mean(_step_ends(trace.off_map)))}
 
 
-RATES: dict[str, Callable[[dict], bool]] = {
-    "success": lambda e: e["outcome"] == Outcome.GOAL.value,
-    "collision": lambda e: e["outcome"] in (Outcome.PEDESTRIAN.value, Outcome.WALL.value),
-    "collision_at_fault": lambda e: bool(e.get("at_fault")),  # older result files lack the field
-    "pedestrian_collision": lambda e: e["outcome"] == Outcome.PEDESTRIAN.value,
-    "wall_collision": lambda e: e["outcome"] == Outcome.WALL.value,
-    "timeout": lambda e: e["outcome"] == Outcome.TIMEOUT.value,
+def _efficiency(trace: EpisodeTrace) -> dict[str, float | int | bool]:
+    """Success, timeout, steps, time to goal, path length and ratio, SPL, time not moving."""
+    steps = len(trace.ego_xy_m) - 1
+    success = trace.outcome is Outcome.GOAL
+    step_m = np.linalg.norm(np.diff(trace.ego_xy_m, axis=0), axis=1)
+    path_m = float(step_m.sum())
+    straight_m = float(np.linalg.norm(trace.goal_m - trace.ego_xy_m[0]))
+    spl = straight_m / max(path_m, straight_m) if path_m + straight_m > 0 else 1.0  # 1: nothing to cover
+    return {"success": success, "timeout": trace.outcome is Outcome.TIMEOUT, "steps": steps,
+            "time_to_goal_s": steps * trace.step_s if success else NAN, "path_length_m": path_m,
+            "path_ratio": path_m / straight_m if success and straight_m > 0 else NAN, "spl": spl * success,
+            "time_not_moving_s": float(np.sum(step_m < STOPPED_MPS * trace.step_s) * trace.step_s)}
+
+
+def _comfort(trace: EpisodeTrace, gaps: np.ndarray | None, nearest: np.ndarray) -> dict[str, float | int]:
+    """Zone shares, personal-zone entries, acceleration, jerk, irregularity, group intrusions, discomfort, log ADE."""
+    velocity, step_s = trace.ego_velocity_mps, trace.step_s
+    acceleration = np.linalg.norm(np.diff(velocity, axis=0), axis=1) / step_s
+    jerk = np.linalg.norm(np.diff(velocity, n=2, axis=0), axis=1) / step_s ** 2
+    shares = zone_shares(nearest)
+    return {**{f"zone_{zone}_share": shares[zone] for zone in ZONES}, **_entries(trace, gaps, PERSONAL_M, "personal"),
+            "acceleration_mps2": _mean(acceleration), "jerk_mps3": _mean(jerk),
+            "path_irregularity_rad": path_irregularity_rad(trace.ego_xy_m, STOPPED_MPS * step_s),
+            **_groups(trace), "discomfort": float(np.mean(nearest < DISCOMFORT_M)),
+            "log_ade_m": _mean(trace.log_deviation_m)}
+
+
+def _entries(trace: EpisodeTrace, gaps: np.ndarray | None, limit_m: float, zone: str) -> dict[str, float | int]:
+    """``{zone}_entries_robot`` and ``{zone}_entries_person`` (``social_metrics.zone_entries``); NaN without
+    pedestrian positions."""
+    robot, person = (NAN, NAN) if gaps is None else zone_entries(trace.ego_xy_m, trace.pedestrians_xy_m, gaps,
+                                                                 limit_m)
+    return {f"{zone}_entries_robot": robot, f"{zone}_entries_person": person}
+
+
+def _groups(trace: EpisodeTrace) -> dict[str, float | int]:
+    """``group_intrusions`` and ``group_intrusion_share`` (``social_metrics.group_spaces``); NaN without groups."""
+    if trace.pedestrian_groups is None:
+        return {"group_intrusions": NAN, "group_intrusion_share": NAN}
+    inside, exists = group_spaces(trace.ego_xy_m, trace.pedestrians_xy_m, trace.pedestrian_groups)
+    return {"group_intrusions": group_intrusions(inside, exists),
+            "group_intrusion_share": float(np.mean(_step_ends(inside.any(axis=1))))}
+
+
+def _step_ends(per_state: np.ndarray) -> np.ndarray:
+    """The (T,) values at the steps' ends of (T + 1,) per-state values; the reset state's when T = 0."""
+    return per_state[1:] if len(per_state) > 1 else per_state
+
+
+def _mean(values: np.ndarray) -> float:
+    """Mean of ``values``; NaN if there are none."""
+    return float(values.mean()) if values.size else NAN
+
+
+Group = Literal["safety", "efficiency", "comfort"]
+GROUPS: tuple[Group, ...] = ("safety", "efficiency", "comfort")
+
+
+@dataclass(frozen=True)
+class Metric:
+    """One figure of the benchmark, as ``summarize`` pools it over episodes and the docs describe it."""
+
+    group: Group
+    kind: Literal["rate", "mean"]
+    """rate: share of episodes (Wilson interval); mean: mean over the episodes where it is finite (t interval)"""
+    unit: str
+    definition: str
+    source: str
+    """the benchmarks that report it (NAV_METRICS.md); "ours" where none does"""
+    counts: Callable[[dict], bool] | None = field(default=None, repr=False)
+    """rates: whether an episode (an ``episode_metrics`` dict, older files included) counts"""
+
+
+def _rate(group: Group, definition: str, source: str, counts: Callable[[dict], bool]) -> Metric:
+    return Metric(group, "rate", "share", definition, source, counts)
+
+
+def _zone_share(band: str) -> Metric:
+    return Metric("comfort", "mean", "share", f"share of steps whose nearest body gap to a pedestrian is {band}",
+                  "HuNavSim")
+
+
+def _zone_entries(zone: str, limit_m: float, mover: str) -> Metric:
+    who = {"robot": "the robot's displacement toward the person over that step is at least the person's toward the "
+                    "robot",
+           "person": "the person's displacement toward the robot is greater, or the person appeared inside"}[mover]
+    return Metric("safety" if zone == "intimate" else "comfort", "mean", "count",
+                  f"{mover}-made entries into a person's {zone} zone: the body gap falls below {limit_m} m between "
+                  f"two states and {who}", "SEANavBench")
+
+
+METRICS: dict[str, Metric] = {
+    # safety
+    "collision": _rate("safety", "the episode ended in a collision with a pedestrian or a wall", "SEANavBench, "
+                       "SocNavBench, HuNavSim, CrowdNav++", lambda e: e["outcome"] in (Outcome.PEDESTRIAN.value,
+                                                                                      Outcome.WALL.value)),
+    "collision_at_fault": _rate("safety", "a wall collision, or a pedestrian collision while the robot moved and "
+                                "the pedestrian was not behind it (episode key at_fault)",
+                                "ours (SEANavBench, HuNavSim: robot-on-person vs person-on-robot)",
+                                lambda e: bool(e.get("at_fault"))),  # older result files lack the field
+    "pedestrian_collision": _rate("safety", "the episode ended in a collision with a pedestrian",
+                                  "SEANavBench, HuNavSim", lambda e: e["outcome"] == Outcome.PEDESTRIAN.value),
+    "wall_collision": _rate("safety", "the episode ended with the robot touching a wall", "SEANavBench",
+                            lambda e: e["outcome"] == Outcome.WALL.value),
+    "min_distance_m": Metric("safety", "mean", "m", "least body gap between the robot and a pedestrian at the "
+                             "steps' ends (negative: overlap); NaN if nobody was ever present",
+                             "SocNavBench, HuNavSim, CrowdNav++"),
+    "min_ttc_s": Metric("safety", "mean", "s", "least time until the robot and a pedestrian touch if both keep "
+                        "their velocities (the pedestrian's over its last step); NaN if never on a collision course",
+                        "SocNavBench"),
+    "intimate_entries_robot": _zone_entries("intimate", INTIMATE_M, "robot"),
+    "intimate_entries_person": _zone_entries("intimate", INTIMATE_M, "person"),
+    "off_map": Metric("safety", "mean", "share", "share of steps the robot ends on non-walkable ground", "ours"),
+    # efficiency
+    "success": _rate("efficiency", "the robot reached the goal radius before any collision or the time limit",
+                     "SEANavBench, SocNavBench, HuNavSim, CrowdNav++", lambda e: e["outcome"] == Outcome.GOAL.value),
+    "timeout": _rate("efficiency", "the time limit (or a replay's recording) ran out first", "CrowdNav++",
+                     lambda e: e["outcome"] == Outcome.TIMEOUT.value),
+    "steps": Metric("efficiency", "mean", "steps", "env steps of 0.4 s the episode lasted", "ours"),
+    "time_to_goal_s": Metric("efficiency", "mean", "s", "episode duration, successes only", "HuNavSim, CrowdNav++"),
+    "path_length_m": Metric("efficiency", "mean", "m", "distance the robot travelled",
+                            "SEANavBench, SocNavBench, HuNavSim"),
+    "path_ratio": Metric("efficiency", "mean", "ratio", "path length / straight start-goal distance, successes only "
+                         "(the straight line, not a search-based path)", "SEANavBench, SocNavBench, CrowdNav++"),
+    "spl": Metric("efficiency", "mean", "share", "success weighted by path length: success x straight / "
+                  "max(path, straight); 0 on failure", "SocNavGym, CrowdNav++ (path efficiency)"),
+    "time_not_moving_s": Metric("efficiency", "mean", "s", f"time spent at a speed under {STOPPED_MPS} m/s (step "
+                                "displacement / step)", "SEANavBench, HuNavSim"),
+    # comfort
+    **{f"zone_{zone}_share": _zone_share(band) for zone, band in zip(ZONES, (
+        f"< {INTIMATE_M} m", f"in [{INTIMATE_M}, {PERSONAL_M}) m", f"in [{PERSONAL_M}, {SOCIAL_M}) m",
+        f">= {SOCIAL_M} m, or nobody is present"), strict=True)},
+    "personal_entries_robot": _zone_entries("personal", PERSONAL_M, "robot"),
+    "personal_entries_person": _zone_entries("personal", PERSONAL_M, "person"),
+    "acceleration_mps2": Metric("comfort", "mean", "m/s^2", "mean norm of the velocity's change per step / step",
+                                "SocNavBench, HuNavSim"),
+    "jerk_mps3": Metric("comfort", "mean", "m/s^3", "mean norm of the velocity's second difference / step^2",
+                        "SocNavBench"),
+    "path_irregularity_rad": Metric("comfort", "mean", "rad", "total absolute heading change between the robot's "
+                                    "moving steps (straight: 0, a full circle: 2 pi)",
+                                    "HuNavSim (cumulative heading changes), SEANavBench, SocNavBench"),
+    "group_intrusions": Metric("comfort", "mean", "count", "entries of the robot's centre into a group's space (disc "
+                               "at the centroid of its present members, >= 2, reaching the farthest); NaN without "
+                               "group labels", "HuNavSim, TAGA, navmet"),
+    "group_intrusion_share": Metric("comfort", "mean", "share", "share of steps the robot's centre is inside a "
+                                    "group's space; NaN without group labels", "HuNavSim"),
+    "discomfort": Metric("comfort", "mean", "share", f"share of steps with a body gap under {DISCOMFORT_M} m",
+                         "CrowdNav++"),
+    "log_ade_m": Metric("comfort", "mean", "m", "reactive replays: mean distance of the pedestrians from their "
+                        "recorded paths (how far the robot pushed them); NaN elsewhere", "ours"),
 }
+"""every figure of ``episode_metrics``, by group"""
+FORMER_NAMES: dict[str, str] = {"min_distance_m": "min_clearance_m"}
+"""current figure names -> their former names, which ``episode_metrics`` and ``summarize`` still write (and read)"""
+RATES: dict[str, Callable[[dict], bool]] = {name: m.counts for name, m in METRICS.items() if m.kind == "rate"}
 """share of episodes that ... (an episode of ``episode_metrics``)"""
 MEANS: tuple[str, ...] = ("time_to_goal_s", "path_ratio", "min_clearance_m", "discomfort", "jerk_mps3", "off_map",
                           "log_ade_m")
+"""the means the text report lists (older names kept); ``METRICS`` holds every mean"""
+
+
+def metrics_table() -> str:
+    """``METRICS`` as markdown: a note on distances, then a table (metric, group, unit, definition, source) group by
+    group."""
+    rows = [f"Distances between the robot and people are body gaps: centre distance minus both radii (robot "
+            f"{EnvConfig.ego_radius_m} m, pedestrian {EnvConfig.pedestrian_radius_m} m). Hall's zones (intimate < "
+            f"{INTIMATE_M} m, personal < {PERSONAL_M} m, social < {SOCIAL_M} m) are centre distances in Hall's work; "
+            "they are gaps here, since bodies touch at a centre distance of "
+            f"{EnvConfig.ego_radius_m + EnvConfig.pedestrian_radius_m:.2f} m, which would swallow the intimate zone.",
+            "", "| metric | group | unit | definition | source |", "|---|---|---|---|---|"]
+    rows += [f"| `{name}` | {m.group} | {m.unit} | {m.definition} | {m.source} |"
+             for group in GROUPS for name, m in METRICS.items() if m.group == group]
+    return "\n".join(rows)
 
 
 def rate_interval(hits: int, n: int) -> tuple[float, float]:
@@ -138,18 +349,26 @@ def mean_interval(values: np.ndarray) -> tuple[float, float, float]:
 
 
 def summarize(episodes: list[dict]) -> dict[str, dict[str, float]]:
-    """Every rate and mean of ``episodes`` (dicts of ``episode_metrics``): {name: {value, low, high, n}}."""
+    """Every figure of ``METRICS`` over ``episodes`` (dicts of ``episode_metrics``, older result files included):
+    {name: {value, low, high, n}}.
+
+    Rates count every episode (Wilson interval); means pool the finite values (t interval, n of them; a figure an
+    older file lacks has n = 0). The former names of ``FORMER_NAMES`` are read where the current one is missing and
+    written beside it.
+    """
     n = len(episodes)
     summary = {}
-    for name, counts in RATES.items():
-        hits = sum(counts(e) for e in episodes)
-        low, high = rate_interval(hits, n)
-        summary[name] = {"value": hits / n if n else float("nan"), "low": low, "high": high, "n": n}
-    for name in MEANS:
-        values = np.array([e[name] for e in episodes], np.float64)
-        mean, low, high = mean_interval(values)
-        summary[name] = {"value": mean, "low": low, "high": high, "n": int(np.isfinite(values).sum())}
-    return summary
+    for name, metric in METRICS.items():
+        if metric.kind == "rate":
+            hits = sum(metric.counts(e) for e in episodes)
+            low, high = rate_interval(hits, n)
+            summary[name] = {"value": hits / n if n else NAN, "low": low, "high": high, "n": n}
+        else:
+            former = FORMER_NAMES.get(name)
+            values = np.array([e.get(name, e.get(former, NAN)) for e in episodes], np.float64)
+            mean, low, high = mean_interval(values)
+            summary[name] = {"value": mean, "low": low, "high": high, "n": int(np.isfinite(values).sum())}
+    return {**summary, **{former: summary[name] for name, former in FORMER_NAMES.items()}}
 
 
 def paired_collision_test(a: list[dict], b: list[dict], at_fault: bool = False) -> dict[str, float | int]:
