@@ -12,12 +12,12 @@ heading along +x, moving agents' lengths in units of their recent speed per step
     own = predictor.load_plugin("examples.knn_predictor:make", "stochastic", "zara1")   # a plug-in (predictor.plugins)
 """
 
-from predictor.baselines import BASELINES, ConstantVelocity, ConstantVelocitySampler, LinearFit
+from predictor.baselines import BASELINES, ConstantVelocity, ConstantVelocitySampler, LinearFit, Stationary
 from predictor.plugins import PluginError, load_plugin
 from predictor.protocol import Predictor
 
 __all__ = ["BASELINES", "ConstantVelocity", "ConstantVelocitySampler", "LinearFit", "PluginError", "Predictor",
-           "load", "load_plugin", "load_pretrained"]
+           "Stationary", "load", "load_plugin", "load_pretrained"]
 
 
 def __getattr__(name: str):

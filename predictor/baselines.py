@@ -1,4 +1,4 @@
-"""Constant-velocity baselines (NumPy only): CVM, CVM-S (Schöller et al. 2020) and a least-squares line."""
+"""Baselines (NumPy only): CVM, CVM-S (Schöller et al. 2020), a least-squares line, and "none" (nobody moves)."""
 
 from __future__ import annotations
 
@@ -32,6 +32,19 @@ class ConstantVelocity:
         """(N, T_obs, 2) metres -> (N, S, 12, 2) float32 metres."""
         obs, group = check_inputs(obs, group, num_samples)
         return np.repeat(constant_velocity(obs)[:, None], num_samples, axis=1).astype(np.float32)
+
+
+class Stationary:
+    """No prediction: every future point is the last observed position (a planner given these assumes that nobody
+    moves, and they cost nothing to compute)."""
+
+    name = "none"
+
+    def predict(self, obs: np.ndarray, group: np.ndarray, scene: Scene | None = None,
+                num_samples: int = 1) -> np.ndarray:
+        """(N, T_obs, 2) metres -> (N, S, 12, 2) float32 metres, all at the last observed position."""
+        obs, group = check_inputs(obs, group, num_samples)
+        return np.broadcast_to(obs[:, None, None, -1], (len(obs), num_samples, T_PRED, 2)).copy()
 
 
 @dataclass
@@ -94,4 +107,4 @@ class LinearFit:
         return np.repeat(path[:, None], num_samples, axis=1).astype(np.float32)
 
 
-BASELINES = {"cvm": ConstantVelocity, "cvm-s": ConstantVelocitySampler, "linear": LinearFit}
+BASELINES = {"cvm": ConstantVelocity, "cvm-s": ConstantVelocitySampler, "linear": LinearFit, "none": Stationary}

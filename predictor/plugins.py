@@ -48,18 +48,19 @@ def is_plugin_spec(text: Any) -> bool:
     return isinstance(text, str) and ":" in text and not text.startswith(SHIPPED_PREFIX) and not os.path.exists(text)
 
 
-def _describe(err: BaseException) -> str:
-    """``Type: message`` on one line."""
+def describe_error(err: BaseException) -> str:
+    """``Type: message`` of an exception, on one line."""
     message = " ".join(str(err).split())
     return f"{type(err).__name__}: {message}" if message else type(err).__name__
 
 
-def resolve_factory(spec: str) -> Callable[..., Any]:
+def resolve_factory(spec: str, kind: str = "predictor") -> Callable[..., Any]:
     """The callable ``spec`` names, imported. Raises ``PluginError`` if the spec is malformed, does not import
-    (module missing, an error inside it) or names something missing or not callable."""
+    (module missing, an error inside it) or names something missing or not callable; messages begin with ``kind``
+    (what the spec is for: a predictor, a policy)."""
     match = SPEC_PATTERN.fullmatch(spec)
     if match is None:
-        raise PluginError(f"predictor {spec!r}: a plug-in is named package.module:name, a factory in an "
+        raise PluginError(f"{kind} {spec!r}: a plug-in is named package.module:name, a class or factory in an "
                           "importable module")
     module, attr = match["module"], match["attr"]
     try:
@@ -69,16 +70,16 @@ def resolve_factory(spec: str) -> Callable[..., Any]:
         if err.name is not None and (module == err.name or module.startswith(f"{err.name}.")):
             hint = ("; run from the folder that holds it (`python -m st_sim` puts the working folder on the path) "
                     "or add that folder to PYTHONPATH")
-        raise PluginError(f"predictor {spec!r}: cannot import {module} ({_describe(err)}){hint}") from err
+        raise PluginError(f"{kind} {spec!r}: cannot import {module} ({describe_error(err)}){hint}") from err
     except (Exception, SystemExit) as err:
-        raise PluginError(f"predictor {spec!r}: importing {module} raised {_describe(err)}") from err
+        raise PluginError(f"{kind} {spec!r}: importing {module} raised {describe_error(err)}") from err
     for part in attr.split("."):
         try:
             target = getattr(target, part)
         except Exception as err:
-            raise PluginError(f"predictor {spec!r}: {module} has no {attr} ({_describe(err)})") from err
+            raise PluginError(f"{kind} {spec!r}: {module} has no {attr} ({describe_error(err)})") from err
     if not callable(target):
-        raise PluginError(f"predictor {spec!r}: {attr} is a {type(target).__name__}, not a callable factory")
+        raise PluginError(f"{kind} {spec!r}: {attr} is a {type(target).__name__}, not a callable factory")
     return target
 
 
@@ -108,11 +109,11 @@ def load_plugin(spec: str, task: str, scene: str | None, root: str | os.PathLike
         model = factory(task=task, scene=scene, train=train, val=val, data_root=data_root(root), **extra)
     except (Exception, SystemExit) as err:
         keywords = f" (it is called with keywords {', '.join(FACTORY_KEYWORDS)})" if isinstance(err, TypeError) else ""
-        raise PluginError(f"predictor {spec!r}: {call} raised {_describe(err)}{keywords}") from err
+        raise PluginError(f"predictor {spec!r}: {call} raised {describe_error(err)}{keywords}") from err
     try:
         predict = getattr(model, "predict", None)
     except Exception as err:
-        raise PluginError(f"predictor {spec!r}: reading {call}.predict raised {_describe(err)}") from err
+        raise PluginError(f"predictor {spec!r}: reading {call}.predict raised {describe_error(err)}") from err
     if not callable(predict):
         raise PluginError(f"predictor {spec!r}: {call} returned a {type(model).__name__} without a callable "
                           "predict(obs, group, scene, num_samples)")
@@ -139,7 +140,7 @@ class PluginPredictor:
         try:
             futures = self.model.predict(obs, group, scene, int(num_samples))
         except (Exception, SystemExit) as err:
-            raise PluginError(f"predictor {self.spec!r}: predict raised {_describe(err)}") from err
+            raise PluginError(f"predictor {self.spec!r}: predict raised {describe_error(err)}") from err
         try:
             return check_futures(futures, len(obs), int(num_samples), self.spec)
         except PredictionError as err:

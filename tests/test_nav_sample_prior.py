@@ -12,7 +12,6 @@ import envs  # noqa: F401  (registers the ids)
 from predictor.checkpoint import pretrained_manifest
 from replays.constants import TASKS
 from st_sim.apps.navigation import sample_prior as prior_module
-from st_sim.apps.navigation.predictors import StaticPredictor
 from st_sim.apps.navigation.sample_prior import sample_prior
 from st_sim.apps.navigation.world import world_of
 
@@ -46,7 +45,7 @@ def test_no_prior_for_unordered_unknown_or_stale_predictors(monkeypatch: pytest.
 def test_world_of_hands_the_envs_checkpoint_prior_to_the_planners(env_id: str, name: str) -> None:
     world = world_of(gym.make(env_id, predictor="singular"))
     assert np.array_equal(world.sample_prior, sample_prior(f"shipped:{name}", 20))
-    for other in ("cvm-s", StaticPredictor()):
+    for other in ("cvm-s", "none"):
         assert world_of(gym.make(env_id, predictor=other)).sample_prior is None, f"{other}: samples are unordered"
 
 

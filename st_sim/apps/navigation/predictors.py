@@ -6,28 +6,12 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-import numpy as np
-
 from predictor.plugins import is_plugin_spec, resolve_factory
-from replays.constants import T_PRED
-from replays.scenes import Scene
 
 PREDICTORS: tuple[str, ...] = ("none", "cvm", "cvm-s", "singular")
 """predictor names of the navigation benchmark's table, no prediction first"""
 NAMES: tuple[str, ...] = (*PREDICTORS, "linear")
 """every predictor name a planner takes (the least-squares line too)"""
-
-
-class StaticPredictor:
-    """No prediction: every future point is the last observed position (the env then costs nothing to predict)."""
-
-    name = "none"
-
-    def predict(self, obs: np.ndarray, group: np.ndarray, scene: Scene | None = None,
-                num_samples: int = 1) -> np.ndarray:
-        """(N, T_obs, 2) metres -> (N, S, 12, 2) float32 metres, all at the last observed position."""
-        last = np.asarray(obs, np.float32)[:, -1]
-        return np.broadcast_to(last[:, None, None], (len(last), num_samples, T_PRED, 2)).copy()
 
 
 def env_predictor(name: str) -> Any:
@@ -43,7 +27,7 @@ def env_predictor(name: str) -> Any:
     if name not in NAMES:
         raise ValueError(f"predictor={name!r}: expected one of {', '.join(NAMES)} or a plug-in "
                          "package.module:name")
-    return StaticPredictor() if name == "none" else name
+    return name
 
 
 def predictor_argument(text: str) -> str:
