@@ -21,9 +21,9 @@ from typing import Any
 
 from predictor.registry import run_dir
 from predictor.train import TRAIN_SUMMARY, TrainConfig
-from st_sim.apps.cli import add_grid_arguments
 from st_sim.apps.evaluate import source_label
 from st_sim.apps.grid import Job, raise_on_failure, run_jobs, summary_lines
+from st_sim.command_line import add_grid_arguments
 
 VARIANTS = {  # name -> (scene, overrides of TrainConfig)
     "K=1": ("zara1", {"k": 1}),

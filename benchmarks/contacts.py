@@ -23,8 +23,8 @@ from pathlib import Path
 
 from replays.atomic import write_text_atomic
 from replays.scenes import SCENE_NAMES
-from st_sim.apps.cli import add_grid_arguments
 from st_sim.apps.grid import Job, raise_on_failure, run_jobs
+from st_sim.command_line import add_grid_arguments
 from st_sim.sim.layouts import SYNTHETIC
 from st_sim.sim.soundness import OVERLAP_BOUND_M, WALL_BOUND_M
 

@@ -21,13 +21,13 @@ import argparse
 import json
 from pathlib import Path
 
-from st_sim.apps.cli import add_grid_arguments
 from st_sim.apps.grid import raise_on_failure, run_jobs
 from st_sim.apps.navigation.episodes import NavRun, grid_job
 from st_sim.apps.navigation.metrics import paired_collision_test, paired_success_test
 from st_sim.apps.navigation.planners import PLANNERS, USES_PREDICTIONS
 from st_sim.apps.navigation.predictors import PREDICTORS
 from st_sim.apps.navigation.report import markdown_header, markdown_row, see_ego_label
+from st_sim.command_line import add_grid_arguments
 
 ENVS = ("STCrowd-SimCrossing-v1", "STCrowd-Zara1-v0:log", "STCrowd-Zara1-v0:reactive", "STCrowd-Univ-v0:log",
         "STCrowd-Univ-v0:reactive")

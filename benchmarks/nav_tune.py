@@ -21,11 +21,11 @@ from pathlib import Path
 
 from nav_table import env_and_mode
 
-from st_sim.apps.cli import add_grid_arguments
 from st_sim.apps.grid import raise_on_failure, run_jobs
 from st_sim.apps.navigation.episodes import NavRun, grid_job
 from st_sim.apps.navigation.mpc import MpcConfig
 from st_sim.apps.navigation.predictors import PREDICTORS
+from st_sim.command_line import add_grid_arguments
 
 SEE_EGO = {"yes": True, "no": False, "default": None}
 

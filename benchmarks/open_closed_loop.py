@@ -36,11 +36,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # `examples` impor
 
 from predictor.train import TRAIN_SUMMARY, TrainConfig
 from replays.atomic import write_text_atomic
-from st_sim.apps.cli import add_grid_arguments
 from st_sim.apps.grid import Job, raise_on_failure, run_jobs
 from st_sim.apps.navigation.episodes import NavRun, grid_job
 from st_sim.apps.navigation.metrics import rate_interval
 from st_sim.charts import ScatterPoint, interval_scatter, save_figure
+from st_sim.command_line import add_grid_arguments
 
 PREDICTORS = {  # label -> spec (in envs and on windows); "singular" is the envs' own, its samples weighed by prior
     "cvm": "cvm", "cvm-s": "cvm-s", "linear": "linear", "singular": "singular",

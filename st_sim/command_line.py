@@ -35,6 +35,18 @@ def check_writable(folder: Path) -> None:
         raise CliError(f"{folder}: cannot write there ({err.strerror or err})") from err
 
 
+def add_grid_arguments(parser: argparse.ArgumentParser) -> None:
+    """Flags of commands that run a grid of jobs (``st_sim.apps.grid``)."""
+    parser.add_argument("--executor", choices=["local", "ray"], default="local",
+                        help="local: a process pool on this machine; ray: a Ray cluster (pip install -e \".[ray]\") "
+                             "(default: local)")
+    parser.add_argument("--workers", type=positive_int, default=None,
+                        help="parallel jobs, one thread each: the local pool's size, or the CPUs of a Ray started "
+                             "here when --ray-address is not given (default: the number of cores)")
+    parser.add_argument("--ray-address", default=None,
+                        help="ray: cluster address, auto or HOST:PORT (default: start Ray on this machine)")
+
+
 def add_debug_flag(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--debug", action="store_true", help="show the Python traceback on errors")
 

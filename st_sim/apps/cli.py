@@ -1,5 +1,5 @@
 """``python -m st_sim <command>`` (or ``stcrowd <command>``): evaluate predictors, plot a window, run the demo,
-navigate, validate the reactive pedestrians."""
+navigate, benchmark a navigation policy on the suite and compare results, validate the reactive pedestrians."""
 
 from __future__ import annotations
 
@@ -14,8 +14,16 @@ from typing import TYPE_CHECKING
 from replays.atomic import write_text_atomic
 from replays.constants import TASKS
 from st_sim.apps import reactive_validate
+from st_sim.apps.navigation import benchmark_cli
 from st_sim.apps.navigation import cli as navigation_cli
-from st_sim.command_line import CliError, add_debug_flag, check_writable, positive_int, run_guarded
+from st_sim.command_line import (
+    CliError,
+    add_debug_flag,
+    add_grid_arguments,
+    check_writable,
+    positive_int,
+    run_guarded,
+)
 
 if TYPE_CHECKING:
     from st_sim.apps.evaluate import Plan
@@ -181,7 +189,8 @@ def write_json_atomic(path: Path, data: dict) -> None:
 
 
 COMMANDS = {"evaluate": run_evaluate, "demo": run_demo, "plot": run_plot, "figures": run_figures,
-            "navigate": navigation_cli.run, "reactive-validate": reactive_validate.run}
+            "navigate": navigation_cli.run, "reactive-validate": reactive_validate.run,
+            "benchmark": benchmark_cli.run_benchmark_command, "leaderboard": benchmark_cli.run_leaderboard_command}
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -242,6 +251,7 @@ def build_parser() -> argparse.ArgumentParser:
     figures.add_argument("--data-root", default=None, help="ETH/UCY folder (default: $STCROWD_DATA or the cache)")
 
     navigation_cli.add_parser(commands)
+    benchmark_cli.add_parsers(commands)
     reactive_validate.add_parser(commands)
     demo = commands.add_parser("demo", help="simulated crossing with an ego robot and predictions (no data needed)")
     demo.add_argument("--steps", type=positive_int, default=150,
@@ -249,18 +259,6 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--rerun", default="stcrowd_demo.rrd", help="Rerun recording path (default: stcrowd_demo.rrd)")
     demo.add_argument("--seed", type=int, default=0, help="episode seed (default: 0)")
     return parser
-
-
-def add_grid_arguments(parser: argparse.ArgumentParser) -> None:
-    """Flags of commands that run a grid of jobs (``st_sim.apps.grid``)."""
-    parser.add_argument("--executor", choices=["local", "ray"], default="local",
-                        help="local: a process pool on this machine; ray: a Ray cluster (pip install -e \".[ray]\") "
-                             "(default: local)")
-    parser.add_argument("--workers", type=positive_int, default=None,
-                        help="parallel jobs, one thread each: the local pool's size, or the CPUs of a Ray started "
-                             "here when --ray-address is not given (default: the number of cores)")
-    parser.add_argument("--ray-address", default=None,
-                        help="ray: cluster address, auto or HOST:PORT (default: start Ray on this machine)")
 
 
 def main(argv: list[str] | None = None) -> int:
