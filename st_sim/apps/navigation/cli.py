@@ -1,4 +1,4 @@
-"""``python -m st_sim navigate``: run a planner with a predictor through seeded episodes and print the metrics.
+"""``python -m st_sim navigate``: run a policy with a predictor through seeded episodes and print the metrics.
 
     python -m st_sim navigate --env STCrowd-SimCrossing-v1 --policy mpc --predictor singular \\
         --episodes 100 --seed 0 --json nav.json [--rerun DIR]
@@ -11,7 +11,7 @@ import json
 from pathlib import Path
 
 from replays.atomic import write_text_atomic
-from st_sim.apps.navigation.planners import PLANNERS
+from st_sim.apps.navigation.policies import SPEC_HELP, check_policy_spec
 from st_sim.apps.navigation.predictors import predictor_argument
 
 SEE_EGO_CHOICES = {"yes": True, "no": False, "default": None}
@@ -22,7 +22,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
     nav = subparsers.add_parser("navigate", help="navigation benchmark: a planner with a predictor, metrics with "
                                                  "95 %% confidence intervals")
     nav.add_argument("--env", default="STCrowd-SimCrossing-v1", help="env id (default: STCrowd-SimCrossing-v1)")
-    nav.add_argument("--policy", choices=list(PLANNERS), default="mpc", help="planner (default: mpc)")
+    nav.add_argument("--policy", default="mpc", help=f"the policy: {SPEC_HELP} (default: mpc)")
     nav.add_argument("--predictor", type=predictor_argument, default="singular",
                      help="predictor in the observation: none (pedestrians assumed to stand still), cvm, cvm-s, "
                           "singular, or a plug-in package.module:name, called with task=stochastic, the replay's "
@@ -55,6 +55,7 @@ def run(args: argparse.Namespace) -> int:
 
     if args.episodes < 1:
         raise SystemExit("--episodes must be at least 1")
+    check_policy_spec(args.policy)
     if args.sensor_range is not None and not args.sensor_range > 0:  # also refuses NaN
         raise SystemExit(f"--sensor-range={args.sensor_range}: expected a distance in metres > 0 (or inf)")
     nav_run = NavRun(env_id=args.env, policy=args.policy, predictor=args.predictor, episodes=args.episodes,

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import inspect
 import json
+import re
 import time
 from dataclasses import asdict, dataclass, is_dataclass
 from pathlib import Path
@@ -21,9 +22,10 @@ import envs  # noqa: F401  (registers the ids)
 from envs.common.config import EnvConfig
 from replays.atomic import write_text_atomic
 from st_sim.apps.grid import Job
-from st_sim.apps.navigation.metrics import EpisodeTrace, episode_metrics, outcome_of, summarize
+from st_sim.apps.navigation.metrics import EpisodeTrace, Outcome, episode_metrics, outcome_of, summarize
 from st_sim.apps.navigation.mpc import MpcConfig
-from st_sim.apps.navigation.planners import Planner, make_planner
+from st_sim.apps.navigation.planners import Planner
+from st_sim.apps.navigation.policies import load_policy
 from st_sim.apps.navigation.predictors import env_predictor
 from st_sim.apps.navigation.world import NavWorld, world_of
 
@@ -38,7 +40,8 @@ class NavRun:
     env_id: str = "STCrowd-SimCrossing-v1"
     """gym id of an STCrowd env with an ego"""
     policy: str = "mpc"
-    """planner name (straight, orca, mpc, ppo)"""
+    """a policy spec (``policies``): a shipped planner (straight, orca, mpc, ppo), package.module:name or
+    sb3:PATH.zip"""
     predictor: str = "singular"
     """none, cvm, cvm-s or singular"""
     episodes: int = 100
@@ -89,38 +92,85 @@ def make_nav_env(run: NavRun, rerun_path: str | None = None) -> gym.Env:
     return gym.make(run.env_id, **kwargs)
 
 
-def pedestrian_clearance(obs: dict[str, np.ndarray], world: NavWorld) -> float:
-    """Gap between the ego's body and the nearest pedestrian's [m]; inf when nobody is present."""
-    peds = obs["history"][obs["history_mask"][:, -1], -1]
-    if len(peds) == 0:
-        return float("inf")
-    return float(np.min(np.linalg.norm(peds - obs["ego"][:2], axis=1))) - world.contact_m
+class TraceRecorder:
+    """An episode's trace from what a plain ``gym`` loop sees: the observations and infos of ``reset`` and ``step``.
+
+        recorder = TraceRecorder(world)
+        obs, info = env.reset(seed=seed); recorder.start(obs, info)
+        ... obs, reward, terminated, truncated, info = env.step(action); recorder.add(obs, info)
+        trace = recorder.finish(outcome_of(info["termination"], truncated), info.get("at_fault"))
+
+    Pedestrians are who the observation holds (everyone, with the envs' default unlimited sensor range), named by
+    ``info["agent_ids"]``; their groups come from ``info["group_ids"]`` where the env has them (simulated crowds).
+    """
+
+    def __init__(self, world: NavWorld):
+        self.world = world
+        self.xy: list[np.ndarray] = []  # ego positions [m]
+        self.velocity: list[np.ndarray] = []  # ego velocities [m/s]
+        self.seen: list[dict[int, np.ndarray]] = []  # per state: pedestrian id -> position [m]
+        self.groups: dict[int, int] | None = None  # pedestrian id -> group id (-1 alone); None: the env has none
+        self.goal_m = np.zeros(2)
+        self.deviation: list[float] = []  # reactive replays: the pedestrians' mean distance from their logs [m]
+
+    def start(self, obs: dict[str, np.ndarray], info: dict[str, Any]) -> None:
+        """The state after ``reset`` (forgets any earlier episode)."""
+        self.xy, self.velocity, self.seen, self.deviation = [], [], [], []
+        self.goal_m = obs["ego"][4:6].astype(np.float64)
+        self.groups = {} if "group_ids" in info else None
+        self._state(obs, info)
+
+    def add(self, obs: dict[str, np.ndarray], info: dict[str, Any]) -> None:
+        """The state after a ``step``."""
+        self._state(obs, info)
+        if "log_deviation_m" in info:
+            self.deviation.append(info["log_deviation_m"])
+
+    def _state(self, obs: dict[str, np.ndarray], info: dict[str, Any]) -> None:
+        self.xy.append(obs["ego"][:2].astype(np.float64))
+        self.velocity.append(obs["ego"][2:4].astype(np.float64))
+        rows = np.flatnonzero(obs["history_mask"][:, -1])
+        ids = info["agent_ids"][rows].tolist()
+        self.seen.append(dict(zip(ids, obs["history"][rows, -1].astype(np.float64), strict=True)))
+        if self.groups is not None:
+            self.groups.update(zip(ids, info["group_ids"][rows].tolist(), strict=True))
+
+    def finish(self, outcome: Outcome, at_fault: bool | None) -> EpisodeTrace:
+        """The trace of the states added so far, ended by ``outcome``."""
+        ids = sorted({pid for state in self.seen for pid in state})
+        column = {pid: k for k, pid in enumerate(ids)}
+        pedestrians = np.full((len(self.seen), len(ids), 2), np.nan)
+        for t, state in enumerate(self.seen):
+            for pid, xy in state.items():
+                pedestrians[t, column[pid]] = xy
+        xy_m = np.array(self.xy)
+        groups = None if self.groups is None else np.array([self.groups[pid] for pid in ids], np.int64)
+        gaps = np.linalg.norm(pedestrians - xy_m[:, None], axis=-1) - self.world.contact_m
+        clearance = np.min(np.where(np.isnan(gaps), np.inf, gaps), axis=1, initial=np.inf)
+        return EpisodeTrace(ego_xy_m=xy_m, ego_velocity_mps=np.array(self.velocity), clearance_m=clearance,
+                            off_map=~self.world.scene.is_walkable(xy_m), goal_m=self.goal_m, outcome=outcome,
+                            at_fault=at_fault, log_deviation_m=np.array(self.deviation, np.float64),
+                            pedestrians_xy_m=pedestrians, pedestrian_groups=groups,
+                            ego_radius_m=self.world.ego_radius_m, pedestrian_radius_m=self.world.pedestrian_radius_m,
+                            step_s=self.world.step_s)
 
 
 def run_episode(env: gym.Env, planner: Planner, world: NavWorld, seed: int) -> tuple[EpisodeTrace, float]:
     """One episode from ``reset(seed=seed)`` to its end; returns the trace and the seconds spent in ``act``."""
-    obs, _ = env.reset(seed=seed)
+    recorder = TraceRecorder(world)
+    obs, info = env.reset(seed=seed)
     planner.reset()
-    xy, velocity, clearance = [obs["ego"][:2].copy()], [obs["ego"][2:4].copy()], [pedestrian_clearance(obs, world)]
-    deviation: list[float] = []
+    recorder.start(obs, info)
     thinking_s, outcome = 0.0, None
     while outcome is None:
         start = time.perf_counter()
         action = planner.act(obs)
         thinking_s += time.perf_counter() - start
         obs, _, terminated, truncated, info = env.step(action)
-        xy.append(obs["ego"][:2].copy())
-        velocity.append(obs["ego"][2:4].copy())
-        clearance.append(pedestrian_clearance(obs, world))
-        if "log_deviation_m" in info:
-            deviation.append(info["log_deviation_m"])
+        recorder.add(obs, info)
         outcome = outcome_of(info["termination"], truncated)
         assert outcome is not None or not terminated, "the env terminated without naming why"
-    xy_m = np.array(xy, np.float64)
-    trace = EpisodeTrace(xy_m, np.array(velocity, np.float64), np.array(clearance),
-                         ~world.scene.is_walkable(xy_m), obs["ego"][4:6].astype(np.float64), outcome,
-                         info.get("at_fault"), np.array(deviation, np.float64))
-    return trace, thinking_s
+    return recorder.finish(outcome, info.get("at_fault")), thinking_s
 
 
 def planner_options(run: NavRun) -> dict[str, Any]:
@@ -147,7 +197,7 @@ def run_navigation(run: NavRun, progress: bool = True) -> dict[str, Any]:
     see_ego = run.pedestrians_see_ego if accepts_keyword(run.env_id, SEE_EGO_KWARG) else None
     env = make_nav_env(run)
     world = world_of(env)
-    planner = make_planner(run.policy, world, run.predictor, **planner_options(run))
+    planner = load_policy(run.policy, world, run.predictor, **planner_options(run))
     episodes, thinking_s, decisions = [], 0.0, 0
     start = time.perf_counter()
     for i in tqdm(range(run.episodes), desc=f"{run.policy}/{run.predictor} {run.env_id}", disable=not progress,
@@ -155,14 +205,15 @@ def run_navigation(run: NavRun, progress: bool = True) -> dict[str, Any]:
         seed = run.seed + i
         if run.rerun_dir is not None:
             env.close()
-            path = Path(run.rerun_dir) / f"{run.env_id}_{run.policy}_{run.predictor}_seed{seed}.rrd"
+            name = re.sub(r"[^\w.-]+", "-", f"{run.env_id}_{run.policy}_{run.predictor}_seed{seed}")
+            path = Path(run.rerun_dir) / f"{name}.rrd"
             env = make_nav_env(run, str(path))
         trace, seconds = run_episode(env, planner, world, seed)
         episodes.append({"seed": seed, **episode_metrics(trace)})
         thinking_s += seconds
         decisions += len(trace.ego_xy_m) - 1
     env.close()
-    settings = getattr(planner, "cfg", None)
+    settings = getattr(planner.policy, "cfg", None)
     mode = (run.pedestrians or "log") if accepts_keyword(run.env_id, PEDESTRIANS_KWARG) else None
     return {**asdict(run), "pedestrians_see_ego": see_ego, "pedestrians": mode,
             "planner_config": asdict(settings) if is_dataclass(settings) else None,

@@ -130,15 +130,13 @@ class EpisodeTrace:
 def episode_metrics(trace: EpisodeTrace) -> dict[str, float | int | str | bool]:
     """Every figure of ``METRICS`` for one episode (NaN where it does not exist), plus its outcome.
 
-    Per-step figures are taken at the steps' ends (states 1..T; the reset state alone when T = 0). Also holds
-    ``min_clearance_m``, the former name of ``min_distance_m`` (``FORMER_NAMES``), for callers that still read it.
+    Per-step figures are taken at the steps' ends (states 1..T; the reset state alone when T = 0).
     """
     gaps = None if trace.pedestrians_xy_m is None else body_gaps_m(trace.ego_xy_m, trace.pedestrians_xy_m,
                                                                    trace.contact_m)
     nearest = _step_ends(trace.clearance_m if gaps is None else nearest_gap_m(gaps))
-    figures = {"outcome": trace.outcome.value, **_safety(trace, gaps, nearest), **_efficiency(trace),
-               **_comfort(trace, gaps, nearest)}
-    return {**figures, **{former: figures[name] for name, former in FORMER_NAMES.items()}}
+    return {"outcome": trace.outcome.value, **_safety(trace, gaps, nearest), **_efficiency(trace),
+            **_comfort(trace, gaps, nearest)}
 
 
 def _safety(trace: EpisodeTrace, gaps: np.ndarray | None, nearest: np.ndarray) -> dict[str, float | int | bool]:
@@ -305,12 +303,11 @@ METRICS: dict[str, Metric] = {
 }
 """every figure of ``episode_metrics``, by group"""
 FORMER_NAMES: dict[str, str] = {"min_distance_m": "min_clearance_m"}
-"""current figure names -> their former names, which ``episode_metrics`` and ``summarize`` still write (and read)"""
+"""current figure names -> their former names, which ``summarize`` reads in older result files"""
 RATES: dict[str, Callable[[dict], bool]] = {name: m.counts for name, m in METRICS.items() if m.kind == "rate"}
 """share of episodes that ... (an episode of ``episode_metrics``)"""
-MEANS: tuple[str, ...] = ("time_to_goal_s", "path_ratio", "min_clearance_m", "discomfort", "jerk_mps3", "off_map",
-                          "log_ade_m")
-"""the means the text report lists (older names kept); ``METRICS`` holds every mean"""
+MEANS: tuple[str, ...] = tuple(name for name, m in METRICS.items() if m.kind == "mean")
+"""every mean of ``METRICS``"""
 
 
 def metrics_table() -> str:
@@ -353,8 +350,7 @@ def summarize(episodes: list[dict]) -> dict[str, dict[str, float]]:
     {name: {value, low, high, n}}.
 
     Rates count every episode (Wilson interval); means pool the finite values (t interval, n of them; a figure an
-    older file lacks has n = 0). The former names of ``FORMER_NAMES`` are read where the current one is missing and
-    written beside it.
+    older file lacks has n = 0). The former names of ``FORMER_NAMES`` are read where the current one is missing.
     """
     n = len(episodes)
     summary = {}
@@ -368,7 +364,7 @@ def summarize(episodes: list[dict]) -> dict[str, dict[str, float]]:
             values = np.array([e.get(name, e.get(former, NAN)) for e in episodes], np.float64)
             mean, low, high = mean_interval(values)
             summary[name] = {"value": mean, "low": low, "high": high, "n": int(np.isfinite(values).sum())}
-    return {**summary, **{former: summary[name] for name, former in FORMER_NAMES.items()}}
+    return summary
 
 
 def paired_collision_test(a: list[dict], b: list[dict], at_fault: bool = False) -> dict[str, float | int]:

@@ -4,19 +4,18 @@ from __future__ import annotations
 
 from typing import Any
 
-from st_sim.apps.navigation.metrics import MEANS, RATES
+from st_sim.apps.navigation.metrics import GROUPS, METRICS, summarize
 
-LABELS: dict[str, str] = {
-    "success": "success", "collision": "collision (any)", "pedestrian_collision": "  with a pedestrian",
-    "wall_collision": "  with a wall", "collision_at_fault": "collision at fault",
-    "timeout": "timeout", "time_to_goal_s": "time to goal [s]",
-    "path_ratio": "path / straight line", "min_clearance_m": "min distance to pedestrians [m]",
-    "discomfort": "discomfort (< 0.2 m)", "jerk_mps3": "jerk [m/s^3]", "off_map": "off-map steps",
-    "log_ade_m": "pedestrians off their log [m]",
-}
 TABLE_COLUMNS: tuple[str, ...] = ("success", "collision", "collision_at_fault", "pedestrian_collision",
-                                  "wall_collision", "timeout", "time_to_goal_s", "path_ratio", "min_clearance_m",
+                                  "wall_collision", "timeout", "time_to_goal_s", "path_ratio", "min_distance_m",
                                   "discomfort", "jerk_mps3")
+"""the columns of ``markdown_row``"""
+
+
+def metric_label(name: str) -> str:
+    """A metric's name with its unit (``METRICS``), as the tables print it."""
+    unit = METRICS[name].unit
+    return f"{name} [{unit}]" if unit not in ("share", "count", "steps") else name
 
 
 def see_ego_label(value: bool | None) -> str:
@@ -25,31 +24,35 @@ def see_ego_label(value: bool | None) -> str:
 
 
 def summary_text(result: dict[str, Any]) -> str:
-    """Plain-text table of a ``run_navigation`` result: every metric with its 95 % interval and count."""
+    """Plain-text table of a ``run_navigation`` result: every metric, group by group, with its 95 % interval and
+    count."""
     n = len(result["episodes"])
     mode = f", {result['pedestrians']} pedestrians" if result.get("pedestrians") else ""
-    lines = [f"{result['env_id']}{mode}  planner {result['policy']}  predictor {result['predictor']}  episodes {n} "
+    lines = [f"{result['env_id']}{mode}  policy {result['policy']}  predictor {result['predictor']}  episodes {n} "
              f"(seeds {result['seed']}..{result['seed'] + n - 1})  [{see_ego_label(result['pedestrians_see_ego'])}]",
-             f"{'metric':<32}{'value':>9}   95 % CI            n"]
-    for name in (*RATES, *MEANS):
-        cell = result["summary"][name]
-        lines.append(f"{LABELS[name]:<32}{cell['value']:>9.3f}   [{cell['low']:.3f}, {cell['high']:.3f}]"
-                     f"{cell['n']:>6}")
+             f"{'metric':<34}{'value':>9}   95 % CI            n"]
+    for group in GROUPS:
+        lines.append(f"{group}:")
+        for name in (name for name, metric in METRICS.items() if metric.group == group):
+            cell = result["summary"][name]
+            lines.append(f"  {metric_label(name):<32}{cell['value']:>9.3f}   [{cell['low']:.3f}, {cell['high']:.3f}]"
+                         f"{cell['n']:>6}")
     lines.append(f"planner decisions per second: {result['decisions_per_s']:.1f}")
     return "\n".join(lines)
 
 
 def markdown_row(result: dict[str, Any]) -> str:
-    """One markdown table row: planner, predictor, then TABLE_COLUMNS as ``value [low, high]``."""
-    cells = []
+    """One markdown table row: planner, predictor, then TABLE_COLUMNS as ``value [low, high]`` (summarised again
+    from the episodes, so that result files of older versions read the same)."""
+    summary, cells = summarize(result["episodes"]), []
     for name in TABLE_COLUMNS:
-        cell = result["summary"][name]
-        digits = 3 if name in RATES else 2
+        cell = summary[name]
+        digits = 3 if METRICS[name].kind == "rate" else 2
         cells.append(f"{cell['value']:.{digits}f} [{cell['low']:.{digits}f}, {cell['high']:.{digits}f}]")
     return f"| {result['policy']} | {result['predictor']} | {len(result['episodes'])} | " + " | ".join(cells) + " |"
 
 
 def markdown_header() -> str:
     """Header of the ``markdown_row`` table."""
-    names = " | ".join(LABELS[name].strip() for name in TABLE_COLUMNS)
+    names = " | ".join(metric_label(name) for name in TABLE_COLUMNS)
     return f"| planner | predictor | episodes | {names} |\n|" + "---|" * (3 + len(TABLE_COLUMNS))

@@ -1,0 +1,281 @@
+"""The navigation benchmark: one policy through a suite's scenarios on its published seeds, every metric per episode.
+
+    python -m st_sim benchmark --policy mypkg.policy:MyPolicy --suite test --out runs/bench/mine
+    python -m st_sim leaderboard runs/bench/mine
+
+Episode i of every scenario resets with the split's i-th seed, so every policy meets the same episodes and results
+compare pair by pair. The work is cut into chunks of ``CHUNK_EPISODES`` episodes of one scenario, run on a process
+pool or a Ray cluster (``st_sim.apps.grid``). A chunk appends one JSON line per finished episode to its part file,
+so a run that is killed keeps every finished episode, and the same command resumes it.
+
+Layout of the output folder:
+    run.json                            what was asked (a different run into the same folder is refused)
+    parts/<scenario>/<first>.jsonl      one chunk's episodes, appended as they finish
+    parts/<scenario>/<first>.json       the chunk's timing, written when it is complete
+    episodes.jsonl                      every episode, one JSON line each, in suite order
+    summary.json                        policy, suite, version, split; per scenario its env, keywords, episodes and
+                                        summary; the pooled summary (``RESULT_FORMAT``)
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import time
+from dataclasses import dataclass
+from importlib.metadata import PackageNotFoundError, version
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from replays.atomic import write_text_atomic
+from st_sim.apps.grid import Job, run_jobs
+from st_sim.apps.navigation.episodes import run_episode
+from st_sim.apps.navigation.metrics import episode_metrics, summarize
+from st_sim.apps.navigation.policies import PolicyError, load_policy
+from st_sim.apps.navigation.suite import Scenario, Suite, load_suite
+from st_sim.apps.navigation.world import world_of
+
+CHUNK_EPISODES = 25  # episodes of one scenario per grid job [-]
+RESULT_FORMAT = "stcrowd-nav-benchmark/1"
+RUN_IDENTITY = ("policy", "predictor", "suite", "suite_version", "split", "episodes")
+"""settings that must match for a rerun to resume the runs already in an output folder"""
+
+
+class BenchmarkError(RuntimeError):
+    """A benchmark run cannot go on (a failed chunk, a folder holding another run); the message says what to do."""
+
+
+@dataclass(frozen=True)
+class BenchmarkRun:
+    """What to run: a policy with a predictor in the env, on a suite's split."""
+
+    policy: str
+    """a policy spec (``policies``): a shipped planner, package.module:name, or sb3:PATH.zip"""
+    out: str
+    """output folder"""
+    predictor: str = "singular"
+    """the envs' predictor (``none``: no forecasts, the fastest for a policy that does not read them)"""
+    split: str = "test"
+    """seed list: val (tuning) or test (reported figures)"""
+    episodes: int | None = None
+    """episodes per scenario (None: the suite's default)"""
+    scenarios: tuple[str, ...] | None = None
+    """scenario names to run (None: all)"""
+    suite_file: str | None = None
+    """a suite file (None: the shipped suite)"""
+    data_root: str | None = None
+    """ETH/UCY data root for the replays (default: $STCROWD_DATA or the cache); not part of the results"""
+
+
+def env_kwargs_of(scenario: Scenario, predictor: str) -> dict[str, Any]:
+    """Every keyword the benchmark passes to ``gym.make`` for ``scenario`` (the data root aside)."""
+    return {**scenario.env_kwargs, "predictor": predictor}
+
+
+def make_scenario_env(scenario: Scenario, predictor: str, data_root: str | None = None) -> gym.Env:
+    """``gym.make(scenario.env, **env_kwargs_of(scenario, predictor))``, with ``root`` when a data root is given."""
+    extra = {} if data_root is None else {"root": data_root}
+    return gym.make(scenario.env, **env_kwargs_of(scenario, predictor), **extra)
+
+
+def json_value(value: Any) -> Any:
+    """``value`` as plain JSON: NumPy scalars as Python numbers, NaN and inf as null."""
+    if isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+def episode_record(scenario: str, episode: int, seed: int, metrics: dict[str, Any]) -> dict[str, Any]:
+    """One line of ``episodes.jsonl``: scenario, episode index, seed, then every metric of ``episode_metrics``."""
+    return {"scenario": scenario, "episode": episode, "seed": seed,
+            **{key: json_value(value) for key, value in metrics.items()}}
+
+
+def run_chunk(suite_file: str | None, scenario: str, split: str, first: int, count: int, policy: str,
+              predictor: str, part: str, data_root: str | None = None) -> None:
+    """Grid job: episodes ``first .. first + count - 1`` of ``scenario``, appended to ``part`` (.jsonl) one line each
+    as they finish; then the chunk's timing into ``part`` with suffix .json. Episodes already in ``part`` are kept
+    and skipped (a torn last line, from a killed run, is dropped).
+
+    Raises:
+        PolicyError: the policy failed; the message names it, the scenario, the episode and the seed.
+    """
+    suite = load_suite(suite_file)
+    (entry,) = suite.select([scenario])
+    seeds = suite.seeds_of(split, first + count)[first:]
+    lines_path = Path(part)
+    lines_path.parent.mkdir(parents=True, exist_ok=True)
+    done = _finished_lines(lines_path, {first + i: seed for i, seed in enumerate(seeds)})
+    start, policy_s, steps = time.perf_counter(), 0.0, 0
+    env = make_scenario_env(entry, predictor, data_root)
+    try:
+        world = world_of(env)
+        checked = load_policy(policy, world, predictor)
+        checked.check_fits(env.observation_space, scenario)
+        with lines_path.open("a") as lines:
+            for i, seed in enumerate(seeds, start=first):
+                if i in done:
+                    continue
+                try:
+                    trace, thinking_s = run_episode(env, checked, world, seed)
+                except PolicyError as err:
+                    raise PolicyError(f"{err} (scenario {scenario!r}, episode {i}, seed {seed})") from err
+                policy_s += thinking_s
+                steps += len(trace.ego_xy_m) - 1
+                lines.write(json.dumps(episode_record(scenario, i, seed, episode_metrics(trace))) + "\n")
+                lines.flush()
+                os.fsync(lines.fileno())
+    finally:
+        env.close()
+    timing = {"episodes": count - len(done), "steps": steps, "wall_s": time.perf_counter() - start,
+              "policy_s": policy_s}
+    write_text_atomic(lines_path.with_suffix(".json"), json.dumps(timing))
+
+
+def _finished_lines(path: Path, seeds: dict[int, int]) -> set[int]:
+    """Episode indices already in ``path`` (only lines that parse and name an episode of ``seeds`` with its seed);
+    the file is rewritten without any other line (a torn last line of a killed run)."""
+    if not path.is_file():
+        return set()
+    kept, done = [], set()
+    for line in path.read_text().splitlines():
+        try:
+            record = json.loads(line)
+            episode = record["episode"]
+            if seeds.get(episode) != record["seed"] or episode in done:
+                continue
+        except (json.JSONDecodeError, KeyError, TypeError):
+            continue
+        kept.append(line)
+        done.add(episode)
+    write_text_atomic(path, "".join(f"{line}\n" for line in kept))
+    return done
+
+
+def plan(run: BenchmarkRun, suite: Suite) -> list[Job]:
+    """The grid jobs of ``run``: one per chunk of ``CHUNK_EPISODES`` episodes of each scenario."""
+    count = len(suite.seeds_of(run.split, run.episodes))
+    out = Path(run.out).resolve()
+    data_root = None if run.data_root is None else str(Path(run.data_root).resolve())
+    jobs = []
+    for scenario in suite.select(run.scenarios):
+        for first in range(0, count, CHUNK_EPISODES):
+            part = out / "parts" / scenario.name / f"{first:05d}.jsonl"
+            kwargs = {"suite_file": None if run.suite_file is None else str(Path(run.suite_file).resolve()),
+                      "scenario": scenario.name, "split": run.split, "first": first,
+                      "count": min(CHUNK_EPISODES, count - first), "policy": run.policy, "predictor": run.predictor,
+                      "part": str(part), "data_root": data_root}
+            jobs.append(Job(f"{scenario.name}/{first}", "st_sim.apps.navigation.benchmark:run_chunk", kwargs,
+                            str(part.with_suffix(".json"))))
+    return jobs
+
+
+def check_run(run: BenchmarkRun, suite: Suite) -> None:
+    """Every check that can fail before any episode: the split, episodes and scenarios exist, the output folder holds
+    no other run, the policy builds, and a policy that declares its observation space fits every scenario's env
+    (``PolicyError`` naming the scenario and both spaces)."""
+    suite.seeds_of(run.split, run.episodes)
+    scenarios = suite.select(run.scenarios)
+    identity = _identity(run, suite)
+    marker = Path(run.out) / "run.json"
+    if marker.is_file():
+        held = json.loads(marker.read_text())
+        if held != identity:
+            differ = ", ".join(f"{key} {held.get(key)!r} there, {identity[key]!r} now" for key in RUN_IDENTITY
+                               if held.get(key) != identity[key])
+            raise BenchmarkError(f"{run.out} holds another run ({differ}); give another --out")
+    env = make_scenario_env(scenarios[0], "none", run.data_root)
+    try:
+        policy = load_policy(run.policy, world_of(env), run.predictor)
+    finally:
+        env.close()
+    if policy.observation_space is not None:
+        for scenario in scenarios:
+            env = make_scenario_env(scenario, "none", run.data_root)
+            try:
+                policy.check_fits(env.observation_space, scenario.name)
+            finally:
+                env.close()
+
+
+def _identity(run: BenchmarkRun, suite: Suite) -> dict[str, Any]:
+    return {"policy": run.policy, "predictor": run.predictor, "suite": suite.name, "suite_version": suite.version,
+            "split": run.split, "episodes": len(suite.seeds_of(run.split, run.episodes))}
+
+
+def run_benchmark(run: BenchmarkRun, executor: str = "local", workers: int | None = None,
+                  address: str | None = None, progress: bool = True) -> dict[str, Any]:
+    """Run what is missing of ``run`` and write ``episodes.jsonl`` and ``summary.json``; returns the summary.
+
+    ``workers=1`` with the local executor runs the chunks in this process (a policy's error then surfaces as
+    itself); otherwise on a process pool of ``workers`` (default: one per core) or on Ray.
+    """
+    suite = load_suite(run.suite_file)
+    check_run(run, suite)
+    out = Path(run.out)
+    write_text_atomic(out / "run.json", json.dumps(_identity(run, suite), indent=1))
+    jobs = plan(run, suite)
+    if executor == "local" and workers == 1:
+        from tqdm import tqdm
+
+        for job in tqdm([job for job in jobs if not job.done()], desc="benchmark", unit="chunk", disable=not progress):
+            run_chunk(**job.kwargs)
+    else:
+        reports = run_jobs(jobs, executor=executor, workers=workers, address=address, progress=progress,
+                           desc="benchmark chunks")
+        failed = [report for report in reports if report.status == "failed"]
+        if failed:
+            raise BenchmarkError(f"{len(failed)} of {len(jobs)} chunks failed; the first, {failed[0].name}: "
+                                 f"{failed[0].error}. Finished episodes are kept in {out}/parts: fix the cause and "
+                                 "run the same command again to resume")
+    return collect(run, suite, jobs)
+
+
+def collect(run: BenchmarkRun, suite: Suite, jobs: list[Job]) -> dict[str, Any]:
+    """Gather the chunks of a finished run into ``episodes.jsonl`` and ``summary.json``; returns the summary."""
+    by_scenario: dict[str, list[dict]] = {}
+    timing: dict[str, dict[str, float]] = {}
+    for job in jobs:
+        name = job.kwargs["scenario"]
+        part = Path(job.kwargs["part"])
+        by_scenario.setdefault(name, []).extend(json.loads(line) for line in part.read_text().splitlines())
+        spent = json.loads(part.with_suffix(".json").read_text())
+        cell = timing.setdefault(name, {"wall_s": 0.0, "policy_s": 0.0, "steps": 0})
+        for key in cell:
+            cell[key] += spent[key]
+    scenarios, every = [], []
+    for scenario in suite.select(run.scenarios):
+        episodes = sorted(by_scenario[scenario.name], key=lambda e: e["episode"])
+        every += episodes
+        scenarios.append({"name": scenario.name, "env": scenario.env,
+                          "env_kwargs": env_kwargs_of(scenario, run.predictor), "description": scenario.description,
+                          "episodes": [{k: v for k, v in e.items() if k != "scenario"} for e in episodes],
+                          "summary": _summary(episodes), "timing": timing[scenario.name]})
+    identity = _identity(run, suite)
+    summary = {"format": RESULT_FORMAT, **{k: v for k, v in identity.items() if k != "episodes"},
+               "episodes_per_scenario": identity["episodes"], "stcrowd_version": _stcrowd_version(),
+               "scenarios": scenarios, "summary": _summary(every),
+               "timing": {key: sum(cell[key] for cell in timing.values()) for key in ("wall_s", "policy_s", "steps")}}
+    out = Path(run.out)
+    write_text_atomic(out / "episodes.jsonl", "".join(json.dumps(e) + "\n" for e in every))
+    write_text_atomic(out / "summary.json", json.dumps(summary, indent=1))
+    return summary
+
+
+def _summary(episodes: list[dict]) -> dict[str, dict[str, Any]]:
+    """``summarize`` of JSON episode records (null read back as NaN), with NaN written as null."""
+    restored = [{k: float("nan") if v is None else v for k, v in e.items()} for e in episodes]
+    return {name: {k: json_value(v) for k, v in cell.items()} for name, cell in summarize(restored).items()}
+
+
+def _stcrowd_version() -> str:
+    try:
+        return version("stcrowd")
+    except PackageNotFoundError:
+        return "unknown"

@@ -1,0 +1,219 @@
+"""Navigation policies by spec: a shipped planner, your own class or factory, or a stable-baselines3 model.
+
+    policy = load_policy("mypkg.policy:MyPolicy", world, "singular")   # or "mpc", "sb3:model.zip"
+    policy.reset()                       # at every episode start
+    action = policy.act(obs)             # (2,) velocity command [m/s], world frame, checked
+
+A spec is one of:
+- a shipped planner name (``planners.PLANNERS``: straight, orca, mpc, ppo);
+- ``package.module:name``: a class or factory following the planner protocol (``act(obs) -> (2,)`` velocity,
+  optionally ``reset()``), built as ``name(world, use_predictions)`` like the shipped planners when its signature
+  takes two arguments, else as ``name()``;
+- ``sb3:PATH.zip``: a stable-baselines3 model (PPO, A2C, SAC, TD3 or DDPG) saved after training on an STCrowd env's
+  own observations; it acts with ``model.predict(obs, deterministic=True)``. A model whose observation space is a
+  ``Dict`` holding some of the env's keys (trained behind ``FilterObservation``) gets only those.
+
+What is built is wrapped in ``CheckedPolicy``: an action that is not 2 finite numbers, or an exception inside the
+policy, becomes a ``PolicyError`` naming the policy.
+"""
+
+from __future__ import annotations
+
+import inspect
+import json
+import zipfile
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from gymnasium import spaces
+
+from predictor.plugins import PluginError, describe_error, resolve_factory
+from st_sim.apps.navigation.planners import PLANNERS, make_planner
+from st_sim.apps.navigation.world import NavWorld
+
+SB3_PREFIX = "sb3:"
+SB3_ALGORITHMS: dict[str, tuple[str, ...]] = {
+    "stable_baselines3.common.policies": ("PPO", "A2C"),
+    "stable_baselines3.sac.policies": ("SAC",),
+    "stable_baselines3.td3.policies": ("TD3", "DDPG"),
+}
+"""module of a saved model's policy class -> the algorithms that load it (the first is used; any of them predicts
+the same)"""
+SPEC_HELP = ("a shipped planner (straight, orca, mpc, ppo), package.module:name (a class or factory with "
+             "act(obs) -> (2,) velocity), or sb3:PATH.zip (a stable-baselines3 model)")
+
+
+class PolicyError(ValueError):
+    """A policy cannot be loaded, does not fit an env, or acted wrongly; the message names the policy."""
+
+
+def check_policy_spec(spec: str) -> None:
+    """Refuse a spec that cannot name a policy, before any work: an unknown name, a plug-in that does not import or
+    names nothing callable, a model file that is missing (``PolicyError``)."""
+    if spec in PLANNERS:
+        return
+    if spec.startswith(SB3_PREFIX):
+        path = Path(spec.removeprefix(SB3_PREFIX)).expanduser()
+        if not path.is_file():
+            raise PolicyError(f"policy {spec!r}: no such file {path} (sb3:PATH.zip names a saved model)")
+        return
+    if ":" not in spec:
+        raise PolicyError(f"policy {spec!r}: expected {SPEC_HELP}")
+    _factory(spec)
+
+
+def load_policy(spec: str, world: NavWorld, predictor: str = "singular", **options: Any) -> CheckedPolicy:
+    """The policy ``spec`` names, built for an env's ``world`` whose forecasts come from ``predictor`` ("none": the
+    policy is told that no forecasts are there); ``options`` go to a shipped planner (the MPC's ``cfg``, PPO's
+    ``policy`` file). Raises ``PolicyError`` if it cannot be built."""
+    check_policy_spec(spec)
+    if options and spec not in PLANNERS:
+        raise PolicyError(f"policy {spec!r}: options {', '.join(options)} are for the shipped planners only")
+    if spec in PLANNERS:
+        policy = make_planner(spec, world, predictor, **options)
+    elif spec.startswith(SB3_PREFIX):
+        policy = Sb3Policy(Path(spec.removeprefix(SB3_PREFIX)).expanduser())
+    else:
+        policy = _build(spec, _factory(spec), world, predictor != "none")
+    return CheckedPolicy(spec, policy)
+
+
+def _factory(spec: str) -> Callable[..., Any]:
+    try:
+        return resolve_factory(spec, kind="policy")
+    except PluginError as err:
+        raise PolicyError(str(err)) from err
+
+
+def _build(spec: str, factory: Callable[..., Any], world: NavWorld, use_predictions: bool) -> Any:
+    """``factory(world, use_predictions)`` if its signature takes two arguments, else ``factory()``; checked to have
+    a callable ``act``."""
+    try:
+        signature = inspect.signature(factory)
+        args = (world, use_predictions)
+        try:
+            signature.bind(*args)
+        except TypeError:
+            signature.bind()
+            args = ()
+    except TypeError as err:
+        raise PolicyError(f"policy {spec!r}: expected a class or factory called as name(world, use_predictions) "
+                          f"or name(), not {signature}") from err
+    except ValueError:  # no signature (a builtin): call it bare
+        args = ()
+    try:
+        policy = factory(*args)
+    except (Exception, SystemExit) as err:
+        raise PolicyError(f"policy {spec!r}: building it raised {describe_error(err)}") from err
+    if not callable(getattr(policy, "act", None)):
+        raise PolicyError(f"policy {spec!r}: built a {type(policy).__name__} without a callable act(obs)")
+    return policy
+
+
+class CheckedPolicy:
+    """A policy behind checks: ``act`` gets copies of the observation's arrays, and what it returns must be a (2,)
+    velocity of finite numbers; anything else, or an exception inside it, raises ``PolicyError``.
+
+    Attributes:
+        spec: the policy as named.  policy: what was built.
+        observation_space: the policy's own observation space, if it declares one (an SB3 model does), else None.
+    """
+
+    def __init__(self, spec: str, policy: Any):
+        self.spec, self.policy = spec, policy
+        self.observation_space: spaces.Space | None = getattr(policy, "observation_space", None)
+
+    def __repr__(self) -> str:
+        return f"CheckedPolicy({self.spec})"
+
+    def reset(self) -> None:
+        """The policy's ``reset()``, if it has one."""
+        reset = getattr(self.policy, "reset", None)
+        if reset is None:
+            return
+        try:
+            reset()
+        except (Exception, SystemExit) as err:
+            raise PolicyError(f"policy {self.spec!r}: reset raised {describe_error(err)}") from err
+
+    def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        """(2,) float32 velocity command [m/s], world frame."""
+        try:
+            action = self.policy.act({key: np.array(value) for key, value in obs.items()})
+        except (Exception, SystemExit) as err:
+            raise PolicyError(f"policy {self.spec!r}: act raised {describe_error(err)}") from err
+        try:
+            velocity = np.asarray(action, dtype=np.float64)
+        except (TypeError, ValueError) as err:
+            raise PolicyError(f"policy {self.spec!r}: act returned a {type(action).__name__}, not a (2,) velocity "
+                              "[m/s]") from err
+        if velocity.shape != (2,):
+            raise PolicyError(f"policy {self.spec!r}: act returned shape {velocity.shape}; expected a (2,) velocity "
+                              "(vx, vy) [m/s]")
+        if not np.isfinite(velocity).all():
+            raise PolicyError(f"policy {self.spec!r}: act returned {velocity.tolist()}; expected finite numbers")
+        return velocity.astype(np.float32)
+
+    def check_fits(self, env_space: spaces.Space, scenario: str) -> None:
+        """Refuse a policy whose observation space does not fit a scenario's (``PolicyError`` naming the scenario,
+        both spaces and what to do); nothing for a policy that declares no space."""
+        own = self.observation_space
+        if own is None or observation_fits(own, env_space):
+            return
+        raise PolicyError(
+            f"policy {self.spec!r} does not fit scenario {scenario!r}: it reads observations of {own}, the scenario's "
+            f"env gives {env_space}. Run it on the scenarios it was trained for (--scenarios), train it on this "
+            "scenario's env, or wrap it in a class (package.module:name) that turns any STCrowd observation into its "
+            "input, for instance the nearest pedestrians (docs: Benchmark your policy)")
+
+
+def observation_fits(own: spaces.Space, env_space: spaces.Space) -> bool:
+    """True if observations of ``env_space`` can feed a policy reading ``own``: the same space, or a Dict of some of
+    the env's keys, each with the env's shape and dtype."""
+    if isinstance(own, spaces.Dict) and isinstance(env_space, spaces.Dict):
+        return all(key in env_space.spaces and env_space[key].shape == sub.shape and env_space[key].dtype == sub.dtype
+                   for key, sub in own.spaces.items())
+    return own.shape == env_space.shape and own.dtype == env_space.dtype
+
+
+class Sb3Policy:
+    """A stable-baselines3 model acting deterministically on STCrowd observations (see the module docstring).
+
+    Args:
+        path: the model's ``.zip`` (``model.save``).
+    """
+
+    def __init__(self, path: Path):
+        self.path = path
+        self.model = _load_sb3(path)
+        self.observation_space = self.model.observation_space
+
+    def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        """(2,) velocity command [m/s]: the model's deterministic action."""
+        if isinstance(self.observation_space, spaces.Dict):
+            obs = {key: obs[key] for key in self.observation_space.spaces}
+        action, _ = self.model.predict(obs, deterministic=True)
+        return action
+
+
+def _load_sb3(path: Path) -> Any:
+    """The model saved at ``path``, loaded on the CPU by the algorithm its policy class belongs to."""
+    spec = f"{SB3_PREFIX}{path}"
+    try:
+        with zipfile.ZipFile(path) as archive:
+            data = json.loads(archive.read("data"))
+        module = data["policy_class"]["__module__"]
+    except (OSError, KeyError, TypeError, ValueError, zipfile.BadZipFile) as err:
+        raise PolicyError(f"policy {spec!r}: not a stable-baselines3 model file ({describe_error(err)})") from err
+    if module not in SB3_ALGORITHMS:
+        raise PolicyError(f"policy {spec!r}: its policy class comes from {module}; supported are the policies of "
+                          f"{', '.join(name for names in SB3_ALGORITHMS.values() for name in names)}")
+    import stable_baselines3
+
+    algorithm = getattr(stable_baselines3, SB3_ALGORITHMS[module][0])
+    try:
+        return algorithm.load(path, device="cpu")
+    except Exception as err:
+        raise PolicyError(f"policy {spec!r}: {algorithm.__name__}.load failed: {describe_error(err)}") from err
