@@ -226,3 +226,10 @@ def test_the_leaderboard_refuses_results_of_other_episodes(tmp_path: Path) -> No
     for metric, spec in METRICS.items():
         if spec.group == "safety" and a["summary"][metric]["n"]:
             assert metric in table
+
+
+def test_the_docs_define_every_metric_as_the_code_does() -> None:
+    from st_sim.apps.navigation.metrics import metrics_table
+
+    assert metrics_table() in (REPO / "docs" / "benchmark-your-policy.md").read_text(), \
+        "docs/benchmark-your-policy.md: paste metrics_table() again"

@@ -22,7 +22,7 @@ def test_navigate_prints_intervals_writes_json_and_recordings_and_repeats(tmp_pa
             "--episodes", "2", "--seed", "5", "--quiet"]
     assert main([*args, "--json", str(tmp_path / "a.json")]) == 0
     out = capsys.readouterr().out
-    assert "95 % CI" in out and "with a pedestrian" in out and "jerk" in out
+    assert "95 % CI" in out and "pedestrian_collision" in out and "jerk" in out and "comfort:" in out
     main([*args, "--json", str(tmp_path / "b.json"), "--rerun", str(tmp_path / "rrd")])
     assert len(list((tmp_path / "rrd").glob("*seed[56].rrd"))) == 2, "one recording per episode"
     a, b = (json.loads((tmp_path / name).read_text()) for name in ("a.json", "b.json"))

@@ -46,6 +46,7 @@ from st_sim.apps.navigation.social_metrics import (
     zone_entries,
     zone_shares,
 )
+from st_sim.sim import CrowdConfig
 
 DISCOMFORT_M = 0.2  # the ego is uncomfortably close when its body is this near a pedestrian's [m]
 CONFIDENCE = 0.95
@@ -313,10 +314,12 @@ MEANS: tuple[str, ...] = tuple(name for name, m in METRICS.items() if m.kind == 
 def metrics_table() -> str:
     """``METRICS`` as markdown: a note on distances, then a table (metric, group, unit, definition, source) group by
     group."""
-    rows = [f"Distances between the robot and people are body gaps: centre distance minus both radii (robot "
-            f"{EnvConfig.ego_radius_m} m, pedestrian {EnvConfig.pedestrian_radius_m} m). Hall's zones (intimate < "
+    rows = [f"Distances between the robot and people are body gaps: centre distance minus both radii (the env's: "
+            f"robot {EnvConfig.ego_radius_m} m; pedestrians {EnvConfig.pedestrian_radius_m} m in the replays, "
+            f"{CrowdConfig.radius_m} m in the simulated crowds). Hall's zones (intimate < "
             f"{INTIMATE_M} m, personal < {PERSONAL_M} m, social < {SOCIAL_M} m) are centre distances in Hall's work; "
             "they are gaps here, since bodies touch at a centre distance of "
+            f"{EnvConfig.ego_radius_m + CrowdConfig.radius_m:.2f} to "
             f"{EnvConfig.ego_radius_m + EnvConfig.pedestrian_radius_m:.2f} m, which would swallow the intimate zone.",
             "", "| metric | group | unit | definition | source |", "|---|---|---|---|---|"]
     rows += [f"| `{name}` | {m.group} | {m.unit} | {m.definition} | {m.source} |"
