@@ -3,6 +3,7 @@
     import gymnasium as gym, envs
     env = gym.make("STCrowd-Zara1-v0")                      # ZARA1 replayed from the recording
     env = gym.make("STCrowd-SimCrossing-v1")                # pymunk crowd, no data needed
+    env = gym.make("STCrowd-SimDoorway-v1")                 # a scripted encounter: someone comes through the door
     env = gym.make("STCrowd-Zara1-v0", ego=False, task="deterministic", predictor="cvm-s")
     vec = gym.make_vec("STCrowd-SimCrossing-v1", num_envs=16)   # native vector env: one forecast call per step
 
@@ -15,6 +16,9 @@ from gymnasium.envs.registration import register
 
 REPLAY_SCENES: tuple[str, ...] = ("Eth", "Hotel", "Univ", "Zara1", "Zara2")
 SIM_LAYOUTS: tuple[str, ...] = ("Crossing", "Corridor", "Bottleneck")
+SIM_ENCOUNTERS: dict[str, str] = {"FrontalApproach": "frontal_approach", "Overtaking": "overtaking",
+                                  "CrossingAngle": "crossing_angle", "Doorway": "doorway", "Group": "group"}
+"""scripted encounters after Francis et al. (2023): id part -> the env's ``encounter=`` (``st_sim.sim.encounters``)"""
 MAX_EPISODE_STEPS = 200  # 80 s of 0.4 s steps; a replay also ends with its recording
 SIM_VERSION = 1  # v1: calibrated speed-model crowds that see the ego (v0: social force, invisible ego)
 
@@ -38,8 +42,21 @@ for _layout in SIM_LAYOUTS + REPLAY_SCENES:
         max_episode_steps=MAX_EPISODE_STEPS,
     )
 
+# Simulated encounters: a few scripted pedestrians meet the ego (no data needed)
+for _encounter, _name in SIM_ENCOUNTERS.items():
+    register(
+        id=f"STCrowd-Sim{_encounter}-v{SIM_VERSION}",
+        entry_point="envs.sim_env:SimCrowdEnv",
+        vector_entry_point="envs.vector_env:sim_vector_env",
+        kwargs={"encounter": _name},
+        max_episode_steps=MAX_EPISODE_STEPS,
+    )
+
+ENCOUNTER_IDS: tuple[str, ...] = tuple(f"STCrowd-Sim{s}-v{SIM_VERSION}" for s in SIM_ENCOUNTERS)
+"""the scripted encounters' ids"""
 STCROWD_IDS: tuple[str, ...] = (
     *(f"STCrowd-{s}-v0" for s in REPLAY_SCENES),
     *(f"STCrowd-Sim{s}-v{SIM_VERSION}" for s in SIM_LAYOUTS + REPLAY_SCENES),
+    *ENCOUNTER_IDS,
 )
 """every registered id, replays first"""

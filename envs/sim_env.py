@@ -1,4 +1,5 @@
-"""A pymunk-simulated crowd in a synthetic layout or a real scene's geometry, with an ego robot among it."""
+"""A pymunk-simulated crowd in a synthetic layout or a real scene's geometry, or a scripted encounter, with an ego
+robot among it."""
 
 from __future__ import annotations
 
@@ -10,13 +11,16 @@ import numpy as np
 
 from envs.common.config import EnvConfig
 from envs.common.crowd_env import CrowdEnv
+from envs.common.errors import EnvInputError
 from envs.common.layouts import build_layout
 from envs.common.predictors import shipped_checkpoint
-from envs.common.tracks import Frame
+from envs.common.tracks import Frame, lookup
+from replays.constants import STEP_S
 from replays.scenes import SCENES
 from st_sim.sim import CrowdConfig, CrowdSim, EgoConfig, Layout, PopulationConfig
 from st_sim.sim import population_cap as sim_population_cap
 from st_sim.sim.crowd import step_crowds
+from st_sim.sim.encounters import ENCOUNTERS, EgoMotion, draw_encounter
 from st_sim.sim.sweep import Contact
 
 
@@ -25,9 +29,23 @@ def population_cap(crowd: CrowdConfig, layout: Layout) -> int:
     return sim_population_cap(crowd, layout)
 
 
-def default_crowd(layout: str) -> CrowdConfig:
-    """The crowd of a layout: calibrated steering; in a real scene's geometry, that scene's fitted population."""
+def default_crowd(layout: str, encounter: str | None = None) -> CrowdConfig:
+    """The crowd of a layout: calibrated steering; in a real scene's geometry, that scene's fitted population; in an
+    encounter, nobody arrives besides its scripted pedestrians."""
+    if encounter is not None:
+        return CrowdConfig(spawn_rate_hz=0.0)
     return CrowdConfig(population=PopulationConfig.fitted(layout)) if layout in SCENES else CrowdConfig()
+
+
+def check_encounter(encounter: Any, layout: Any) -> None:
+    """Refuse an unknown ``encounter`` (naming the choices), or one given with a ``layout`` (``EnvInputError``)."""
+    if encounter is None:
+        return
+    if not isinstance(encounter, str) or encounter not in ENCOUNTERS:
+        raise EnvInputError(f"encounter={encounter!r}: expected None or one of {', '.join(map(repr, ENCOUNTERS))}")
+    if layout is not None:
+        raise EnvInputError(f"layout={layout!r} with encounter={encounter!r}: an encounter runs in its own layout "
+                            f"({ENCOUNTERS[encounter].layout}); leave layout unset")
 
 
 class SimCrowdEnv(CrowdEnv):
@@ -59,7 +77,10 @@ class SimCrowdEnv(CrowdEnv):
 
     ## Starting State
     A fresh crowd drawn from ``np_random`` that has walked T_obs - 1 steps (so histories are full at
-    reset) with the ego standing at the layout's start; the goal is the layout's ego goal.
+    reset) with the ego standing at the layout's start; the goal is the layout's ego goal. With ``encounter``, the
+    ego's start and goal and the scripted pedestrians (positions, exits, walking speeds, group) are drawn from
+    ``np_random`` (``st_sim.sim.encounters``): they are placed so that they would meet an ego that drives straight to
+    its goal at full speed after the warm-up, and nobody else arrives.
 
     ## Episode End
     Terminated when the ego reaches its goal (0.5 m) or touches a pedestrian or a wall;
@@ -69,36 +90,54 @@ class SimCrowdEnv(CrowdEnv):
 
     ## Info
     As ``ReplayCrowdEnv``; ``frame`` is the simulator's step count; ``pedestrians_see_ego`` (bool) says
-    whether pedestrians steer around the ego.
+    whether pedestrians steer around the ego; ``group_ids`` (N_max,) int64, aligned with the rows of ``agent_ids``:
+    the group of each row's pedestrian (members of a group that walks together share an id), -1 for one walking
+    alone or an empty row.
 
     ## Arguments
-    layout (crossing, corridor, bottleneck, or eth, hotel, univ, zara1, zara2 for a real scene's walls and
-    openings, which needs the data root), predictor ("auto" (default): the universal SingularTrajectory
-    checkpoint, trained on all five scenes, for 8 or 2 observed frames; or as ``ReplayCrowdEnv``), task, ego,
-    render_mode, config (``EnvConfig``; its ego radius and speed limit go to the simulator), crowd
-    (``st_sim.sim.CrowdConfig``; default: calibrated steering and, in a real scene, its fitted population),
-    root (data root), rerun (a .rrd path or "spawn": log every step to Rerun), pedestrians_see_ego (True:
-    pedestrians steer around the ego; False: invisible robot), device (as ``ReplayCrowdEnv``: where a
-    SingularTrajectory the env loads runs, "auto" by default).
+    layout (crossing (default), corridor, bottleneck, plaza, doorway, or eth, hotel, univ, zara1, zara2 for a real
+    scene's walls and openings, which needs the data root), predictor ("auto" (default): the universal
+    SingularTrajectory checkpoint, trained on all five scenes, for 8 or 2 observed frames; or as
+    ``ReplayCrowdEnv``), task, ego, render_mode, config (``EnvConfig``; its ego radius and speed limit go to the
+    simulator), crowd (``st_sim.sim.CrowdConfig``; default: calibrated steering and, in a real scene, its fitted
+    population; in an encounter, nobody arriving), root (data root), rerun (a .rrd path or "spawn": log every step
+    to Rerun), pedestrians_see_ego (True: pedestrians steer around the ego; False: invisible robot), device (as
+    ``ReplayCrowdEnv``: where a SingularTrajectory the env loads runs, "auto" by default), encounter (None, or a
+    scripted encounter, which runs in its own layout, so with no layout given: "frontal_approach", "overtaking",
+    "crossing_angle", "doorway", "group").
 
     ## Version History
     - v1 (2026-11-23): calibrated speed-model steering, 0.2 m pedestrians, fitted populations in real scenes,
       ``pedestrians_see_ego`` (default True). Same day, same id (reward, observation and dynamics unchanged):
       ``info["termination"]``, the ``collision`` reward part split into ``pedestrian_collision`` and
       ``wall_collision``, and the ``ego_max_accel_mps2`` attribute.
+      2026-11-27, same id (an info addition; observation, reward and dynamics unchanged): ``info["group_ids"]``;
+      the ``encounter`` argument, its ids ``STCrowd-Sim{FrontalApproach,Overtaking,CrossingAngle,Doorway,Group}-v1``
+      and the ``plaza`` and ``doorway`` layouts.
     - v0: social-force steering; pedestrians reacted to the ego only by contact.
     """
 
-    def __init__(self, layout: str = "crossing", predictor: Any = "auto", task: str = "stochastic",
+    def __init__(self, layout: str | None = None, predictor: Any = "auto", task: str = "stochastic",
                  ego: bool = True, render_mode: str | None = None, config: EnvConfig | None = None,
                  crowd: CrowdConfig | None = None, root: str | os.PathLike | None = None,
-                 rerun: str | None = None, pedestrians_see_ego: bool = True, device: str = "auto"):
+                 rerun: str | None = None, pedestrians_see_ego: bool = True, device: str = "auto",
+                 encounter: str | None = None):
+        check_encounter(encounter, layout)
+        self.encounter = encounter
+        if encounter is not None:
+            layout = ENCOUNTERS[encounter].layout
+        elif layout is None:
+            layout = "crossing"
         self.layout = build_layout(layout, root)
-        self.crowd_cfg = crowd or default_crowd(layout)
+        self.crowd_cfg = crowd or default_crowd(layout, encounter)
         self.pedestrians_see_ego = bool(pedestrians_see_ego)
-        super().__init__(self.layout.scene, population_cap(self.crowd_cfg, self.layout), f"sim layout {layout}",
-                         predictor, task, ego, render_mode, config, shipped_checkpoint(task, None), rerun=rerun,
-                         root=root, device=device)
+        n_max = population_cap(self.crowd_cfg, self.layout)
+        where = f"sim layout {layout}" if encounter is None else f"sim encounter {encounter}"
+        if encounter is not None and n_max < ENCOUNTERS[encounter].group_size[1]:
+            raise EnvInputError(f"{where}: crowd holds at most {n_max} pedestrians, fewer than the encounter's "
+                                f"{ENCOUNTERS[encounter].group_size[1]}")
+        super().__init__(self.layout.scene, n_max, where, predictor, task, ego, render_mode, config,
+                         shipped_checkpoint(task, None), rerun=rerun, root=root, device=device)
         self.ego_max_accel_mps2 = EgoConfig().max_accel_mps2
         self.sim: CrowdSim | None = None
 
@@ -133,17 +172,29 @@ class SimCrowdEnv(CrowdEnv):
         """Fresh crowds (drawn from each env's ``np_random``) that walk T_obs - 1 steps together with the egos
         standing; every env's frames, oldest first."""
         for env in envs:
-            ego_cfg = EgoConfig(radius_m=env.cfg.ego_radius_m, max_speed_mps=env.cfg.max_speed_mps,
-                                max_accel_mps2=env.ego_max_accel_mps2,
-                                pedestrians_see_ego=env.pedestrians_see_ego) if env.ego else None
-            env.sim = CrowdSim(env.layout, env.crowd_cfg, env.np_random, ego=ego_cfg)
-            env.goal_m = np.array(env.layout.ego_goal_m, dtype=np.float64)
+            env.sim, env.goal_m = env._new_crowd()
         frames = [[env._sim_frame()] for env in envs]
         for _ in range(envs[0].t_obs - 1 if envs else 0):  # warm-up: the egos stand while the crowds get going
             step_crowds([env.sim for env in envs], [None] * len(envs))
             for env, kept in zip(envs, frames, strict=True):
                 kept.append(env._sim_frame())
         return frames
+
+    def _new_crowd(self) -> tuple[CrowdSim, np.ndarray]:
+        """A fresh crowd drawn from ``np_random`` (the layout's, or the encounter's scripted pedestrians round the
+        drawn ego route) and the ego's goal (2,) [m]."""
+        plan = None if self.encounter is None else draw_encounter(self.encounter, self.layout, self.np_random)
+        ego_cfg = EgoConfig(radius_m=self.cfg.ego_radius_m, max_speed_mps=self.cfg.max_speed_mps,
+                            max_accel_mps2=self.ego_max_accel_mps2, pedestrians_see_ego=self.pedestrians_see_ego,
+                            start_m=None if plan is None else tuple(plan.ego_start_m.tolist())) if self.ego else None
+        if plan is None:
+            return (CrowdSim(self.layout, self.crowd_cfg, self.np_random, ego=ego_cfg),
+                    np.array(self.layout.ego_goal_m, dtype=np.float64))
+        sim = CrowdSim(self.layout, self.crowd_cfg, self.np_random, ego=ego_cfg, n_initial=0)
+        motion = EgoMotion((self.t_obs - 1) * STEP_S, self.cfg.max_speed_mps, self.ego_max_accel_mps2)
+        keep_clear_m = self.crowd_cfg.radius_m + self.cfg.ego_radius_m + self.crowd_cfg.spawn_gap_m
+        sim.add(plan.pedestrians(sim.nav, motion, keep_clear_m))
+        return sim, plan.ego_goal_m.copy()
 
     def _step_world(self, ego_velocity_mps: np.ndarray | None) -> Frame:
         self.sim.step(ego_velocity_mps)
@@ -155,7 +206,16 @@ class SimCrowdEnv(CrowdEnv):
         return self.sim.ego_contact, self.sim.ego_touched_wall, self.sim.ego_nearest_m
 
     def _info(self, reward_parts: dict[str, float], termination: str | None) -> dict[str, Any]:
-        return {**super()._info(reward_parts, termination), "pedestrians_see_ego": self.pedestrians_see_ego}
+        return {**super()._info(reward_parts, termination), "pedestrians_see_ego": self.pedestrians_see_ego,
+                "group_ids": self._group_ids()}
+
+    def _group_ids(self) -> np.ndarray:
+        """(N_max,) int64 group of each observation row's pedestrian (rows of ``info["agent_ids"]``), -1 for one
+        alone or an empty row."""
+        groups = np.full(self.n_max, -1, np.int64)
+        index = lookup(self.sim.ids, self.tracks.row_ids)
+        groups[index >= 0] = self.sim.groups[index[index >= 0]]
+        return groups
 
     def _sim_frame(self) -> Frame:
         """The simulator's pedestrians now; also refreshes the ego state."""

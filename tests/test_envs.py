@@ -120,7 +120,7 @@ def test_env_registration_imports_no_env_code() -> None:
     code = "import sys, envs; print(sorted(m for m in sys.modules if m.startswith(('envs.', 'st_sim', 'predictor'))))"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "[]", f"importing envs imported {out.strip()}"
-    assert len(set(STCROWD_IDS)) == 13
+    assert len(set(STCROWD_IDS)) == 18
     assert all(gym.spec(env_id).max_episode_steps == envs.MAX_EPISODE_STEPS for env_id in STCROWD_IDS)
 
 

@@ -9,7 +9,7 @@ from replays.data_root import data_root
 from replays.scenes import SCENES, load_scene
 from st_sim.sim import Layout, layout_from_scene, make_layout
 
-SYNTHETIC_LAYOUTS: tuple[str, ...] = ("crossing", "corridor", "bottleneck")
+SYNTHETIC_LAYOUTS: tuple[str, ...] = ("crossing", "corridor", "bottleneck", "plaza", "doorway")
 
 
 @cache

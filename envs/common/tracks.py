@@ -134,7 +134,9 @@ class TrackBuffer:
     def run_of(self, ids: np.ndarray) -> np.ndarray:
         """(Q,) consecutive frames of presence up to now of each id (0 if absent now)."""
         idx = lookup(self.now.ids, ids)
-        return np.where(idx >= 0, self._run[idx], 0)
+        run = np.zeros(len(idx), np.int64)
+        run[idx >= 0] = self._run[idx[idx >= 0]]  # nobody present now: every id gets 0 (no index into an empty run)
+        return run
 
     def history(self) -> tuple[np.ndarray, np.ndarray]:
         """Observed positions of the present agents, one row per agent (see ``row_ids``).

@@ -1,5 +1,6 @@
 """Synthetic layouts that need no data: a four-way crossing, a bidirectional corridor, a bottleneck, a corner
-and a periodic (wrap-around) corridor for the fundamental diagram.
+and a periodic (wrap-around) corridor for the fundamental diagram; for the scripted encounters
+(``st_sim.sim.encounters``), an open plaza and a doorway.
 
 Every size is checked (finite, inside the stated range; ValueError naming the parameter otherwise), and the
 raster refuses layouts beyond the memory budget (``checks.MEMORY_BUDGET_BYTES``). A layout whose gaps are too
@@ -8,8 +9,11 @@ narrow for a pedestrian is refused when a ``CrowdSim`` is built on it (no route 
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
+from replays.scenes import Scene
 from st_sim.sim.checks import Bounds, check_value
 from st_sim.sim.layout import Layout, Period, Region, rasterise
 
@@ -128,21 +132,49 @@ def periodic_corridor(length_m: float = 20.0, width_m: float = 4.0, two_way: boo
                   period=Period(0.0, float(length_m)))
 
 
+def plaza(size_m: float = 30.0) -> Layout:
+    """An open square room with a gate strip along its south and north walls; pedestrians cross it between them.
+
+    Away from the side walls a pedestrian's way to a gate runs straight along y, whatever its x: the scripted
+    encounters use this to send people along known lines. The ego's default route runs up the middle.
+
+    Args:
+        size_m: side, 4 to 100 000 m.
+    """
+    _check("plaza", size_m=(size_m, LENGTH))
+    gates = [Region("south", _box(0.0, 0.0, size_m, GATE_DEPTH_M)),
+             Region("north", _box(0.0, size_m - GATE_DEPTH_M, size_m, size_m))]
+    return _build("plaza", _box(0.0, 0.0, size_m, size_m), gates, gates,
+                  (size_m / 2, GATE_DEPTH_M + 1.0), (size_m / 2, size_m - GATE_DEPTH_M - 1.0))
+
+
+def doorway(room_m: float = 10.0, wall_m: float = 0.3, height_m: float = 8.0, door_m: float = 1.2) -> Layout:
+    """The bottleneck's two rooms and door (``bottleneck``, same arguments and ranges), with gates that lead both
+    ways: pedestrians walk from either room to the other, through the door."""
+    rooms = bottleneck(room_m, wall_m, height_m, door_m)
+    gates = rooms.entries + rooms.exits  # west, east
+    return replace(rooms, name="doorway", entries=gates, exits=gates, routes=(),
+                   scene=Scene("doorway", rooms.scene.H, rooms.scene.walkable))
+
+
 SYNTHETIC = {"corridor": corridor, "crossing": crossing, "bottleneck": bottleneck, "corner": corner,
              "periodic_corridor": periodic_corridor}
+ENCOUNTER_LAYOUTS = {"plaza": plaza, "doorway": doorway}
+"""layouts of the scripted encounters (``st_sim.sim.encounters``); ``make_layout`` builds them by name too"""
 
 
 def make_layout(name: str) -> Layout:
-    """A layout by name: "corridor", "crossing", "bottleneck", "corner", "periodic_corridor", or an ETH/UCY scene
-    ("zara1", ...).
+    """A layout by name: "corridor", "crossing", "bottleneck", "corner", "periodic_corridor", "plaza", "doorway", or
+    an ETH/UCY scene ("zara1", ...).
 
     Real scenes read their map from the data root (``replays.load_scene``).
     """
-    if name in SYNTHETIC:
-        return SYNTHETIC[name]()
+    if name in SYNTHETIC or name in ENCOUNTER_LAYOUTS:
+        return {**SYNTHETIC, **ENCOUNTER_LAYOUTS}[name]()
     from replays.scenes import SCENE_NAMES, load_scene
     from st_sim.sim.map_walls import layout_from_scene
 
     if name not in SCENE_NAMES:
-        raise KeyError(f"unknown layout {name!r}; expected one of {', '.join([*SYNTHETIC, *SCENE_NAMES])}")
+        raise KeyError(f"unknown layout {name!r}; expected one of "
+                       f"{', '.join([*SYNTHETIC, *ENCOUNTER_LAYOUTS, *SCENE_NAMES])}")
     return layout_from_scene(load_scene(name))
