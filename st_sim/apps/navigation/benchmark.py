@@ -14,7 +14,7 @@ Layout of the output folder:
     parts/<scenario>/<first>.json       the chunk's timing, written when it is complete
     episodes.jsonl                      every episode, one JSON line each, in suite order
     summary.json                        policy, suite, version, split; per scenario its env, keywords, episodes and
-                                        summary; the pooled summary (``RESULT_FORMAT``)
+                                        summary; the pooled summary (``RESULT_FORMAT``); one line per top-level key
 """
 
 from __future__ import annotations
@@ -40,6 +40,7 @@ from st_sim.apps.navigation.suite import Scenario, Suite, load_suite
 from st_sim.apps.navigation.world import world_of
 
 CHUNK_EPISODES = 25  # episodes of one scenario per grid job [-]
+SIGNIFICANT_DIGITS = 6  # figures are written with this many significant digits [-]
 RESULT_FORMAT = "stcrowd-nav-benchmark/1"
 RUN_IDENTITY = ("policy", "predictor", "suite", "suite_version", "split", "episodes")
 """settings that must match for a rerun to resume the runs already in an output folder"""
@@ -83,11 +84,12 @@ def make_scenario_env(scenario: Scenario, predictor: str, data_root: str | None 
 
 
 def json_value(value: Any) -> Any:
-    """``value`` as plain JSON: NumPy scalars as Python numbers, NaN and inf as null."""
+    """``value`` as plain JSON: NumPy scalars as Python numbers, floats to ``SIGNIFICANT_DIGITS``, NaN and inf as
+    null."""
     if isinstance(value, np.generic):
         value = value.item()
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
+    if isinstance(value, float):
+        return float(f"{value:.{SIGNIFICANT_DIGITS}g}") if math.isfinite(value) else None
     return value
 
 
@@ -264,7 +266,8 @@ def collect(run: BenchmarkRun, suite: Suite, jobs: list[Job]) -> dict[str, Any]:
                "timing": {key: sum(cell[key] for cell in timing.values()) for key in ("wall_s", "policy_s", "steps")}}
     out = Path(run.out)
     write_text_atomic(out / "episodes.jsonl", "".join(json.dumps(e) + "\n" for e in every))
-    write_text_atomic(out / "summary.json", json.dumps(summary, indent=1))
+    write_text_atomic(out / "summary.json", "{\n" + ",\n".join(
+        f"{json.dumps(key)}: {json.dumps(value, separators=(',', ':'))}" for key, value in summary.items()) + "\n}\n")
     return summary
 
 
