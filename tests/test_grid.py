@@ -129,3 +129,13 @@ def test_the_local_executor_never_imports_ray(tmp_path):
             "assert r[0].status == 'done', r; assert 'ray' not in sys.modules, 'ray was imported'")
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(Path(__file__).parent), os.environ.get("PYTHONPATH", "")])}
     subprocess.run([sys.executable, "-c", code], check=True, env=env, timeout=120)
+
+
+def test_the_navigation_benchmark_gives_the_same_episodes_on_ray(tmp_path, local_ray):
+    from st_sim.apps.navigation.benchmark import BenchmarkRun, run_benchmark
+
+    for executor, workers in (("local", 1), ("ray", None)):
+        run_benchmark(BenchmarkRun("straight", str(tmp_path / executor), predictor="none", split="val", episodes=3,
+                                   scenarios=("frontal-approach", "hotel-reactive")),
+                      executor=executor, workers=workers, progress=False)
+    assert (tmp_path / "ray" / "episodes.jsonl").read_text() == (tmp_path / "local" / "episodes.jsonl").read_text()
