@@ -233,3 +233,20 @@ def test_the_docs_define_every_metric_as_the_code_does() -> None:
 
     assert metrics_table() in (REPO / "docs" / "benchmark-your-policy.md").read_text(), \
         "docs/benchmark-your-policy.md: paste metrics_table() again"
+
+
+def test_an_sb3_model_runs_where_it_fits_and_is_refused_before_any_episode_where_it_does_not(tmp_path: Path,
+                                                                                            capsys) -> None:
+    from stable_baselines3 import PPO
+
+    env = gym.wrappers.FilterObservation(gym.make("STCrowd-SimCorridor-v1", predictor="none"),
+                                         ["ego", "history", "history_mask"])
+    PPO("MultiInputPolicy", env, n_steps=8, batch_size=8, device="cpu").save(tmp_path / "raw.zip")
+    spec = f"sb3:{tmp_path / 'raw.zip'}"
+    args = ["benchmark", "--policy", spec, "--predictor", "none", "--suite", "val", "--episodes", "1", "--workers", "1",
+            "--quiet"]
+    assert main([*args, "--scenarios", "sim-corridor", "--out", str(tmp_path / "fits")]) == 0
+    assert main([*args, "--scenarios", "sim-corridor", "zara1-log", "--out", str(tmp_path / "misfit")]) == 1
+    err = capsys.readouterr().err
+    assert "does not fit scenario 'zara1-log'" in err and "(20, 8, 2)" in err and "(40, 8, 2)" in err
+    assert not (tmp_path / "misfit" / "parts").exists(), "refused before any episode"
