@@ -43,8 +43,12 @@ When no place keeps every bound, it takes the one that breaks them least, a metr
 beyond its pace 1.
 
 The pedestrians off their log choose one after another, the one nearest the robot first, each seeing the choices
-already made. Once a pedestrian is within ``REJOIN_M`` of where its log is now and nothing is in its way, it is on
-its log again. A pedestrian whose log ends while it is behind walks on to where its log ends and leaves there (at most
+already made. **Batched**: every candidate of every pedestrian off its log (of every crowd stepped together,
+``ReactiveCrowd.step_all``: the sub-envs of a vector env) is scored in one array pass; only the terms between
+pedestrians are scored in turn, in rounds of those whose choices cannot touch one another (their places lie farther
+apart than any such term reaches), so that every choice is the one it would be, one after another.
+
+Once a pedestrian is within ``REJOIN_M`` of where its log is now and nothing is in its way, it is on its log again. A pedestrian whose log ends while it is behind walks on to where its log ends and leaves there (at most
 ``MAX_LINGER_STEPS`` later; within ``LEAVE_BLOCKED_M`` of it where the robot or others keep it away); one who
 appears where the robot (or a pedestrian off its log) stands starts beside its log, just clear of them. With the robot
 out of everyone's way, the replay is the recording exactly.
@@ -52,12 +56,13 @@ out of everyone's way, the replay is the recording exactly.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Sequence
+from dataclasses import dataclass, fields
 from typing import Final, Protocol
 
 import numpy as np
 
-from envs.common.detour import grid_cells, walking_distance_m
+from envs.common.detour import grid_cells, walking_distances_m
 from envs.common.footprint import Body
 from envs.common.reaction import MOVING_MPS, Reaction, attend, fitted_reaction, notices
 from replays.constants import STEP_S
@@ -105,6 +110,9 @@ DETOUR_AHEAD_M: Final[tuple[float, ...]] = (3.0, 3.5, 4.0, 4.5, 5.0)  # ... to t
 DETOUR_MARGIN_M: Final[float] = 1.5  # ... on a grid reaching this far round it, the goal and its candidates [m]
 DETOUR_BACK_FRAMES: Final[int] = 16  # ... and round its route from this many frames behind its route point [-]
 DETOUR_COST: Final[float] = 10.0  # ... and pays this per metre it would then have to walk to that point [1/m]
+PAIR_REACH_M: Final[float] = 2 * BODY_RADIUS_M + COMFORT_M / 2  # the farthest two pedestrians' terms reach [m]
+NEAR_SLACK_M: Final[float] = 1e-6  # a pair is left out of a step's terms only beyond PAIR_REACH_M plus this [m]
+CHUNK_VALUES: Final[int] = 1 << 21  # nearest-trace searches run in chunks of at most this many distances [-]
 
 
 class Depth(Protocol):
@@ -124,40 +132,43 @@ class OpenGround:
 
 @dataclass(frozen=True)
 class Robot:
-    """The robot's move over the step as the pedestrians expect it: from ``from_m`` to ``to_m`` (2,) [m] in a straight
-    line, its body turned to ``heading_rad``."""
+    """The robots' moves over the step as the pedestrians expect them, one row per crowd: from ``from_m`` to ``to_m``
+    (N, 2) [m] in a straight line, each body turned to ``heading_rad`` (N,)."""
 
     from_m: np.ndarray
     to_m: np.ndarray
-    heading_rad: float
+    heading_rad: np.ndarray
 
     @property
     def velocity_mps(self) -> np.ndarray:
+        """(N, 2) [m/s]."""
         return (self.to_m - self.from_m) / STEP_S
 
     @property
     def heading(self) -> np.ndarray:
-        """(2,) unit heading."""
-        return np.array([np.cos(self.heading_rad), np.sin(self.heading_rad)])
+        """(N, 2) unit headings."""
+        return np.stack([np.cos(self.heading_rad), np.sin(self.heading_rad)], axis=-1)
+
+    def after(self) -> Robot:
+        """The same robots over the next step, holding their velocities."""
+        return Robot(self.to_m, 2 * self.to_m - self.from_m, self.heading_rad)
 
 
 @dataclass(frozen=True, eq=False)
 class Step:
-    """What the pedestrians off their log see while they choose, one after another, within one step to frame
-    ``index``: rows are the replay's agents.
+    """What the pedestrians off their log see while they choose within one step of N crowds to frames ``index`` (N,):
+    rows are crowds, columns the replay's agents.
 
     Attributes:
-        start: (A, 2) positions before the step [m].  xy: (A, 2) positions after it, as far as chosen (the log for
-            those on it, the choice for those who chose, the start for those yet to choose) [m].
-        present, off_log, chosen: (A,) bool.  velocity_mps: (A, 2) velocities over the previous step [m/s].
-        stuck: (A,) steps in a row each has made no headway off its log.  farthest: (A,) the farthest route point
-            (fractional frame) each has reached since it left its log.  recent_m: (A, RECENT_STEPS) how near it was to
-            its log after each of its last steps [m] (inf before it left its log).  detour: (A,) bool, planning a way
-            round (``ReactiveState.detour``).
-        weight: (A,) how far each reacts to the robot in this step, in [0, 1].  room_m: (A,) the room it keeps [m].
+        start: (N, A, 2) positions before the step [m].  xy: (N, A, 2) positions after it, as far as chosen (the log
+            for those on it, the choice for those who chose, the start for those yet to choose) [m].
+        present, off_log, chosen: (N, A) bool.  velocity_mps: (N, A, 2) velocities over the previous step [m/s].
+        stuck, farthest, recent_m, detour: as ``ReactiveState`` (N, A, ...), for this step.
+        weight: (N, A) how far each reacts to its crowd's robot in this step, in [0, 1].  room_m: (N, A) the room it
+            keeps [m].
     """
 
-    index: int
+    index: np.ndarray
     start: np.ndarray
     xy: np.ndarray
     present: np.ndarray
@@ -175,20 +186,35 @@ class Step:
 
 @dataclass(frozen=True, eq=False)
 class Candidates:
-    """The places a pedestrian off its log may choose in one step: route point ``tau`` (C,), side ``offset_m`` (C,),
-    position ``xy_m`` (C, 2) [m], ``violation`` (C,) of the bounds (0: keeps them all; a metre into a wall weighs
-    ``WALL_WEIGHT``, into the robot's margin ``ROBOT_WEIGHT``) and ``cost`` (C,) [-]."""
+    """The places every chooser (a pedestrian off its log, J of them in all crowds) may choose in one step, their C
+    candidates in a row each (M = sum of C in all): chooser ``owner`` (M,), route point ``tau`` (M,), side
+    ``offset_m`` (M,), position ``xy_m`` (M, 2) [m]; ``first`` (J + 1,) where each chooser's rows start. What does not
+    depend on the others' choices, (M,) each: ``fixed_violation`` (too fast, into a wall or the robot's margin, as in
+    ``violation`` below, less the others), ``fixed_cost`` (delay, offset, sway), ``risk`` (round the robot),
+    ``stuck_cost`` (no headway again), ``way_cost`` (the way round; 0 where none is planned); ``later_m``
+    (M, ANTICIPATION_STEPS, 2) where it would walk on [m]; ``box_m`` (J, 4) the box (x low, y low, x high, y high) [m] holding each chooser's start, candidates and
+    ``later_m``."""
 
+    owner: np.ndarray
     tau: np.ndarray
     offset_m: np.ndarray
     xy_m: np.ndarray
-    violation: np.ndarray
-    cost: np.ndarray
+    first: np.ndarray
+    too_fast: np.ndarray
+    too_deep: np.ndarray
+    into_robot: np.ndarray
+    fixed_cost: np.ndarray
+    risk: np.ndarray
+    stuck_cost: np.ndarray
+    way_cost: np.ndarray
+    later_m: np.ndarray
+    box_m: np.ndarray
 
 
 @dataclass(frozen=True)
 class ReactiveState:
-    """Where the pedestrians of a replay are, one row per recorded agent (the replay's ``agents`` order).
+    """Where the pedestrians of a replay are, one row per recorded agent (the replay's ``agents`` order); the arrays
+    of N crowds stepped together carry a leading crowd axis (N, A, ...).
 
     Attributes:
         xy_m: (A, 2) positions [m]; NaN for agents absent now.
@@ -226,6 +252,17 @@ class ReactiveState:
     weight: np.ndarray
 
 
+def stack_states(states: Sequence[ReactiveState]) -> ReactiveState:
+    """The states of N crowds of one replay as one, every array with a leading crowd axis (N, A, ...)."""
+    return ReactiveState(*(np.stack([getattr(state, field.name) for state in states])
+                           for field in fields(ReactiveState)))
+
+
+def unstack_state(state: ReactiveState, crowd: int) -> ReactiveState:
+    """Row ``crowd`` of a stacked state."""
+    return ReactiveState(*(getattr(state, field.name)[crowd] for field in fields(ReactiveState)))
+
+
 class ReactiveCrowd:
     """The recorded pedestrians of one replay, reacting to a robot.
 
@@ -237,6 +274,84 @@ class ReactiveCrowd:
             the env's contact rule).
         reaction: when the pedestrians notice the robot and react, and the room they keep (default: the fitted one).
     """
+
+    def __init__(self, log_xy_m: np.ndarray, present: np.ndarray, depth: Depth, body: Body, touch_m: float,
+                 reaction: Reaction | None = None):
+        self.routes = Routes(log_xy_m, present, depth, body, touch_m, reaction)
+        self.state = self.routes.on_log(0)
+
+    @classmethod
+    def on(cls, routes: Routes) -> ReactiveCrowd:
+        """A crowd walking ``routes``, shared with other crowds of the same replay (the sub-envs of a vector env), so
+        that ``step_all`` steps them together."""
+        crowd = cls.__new__(cls)
+        crowd.routes, crowd.state = routes, routes.on_log(0)
+        return crowd
+
+    @staticmethod
+    def capacity(present: np.ndarray) -> int:
+        """Most pedestrians present at once in reactive mode: those of the log and those still on their way out."""
+        ended = np.zeros_like(present)
+        ended[1:] = present[:-1] & ~present[1:]  # logs that ended just before frame f
+        window = np.cumsum(ended, axis=0)
+        lingering = window - np.r_[np.zeros((MAX_LINGER_STEPS, present.shape[1]), int),
+                                   window[:-MAX_LINGER_STEPS]][: len(window)]
+        return int((present.sum(axis=1) + ((lingering > 0) & ~present).sum(axis=1)).max())
+
+    def reset(self, index: int) -> np.ndarray:
+        """Everybody on their log at frame ``index``, nobody has noticed the robot; returns the (A, 2) positions."""
+        self.state = self.routes.on_log(index)
+        return self.state.xy_m
+
+    def deviation_m(self, index: int) -> np.ndarray:
+        """(present agents,) distance of each pedestrian present now from its log at frame ``index`` (from where its
+        log ended, for one still on its way out) [m]."""
+        cols = np.flatnonzero(self.state.present)
+        ended = self.routes.run_last[np.floor(self.state.tau[cols]).astype(int), cols]
+        frames = np.where(self.routes.present[index, cols], index, ended)
+        return np.linalg.norm(self.state.xy_m[cols] - self.routes.log_xy_m[frames, cols], axis=1)
+
+    def step(self, index: int, robot_from_m: np.ndarray | None, robot_to_m: np.ndarray | None,
+             robot_heading_rad: float | None = None) -> np.ndarray:
+        """Advance from frame ``index - 1`` to ``index`` while, as the pedestrians expect, the robot moves from
+        ``robot_from_m`` to ``robot_to_m`` (2,) [m] (None: no robot; the replay env passes the robot's last velocity
+        held, not its command), its body turned to ``robot_heading_rad`` (default: along that move); returns the
+        (A, 2) positions at ``index`` (NaN: absent; who is present is ``state.present``)."""
+        return self.step_all([self], [index], [robot_from_m], [robot_to_m], [robot_heading_rad])[0]
+
+    @staticmethod
+    def step_all(crowds: Sequence[ReactiveCrowd], indices: Sequence[int], robots_from_m: Sequence[np.ndarray | None],
+                 robots_to_m: Sequence[np.ndarray | None], robots_heading_rad: Sequence[float | None]
+                 ) -> list[np.ndarray]:
+        """``step`` of several crowds, each with its own frame index and robot (the arguments one per crowd): the
+        crowds on the same ``routes`` in one batched pass, every pedestrian as it would walk stepped alone; returns
+        each crowd's (A, 2) positions."""
+        groups: dict[int, list[int]] = {}
+        for i, crowd in enumerate(crowds):
+            if robots_to_m[i] is None:  # no robot: everybody on their log
+                old = crowd.state
+                crowd.state = crowd.routes.on_log(indices[i])
+                crowd.state.velocity_mps[:] = velocity(crowd.state.xy_m, old.xy_m,
+                                                       old.present & crowd.routes.present[indices[i]])
+            else:
+                groups.setdefault(id(crowd.routes), []).append(i)
+        for members in groups.values():
+            robot = Robot(np.array([robots_from_m[i] for i in members], np.float64),
+                          np.array([robots_to_m[i] for i in members], np.float64),
+                          np.array([heading_of(robots_from_m[i], robots_to_m[i], robots_heading_rad[i])
+                                    for i in members]))
+            routes = crowds[members[0]].routes
+            state = routes.advance(stack_states([crowds[i].state for i in members]),
+                                   np.array([indices[i] for i in members]), robot)
+            for row, i in enumerate(members):
+                crowds[i].state = unstack_state(state, row)
+        return [crowd.state.xy_m for crowd in crowds]
+
+
+class Routes:
+    """The logged routes of one replay as reactive pedestrians walk them: the tables built once (shared by every crowd
+    of the replay, ``ReactiveCrowd.on``) and the step of N crowds on them at once (``advance``). Arguments as
+    ``ReactiveCrowd``'s."""
 
     def __init__(self, log_xy_m: np.ndarray, present: np.ndarray, depth: Depth, body: Body, touch_m: float,
                  reaction: Reaction | None = None):
@@ -259,19 +374,9 @@ class ReactiveCrowd:
         """(F, A, K) how deep each of those lies in the non-walkable area [m]"""
         self.tangent = smoothed(route_tangents(step, moving & (length >= MIN_STEP_M), present), self.run_first,
                                 self.run_last)  # (F, A, 2)
-        self.state = self._on_log(0)
 
-    @staticmethod
-    def capacity(present: np.ndarray) -> int:
-        """Most pedestrians present at once in reactive mode: those of the log and those still on their way out."""
-        ended = np.zeros_like(present)
-        ended[1:] = present[:-1] & ~present[1:]  # logs that ended just before frame f
-        window = np.cumsum(ended, axis=0)
-        lingering = window - np.r_[np.zeros((MAX_LINGER_STEPS, present.shape[1]), int),
-                                   window[:-MAX_LINGER_STEPS]][: len(window)]
-        return int((present.sum(axis=1) + ((lingering > 0) & ~present).sum(axis=1)).max())
-
-    def _on_log(self, index: int) -> ReactiveState:
+    def on_log(self, index: int) -> ReactiveState:
+        """Everybody on their log at frame ``index``, nobody has noticed the robot."""
         now = self.present[index]
         xy = np.where(now[:, None], self.log_xy_m[index], np.nan)
         agents = len(now)
@@ -280,132 +385,400 @@ class ReactiveCrowd:
                              zero, np.zeros(agents, int), np.zeros(agents, int), np.full(agents, float(index)),
                              np.full((agents, RECENT_STEPS), np.inf), np.zeros(agents, bool), zero, zero, zero)
 
-    def reset(self, index: int) -> np.ndarray:
-        """Everybody on their log at frame ``index``, nobody has noticed the robot; returns the (A, 2) positions."""
-        self.state = self._on_log(index)
-        return self.state.xy_m
-
-    def deviation_m(self, index: int) -> np.ndarray:
-        """(present agents,) distance of each pedestrian present now from its log at frame ``index`` (from where its
-        log ended, for one still on its way out) [m]."""
-        cols = np.flatnonzero(self.state.present)
-        ended = self.run_last[np.floor(self.state.tau[cols]).astype(int), cols]
-        frames = np.where(self.present[index, cols], index, ended)
-        return np.linalg.norm(self.state.xy_m[cols] - self.log_xy_m[frames, cols], axis=1)
-
-    def step(self, index: int, robot_from_m: np.ndarray | None, robot_to_m: np.ndarray | None,
-             robot_heading_rad: float | None = None) -> np.ndarray:
-        """Advance from frame ``index - 1`` to ``index`` while, as the pedestrians expect, the robot moves from
-        ``robot_from_m`` to ``robot_to_m`` (2,) [m] (None: no robot; the replay env passes the robot's last velocity
-        held, not its command), its body turned to ``robot_heading_rad`` (default: along that move); returns the
-        (A, 2) positions at ``index`` (NaN: absent; who is present is ``state.present``)."""
-        old = self.state
-        logged, log_now = self.present[index], self.log_xy_m[index]
-        if robot_to_m is None:
-            self.state = self._on_log(index)
-            self.state.velocity_mps[:] = velocity(self.state.xy_m, old.xy_m, old.present & logged)
-            return self.state.xy_m
-        robot = Robot(np.asarray(robot_from_m, np.float64), np.asarray(robot_to_m, np.float64),
-                      heading_of(robot_from_m, robot_to_m, robot_heading_rad))
+    def advance(self, old: ReactiveState, index: np.ndarray, robot: Robot) -> ReactiveState:
+        """The stacked state (N, A, ...) of N crowds after their step from frames ``index - 1`` to ``index`` (N,),
+        each crowd's robot moving as ``robot`` (N rows) expects (``ReactiveCrowd.step``)."""
+        frame = index[:, None].astype(np.float64)  # (N, 1)
+        logged, log_now = self.present[index], self.log_xy_m[index]  # (N, A), (N, A, 2)
         walking = self._walking(old)
         noticed, unseen = attend(old.noticed_s, old.unseen_s, self._notices(old, robot, walking))
         weight = np.where(old.present, self.reaction.weight(noticed), 0.0)
-        room = self.reaction.room_m(robot.velocity_mps, robot.heading, walking,
-                                    np.nan_to_num((old.xy_m - robot.from_m) @ robot.velocity_mps) > 0)
+        room = np.stack([self.reaction.room_m(robot.velocity_mps[n], robot.heading[n], walking[n],
+                                              np.nan_to_num((old.xy_m[n] - robot.from_m[n]) @ robot.velocity_mps[n])
+                                              > 0) for n in range(len(index))])
         lingering = old.present & old.off_log & ~logged & (old.linger < MAX_LINGER_STEPS)  # on their way out
         present = logged | lingering
         off_log = (old.off_log & old.present & logged & (old.linger == 0)) | lingering  # a log that starts again: on
-        start = np.where(old.present[:, None], old.xy_m, log_now)  # (A, 2) where each one is before the step
+        start = np.where(old.present[..., None], old.xy_m, log_now)  # (N, A, 2) where each one is before the step
         going = old.present & logged & ~off_log & (self._robot_in_the_way(index, robot, weight, room)
                                                    | self._others_in_the_way(index, old))
         off_log |= going
-        tau = np.where(off_log, old.tau, float(index))
-        tau[going] = index - 1.0  # from where they stood: their log at the previous frame
-        farthest = np.where(off_log, np.where(going, tau, old.farthest), float(index))
-        recent = np.where((off_log & ~going)[:, None], old.recent_m, np.inf)
+        tau = np.where(going, frame - 1.0, np.where(off_log, old.tau, frame))  # going: from their log's last frame
+        farthest = np.where(off_log, np.where(going, tau, old.farthest), frame)
+        recent = np.where((off_log & ~going)[..., None], old.recent_m, np.inf)
         detour = off_log & ~going & old.detour
         offset = np.where(off_log, old.offset_m, 0.0)
-        xy = np.where(off_log[:, None], start, log_now)
+        xy = np.where(off_log[..., None], start, log_now)
         xy[~present] = np.nan
-        step = Step(index, start, xy, present, off_log, np.zeros(len(present), bool), old.velocity_mps, old.stuck,
+        step = Step(index, start, xy, present, off_log, np.zeros(present.shape, bool), old.velocity_mps, old.stuck,
                     farthest, recent, detour, robot, weight, room)
-        clear = self._clear_of_robot(log_now, robot)
-        for agent in np.flatnonzero(logged & ~old.present):  # appears where the robot or one off its log stands?
-            taken = start[off_log & present]
-            if clear[agent] and \
-                    not (np.linalg.norm(taken - log_now[agent], axis=1) < 2 * BODY_RADIUS_M - PAIR_GIVE_M).any():
-                continue
-            offset[agent] = self._clear_offset(agent, index, robot, taken)
-            xy[agent] = start[agent] = self._place(np.array([agent]), np.array([float(index)]), offset[[agent]],
-                                                   index)[0]
-            off_log[agent] = step.chosen[agent] = True
-        order = np.flatnonzero(off_log & ~step.chosen)
-        order = order[np.argsort(self.body.gap_m(start[order] - robot.from_m, robot.heading_rad), kind="stable")]
-        for agent in order:  # the nearest to the robot first, each seeing the choices made before it
-            tau[agent], offset[agent], xy[agent] = self._choose(agent, tau[agent], offset[agent], step)
-            step.chosen[agent] = True
+        clear = self.clear_of_robot(log_now, robot.from_m[:, None], robot.to_m[:, None], robot.heading_rad[:, None])
+        self._place_newcomers(step, logged & ~old.present, clear, offset)
+        self._choose_all(step, tau, offset)
         # back on the log: caught up, beside it, and nothing in the way; out of the scene: where the log ended
         ahead = ReactiveState(xy, velocity(xy, old.xy_m, old.present & present), present, off_log, tau, offset,
                               old.linger, old.stuck, farthest, recent, detour, noticed, unseen, weight)
-        after = Robot(robot.to_m, 2 * robot.to_m - robot.from_m, robot.heading_rad)
-        rejoin = (off_log & logged & (np.linalg.norm(np.nan_to_num(xy - log_now, nan=np.inf), axis=1) <= REJOIN_M)
-                  & ~self._robot_in_the_way(index + 1, after, weight, room) & ~self._others_in_the_way(index + 1, ahead)
-                  & clear)
+        rejoin = (off_log & logged & (np.linalg.norm(np.nan_to_num(xy - log_now, nan=np.inf), axis=-1) <= REJOIN_M)
+                  & ~self._robot_in_the_way(index + 1, robot.after(), weight, room)
+                  & ~self._others_in_the_way(index + 1, ahead) & clear)
         xy[rejoin] = log_now[rejoin]
         off_log &= ~rejoin
-        cols = np.arange(len(tau))
+        cols = np.arange(present.shape[1])
         log_end = self.log_xy_m[self.run_last[np.clip(np.floor(tau), 0, None).astype(int), cols], cols]
-        to_end = np.linalg.norm(np.nan_to_num(xy - log_end, nan=np.inf), axis=1)
-        blocked = np.linalg.norm(np.nan_to_num(xy - start), axis=1) < STILL_M  # the robot or others stand there
+        to_end = np.linalg.norm(np.nan_to_num(xy - log_end, nan=np.inf), axis=-1)
+        blocked = np.linalg.norm(np.nan_to_num(xy - start), axis=-1) < STILL_M  # the robot or others stand there
         present &= ~(lingering & ((to_end <= REJOIN_M) | (blocked & (to_end <= LEAVE_BLOCKED_M))))
         off_log &= present
         xy[~present] = np.nan
-        headway, farther, behind = np.ones(len(tau), bool), np.ones(len(tau), bool), np.full(len(tau), np.inf)
-        for agent in np.flatnonzero(off_log):
-            gain, away = self._headway(agent, tau[[agent]], offset[[agent]], farthest[agent], index)
-            farther[agent] = gain[0] >= HEADWAY_M
-            headway[agent] = farther[agent] or away[0] <= recent[agent].min() - HEADWAY_M
-            behind[agent] = away[0]
+        headway, farther = np.ones(present.shape, bool), np.ones(present.shape, bool)
+        behind = np.full(tau.shape, np.inf)
+        rows, agents = np.nonzero(off_log)
+        gain, away = self.headway(agents, tau[rows, agents], offset[rows, agents], farthest[rows, agents],
+                                  index[rows])
+        farther[rows, agents] = gain >= HEADWAY_M
+        headway[rows, agents] = farther[rows, agents] | (away <= recent[rows, agents].min(axis=-1) - HEADWAY_M)
+        behind[rows, agents] = away
         stuck = np.where(off_log & ~headway, old.stuck + 1, 0)
         detour &= off_log & ~farther
         detour |= stuck >= DETOUR_AFTER_STEPS
-        self.state = ReactiveState(xy, velocity(xy, old.xy_m, old.present & present), present, off_log,
-                                   np.where(off_log, tau, float(index)), np.where(off_log, offset, 0.0),
-                                   np.where(present & lingering, old.linger + 1, 0),
-                                   stuck,
-                                   np.where(off_log, np.maximum(farthest, tau), float(index)),
-                                   np.c_[recent[:, 1:], behind], detour,
-                                   np.where(present, noticed, 0.0), np.where(present, unseen, 0.0), weight)
-        return xy
+        return ReactiveState(xy, velocity(xy, old.xy_m, old.present & present), present, off_log,
+                             np.where(off_log, tau, frame), np.where(off_log, offset, 0.0),
+                             np.where(present & lingering, old.linger + 1, 0), stuck,
+                             np.where(off_log, np.maximum(farthest, tau), frame),
+                             np.concatenate([recent[..., 1:], behind[..., None]], axis=-1), detour,
+                             np.where(present, noticed, 0.0), np.where(present, unseen, 0.0), weight)
 
     # ------------------------------------------------------------------------------------------------ noticing
     def _walking(self, state: ReactiveState) -> np.ndarray:
-        """(A, 2) unit walking directions: the velocity of those faster than ``MOVING_MPS``, else the route's
+        """(N, A, 2) unit walking directions: the velocity of those faster than ``MOVING_MPS``, else the route's
         direction where they are on it."""
-        speed = np.linalg.norm(state.velocity_mps, axis=1, keepdims=True)
+        speed = np.linalg.norm(state.velocity_mps, axis=-1, keepdims=True)
         frame = np.clip(np.floor(state.tau), 0, len(self.present) - 1).astype(int)
-        route = self.tangent[frame, np.arange(len(frame))]
+        route = self.tangent[frame, np.arange(frame.shape[-1])]
         return np.where(speed > MOVING_MPS, state.velocity_mps / np.maximum(speed, 1e-12), route)
 
     def _notices(self, state: ReactiveState, robot: Robot, walking: np.ndarray) -> np.ndarray:
-        """(A,) bool: the pedestrians present that notice the robot at the start of the step (``reaction.notices``)."""
-        offset = state.xy_m - robot.from_m
-        toward = robot.from_m + self.body.nearest_point_m(offset, robot.heading_rad) - state.xy_m
-        bearing = np.arctan2(walking[:, 0] * toward[:, 1] - walking[:, 1] * toward[:, 0], (walking * toward).sum(1))
-        gap = np.nan_to_num(self.body.gap_m(offset, robot.heading_rad), nan=np.inf)
+        """(N, A) bool: the pedestrians present that notice their robot at the start of the step
+        (``reaction.notices``)."""
+        offset = state.xy_m - robot.from_m[:, None]
+        heading = robot.heading_rad[:, None]
+        toward = robot.from_m[:, None] + self.body.nearest_point_m(offset, heading) - state.xy_m
+        bearing = np.arctan2(walking[..., 0] * toward[..., 1] - walking[..., 1] * toward[..., 0],
+                             (walking * toward).sum(-1))
+        gap = np.nan_to_num(self.body.gap_m(offset, heading), nan=np.inf)
         return state.present & notices(self.reaction, gap, np.nan_to_num(bearing, nan=np.pi))
 
-    def _clear_of_robot(self, xy_m: np.ndarray, robot: Robot) -> np.ndarray:
-        """(A,) bool: points (A, 2) at least ``robot_reach_m`` from the robot's body where it stands and where it is
-        expected at the end of the step (NaN points are clear)."""
-        gaps = [self.body.gap_m(xy_m - where, robot.heading_rad) for where in (robot.from_m, robot.to_m)]
+    def clear_of_robot(self, xy_m: np.ndarray, from_m: np.ndarray, to_m: np.ndarray,
+                       heading_rad: np.ndarray) -> np.ndarray:
+        """(...) bool: points (..., 2) at least ``robot_reach_m`` from the robot's body where it stands (``from_m``)
+        and where it is expected at the end of the step (``to_m``), both (..., 2) and ``heading_rad`` (...)
+        broadcast against the points (NaN points are clear)."""
+        gaps = [self.body.gap_m(xy_m - where, heading_rad) for where in (from_m, to_m)]
         return np.nan_to_num(np.minimum(*gaps), nan=np.inf) >= self.robot_reach_m
 
+    def _robot_in_the_way(self, index: np.ndarray, robot: Robot, weight: np.ndarray, room_m: np.ndarray) -> np.ndarray:
+        """(N, A) bool: agents whose log's step into frame ``index`` (N,) would take them within ``robot_reach_m`` of
+        their robot's body (where it stands, for those that do not react; on its expected course, for those that
+        do), or, for those that react, whose log from frame ``index`` on comes within their room (N, A) [m] of the
+        robot's expected course over ``anticipation_s``."""
+        frames = len(self.present)
+        live = (index < frames)[:, None]  # a crowd past its recording's end: nobody
+        heading = robot.heading_rad[:, None]
+        reacting = weight > 0
+        robot_to = np.where(reacting[..., None], robot.to_m[:, None], robot.from_m[:, None])
+        before, now = self.log_xy_m[np.clip(index - 1, 0, frames - 1)], self.log_xy_m[np.minimum(index, frames - 1)]
+        gap = self.body.swept_gap_m(before - robot.from_m[:, None], now - robot_to, heading)
+        hit = (index > 0)[:, None] & (np.nan_to_num(gap, nan=np.inf) < self.robot_reach_m)
+        ahead = np.arange(-1, self.reaction.anticipation_steps)  # frames from index on, from where it stands now
+        seen = index[:, None] + ahead  # (N, H + 1)
+        valid = (seen >= 0) & (seen < frames)
+        course = robot.to_m[:, None] + (ahead * STEP_S)[None, :, None] * robot.velocity_mps[:, None]  # (N, H + 1, 2)
+        offset = self.log_xy_m[np.clip(seen, 0, frames - 1)] - course[:, :, None]  # (N, H + 1, A, 2)
+        swept = self.body.swept_gap_m(offset[:, :-1], offset[:, 1:], heading[:, None])  # (N, H, A)
+        swept = np.where((valid[:, :-1] & valid[:, 1:])[..., None], np.nan_to_num(swept, nan=np.inf), np.inf)
+        alone = np.nan_to_num(self.body.gap_m(offset[:, 1], heading), nan=np.inf)  # the one frame of a 1-frame look
+        least = np.where((valid.sum(axis=1) > 1)[:, None], swept.min(axis=1), alone)
+        return live & (hit | (reacting & (least < self.robot_reach_m + room_m)))
+
+    def _others_in_the_way(self, index: np.ndarray, state: ReactiveState) -> np.ndarray:
+        """(N, A) bool: agents whose log from frame ``index`` (N,) on comes within ``PAIR_CLEARANCE_M`` of a
+        pedestrian of their crowd off its log (going on at its velocity) within ``PAIR_LOOK_AHEAD_STEPS``, where it
+        comes closer than their own logs would."""
+        others = state.off_log & state.present
+        width = int(others.sum(axis=1).max(initial=0))
+        frames = len(self.present)
+        if not width or (index >= frames).all():
+            return np.zeros(others.shape, bool)
+        who = np.argsort(~others, axis=1, kind="stable")[:, :width]  # (N, O) the crowd's others first, ascending
+        real = np.take_along_axis(others, who, axis=1)
+        ahead = np.arange(PAIR_LOOK_AHEAD_STEPS)
+        seen = index[:, None] + ahead  # (N, H)
+        log = self.log_xy_m[np.minimum(seen, frames - 1)]  # (N, H, A, 2), NaN where absent
+        rows = np.arange(len(index))[:, None]
+        where = (state.xy_m[rows, who][:, None]
+                 + (ahead * STEP_S)[None, :, None, None] * state.velocity_mps[rows, who][:, None])  # (N, H, O, 2)
+        gap = np.linalg.norm(log[:, :, :, None] - where[:, :, None], axis=-1)  # (N, H, A, O)
+        their_log = np.take_along_axis(log, who[:, None, :, None], axis=2)  # (N, H, O, 2)
+        logged_gap = np.linalg.norm(log[:, :, :, None] - their_log[:, :, None], axis=-1)
+        bound = np.minimum(2 * BODY_RADIUS_M + PAIR_CLEARANCE_M, np.nan_to_num(logged_gap, nan=np.inf) - PAIR_GIVE_M)
+        apart = (real[:, None, None, :] & (seen < frames)[:, :, None, None]
+                 & (who[:, None, None, :] != np.arange(others.shape[1])[None, None, :, None]))  # nobody in own way
+        return (apart & (np.nan_to_num(gap, nan=np.inf) < bound)).any(axis=(1, 3))
+
     # ------------------------------------------------------------------------------------------------ choosing
-    def _route(self, agents: np.ndarray, tau: np.ndarray, run_frame: int) -> tuple[np.ndarray, np.ndarray]:
+    def _place_newcomers(self, step: Step, appearing: np.ndarray, clear: np.ndarray, offset: np.ndarray) -> None:
+        """Start each pedestrian appearing (N, A) where its robot (not ``clear``) or one off its log stands beside its
+        log instead, just clear of them (``_clear_offset``): ``step`` and ``offset`` (N, A) are updated in place."""
+        body_m = 2 * BODY_RADIUS_M - PAIR_GIVE_M
+        for row in np.flatnonzero(appearing.any(axis=1)):
+            for agent in np.flatnonzero(appearing[row]):  # in order: each sees those placed before it
+                taken = step.start[row][step.off_log[row] & step.present[row]]
+                log_now = self.log_xy_m[step.index[row], agent]
+                if clear[row, agent] and not (np.linalg.norm(taken - log_now, axis=1) < body_m).any():
+                    continue
+                offset[row, agent] = self._clear_offset(agent, int(step.index[row]), step.robot, row, taken)
+                step.xy[row, agent] = step.start[row, agent] = self.place(
+                    np.array([agent]), np.array([float(step.index[row])]), offset[row, [agent]], step.index[row])[0]
+                step.off_log[row, agent] = step.chosen[row, agent] = True
+
+    def _clear_offset(self, agent: int, index: int, robot: Robot, row: int, others_m: np.ndarray) -> float:
+        """The smallest side offset [m] at frame ``index`` that clears robot ``row`` (where it stands and where it is
+        expected) and the pedestrians at ``others_m`` (K, 2), and stays as walkable as the log (0 if none does)."""
+        offsets = OFFSETS_M[np.argsort(np.abs(OFFSETS_M), kind="stable")]
+        places = self.place(np.full(len(offsets), agent), np.full(len(offsets), float(index)), offsets, index)
+        apart = np.linalg.norm(places[:, None] - others_m[None], axis=-1).min(axis=1, initial=np.inf)
+        fine = (self.clear_of_robot(places, robot.from_m[row], robot.to_m[row], robot.heading_rad[row])
+                & (apart >= 2 * BODY_RADIUS_M - PAIR_GIVE_M) & (self.too_deep_m(agent, index, places, index) == 0))
+        return float(offsets[np.argmax(fine)]) if fine.any() else 0.0
+
+    def _choose_all(self, step: Step, tau: np.ndarray, offset: np.ndarray) -> None:
+        """Every pedestrian off its log and not placed yet takes the cheapest of its candidates that keeps every
+        bound (see the module docstring), or the one that breaks them the least; ``step.xy``, ``tau`` and ``offset``
+        (N, A) are updated in place. In each crowd they choose one after another, the nearest to the robot first,
+        each seeing the choices made before it: all candidates are scored in one pass, and only the terms between
+        pedestrians are scored in turn, in rounds that gather those whose choices cannot touch one another."""
+        rows, agents = np.nonzero(step.off_log & ~step.chosen)
+        if not len(agents):
+            return
+        gap = self.body.gap_m(step.start[rows, agents] - step.robot.from_m[rows], step.robot.heading_rad[rows])
+        order = np.lexsort((gap, rows))  # by crowd, then the nearest to the robot first (stable: by agent on ties)
+        rows, agents = rows[order], agents[order]
+        c = self._candidates(step, rows, agents, tau[rows, agents], offset[rows, agents])
+        for turn in self._turns(step, rows, agents, c):
+            best = self._best(step, rows[turn], agents[turn], c, turn)
+            tau[rows[turn], agents[turn]] = c.tau[best]
+            offset[rows[turn], agents[turn]] = c.offset_m[best]
+            step.xy[rows[turn], agents[turn]] = c.xy_m[best]
+            step.chosen[rows[turn], agents[turn]] = True
+
+    def _turns(self, step: Step, rows: np.ndarray, agents: np.ndarray, c: Candidates) -> list[np.ndarray]:
+        """Choosers (J,), sorted by crowd and turn, gathered in rounds: each chooses in the first round after those
+        before it in its crowd whose places (start, candidates, walking on at their velocity) come within
+        ``PAIR_REACH_M`` of its own box (``Candidates.box_m``), or whose box comes within reach of its places;
+        those that no earlier choice can touch share a
+        round, and the choices come out as if made one after another."""
+        reach = np.minimum.reduceat(c.xy_m, c.first[:-1]), np.maximum.reduceat(c.xy_m, c.first[:-1])
+        start = step.start[rows, agents]
+        low, high = np.minimum(reach[0], start), np.maximum(reach[1], start)  # where it may stand, (J, 2) each
+        drift = step.velocity_mps[rows, agents][:, None] * (np.arange(1, ANTICIPATION_STEPS + 1) * STEP_S)[:, None]
+        low = np.minimum(low, low + drift.min(axis=1))  # and walk on to, as the others see it
+        high = np.maximum(high, high + drift.max(axis=1))
+        apart = np.maximum(np.maximum(low[None] - c.box_m[:, None, 2:], c.box_m[:, None, :2] - high[None]), 0.0)
+        touches = (np.linalg.norm(apart, axis=-1) < PAIR_REACH_M + NEAR_SLACK_M) & (rows[:, None] == rows[None])
+        touches |= touches.T  # either may score the other: the later one must not see the earlier one's choice
+        rounds = np.zeros(len(rows), int)
+        for j in range(1, len(rows)):  # j waits for the earlier ones of its crowd that it touches
+            earlier = touches[j, :j]
+            rounds[j] = rounds[:j][earlier].max(initial=-1) + 1
+        return [np.flatnonzero(rounds == r) for r in range(rounds.max() + 1)]
+
+    def _best(self, step: Step, rows: np.ndarray, agents: np.ndarray, c: Candidates, turn: np.ndarray) -> np.ndarray:
+        """(T,) the candidate row each of the choosers ``turn`` (T,) takes, with the terms between pedestrians scored
+        against the others as they are now."""
+        counts = c.first[turn + 1] - c.first[turn]
+        cand = np.repeat(c.first[turn] - np.cumsum(np.r_[0, counts[:-1]]), counts) + np.arange(counts.sum())
+        local = np.repeat(np.arange(len(turn)), counts)  # which of the turn's choosers each row belongs to
+        too_close, pair_risk = self._pair_terms(step, rows, agents, c.box_m[turn], c, cand, local)
+        violation = (c.too_fast[cand] + too_close + WALL_WEIGHT * c.too_deep[cand]
+                     + ROBOT_WEIGHT * c.into_robot[cand])
+        cost = c.fixed_cost[cand] + RISK_COST * (c.risk[cand] + pair_risk) + c.stuck_cost[cand] + c.way_cost[cand]
+        starts = np.r_[0, np.cumsum(counts)[:-1]]
+        fine = np.logical_or.reduceat(violation == 0, starts)
+        key = np.where(fine[local], np.where(violation > 0, np.inf, cost), violation)
+        least = np.minimum.reduceat(key, starts)[local]
+        hits = np.flatnonzero((key == least) | (np.isnan(least) & np.isnan(key)))
+        return cand[hits[np.searchsorted(local[hits], np.arange(len(turn)))]]
+
+    def _pair_terms(self, step: Step, rows: np.ndarray, agents: np.ndarray, box: np.ndarray, c: Candidates,
+                    cand: np.ndarray, local: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(too_close, pair_risk), (R,) each, of the candidate rows ``cand`` (R,) of the choosers ``rows``,
+        ``agents`` (T,) with boxes ``box`` (T, 4) (``local`` (R,): whose row): along the whole step it keeps
+        ``2 BODY_RADIUS_M - PAIR_GIVE_M`` from everybody else (or at least the gap it already had, and that much again by the end of the step where
+        their logs are that far apart) [m]; and the squared intrusions into the comfort gap round the others off
+        their logs going on at their velocities over ``ANTICIPATION_STEPS`` [m^2]. Only pairs within reach are
+        scored; the sums over the others come out as over all of them (``exact_row_sums``)."""
+        body_m = 2 * BODY_RADIUS_M - PAIR_GIVE_M
+        present, off_log = step.present[rows], step.off_log[rows]  # (T, A)
+        ahead = np.arange(1, ANTICIPATION_STEPS + 1) * STEP_S
+        xy, moving = step.xy[rows], step.velocity_mps[rows][:, None] * ahead[None, :, None, None]  # (T, A, 2)
+        future = xy[:, None] + moving  # (T, H, A, 2) the others walking on
+        low = np.fmin(np.fmin(step.start[rows], xy), np.where(off_log[:, None, :, None], future, np.nan).min(axis=1))
+        high = np.fmax(np.fmax(step.start[rows], xy), np.where(off_log[:, None, :, None], future, np.nan).max(axis=1))
+        apart = np.maximum(np.maximum(low - box[:, None, 2:], box[:, None, :2] - high), 0.0)
+        self_col = np.arange(present.shape[1])[None] == agents[:, None]
+        near = (np.linalg.norm(apart, axis=-1) < PAIR_REACH_M + NEAR_SLACK_M) & present & ~self_col
+        t_near, other = np.nonzero(near)
+        others_before = np.cumsum(present, axis=1) - present  # the others' columns as the full sums order them
+        off_before = np.cumsum(present & off_log, axis=1) - (present & off_log)
+        column = others_before[t_near, other] - (agents[t_near] < other)
+        off_column = off_before[t_near, other] - (agents[t_near] < other)
+        width = present.sum(axis=1) - 1  # (T,) others
+        off_width = (present & off_log).sum(axis=1) - 1
+        # every candidate row of the chooser against each of its near others
+        per_row = np.bincount(local, minlength=len(rows))
+        counts = per_row[t_near]
+        pair = np.repeat(np.arange(len(t_near)), counts)
+        first_row = np.r_[0, np.cumsum(per_row)[:-1]]
+        row = np.repeat(first_row[t_near], counts) + (np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts,
+                                                                                           counts))
+        t, o = t_near[pair], other[pair]
+        here, place = step.start[rows[t], agents[t]], c.xy_m[cand[row]]
+        their_from, their_to = step.start[rows[t], o], xy[t, o]
+        allowed = np.minimum(body_m, np.linalg.norm(their_from - here, axis=-1) - 1e-6)
+        pair_gap, _ = closest_approach(here - their_from, place - their_to)
+        index = step.index[rows[t]]
+        logged = np.linalg.norm(self.log_xy_m[index, agents[t]] - self.log_xy_m[index, o], axis=-1)
+        together = np.minimum(body_m, np.nan_to_num(logged, nan=np.inf))  # closer than that now: part as the logs do
+        end_gap = np.linalg.norm(place - their_to, axis=-1)
+        n_rows = len(cand)
+        too_close = (exact_row_sums(row, column[pair], np.maximum(allowed - pair_gap, 0.0), width[local], n_rows)
+                     + exact_row_sums(row, column[pair], np.maximum(together - end_gap, 0.0), width[local], n_rows))
+        walks = off_log[t, o]  # the others off their logs keep to no log: scored by how they walk on
+        later = c.later_m[cand[row[walks]]]  # (P, H, 2)
+        gap = np.linalg.norm(later - future[t[walks], :, o[walks]], axis=-1)  # (P, H)
+        intrusion = np.maximum(PAIR_REACH_M - gap, 0.0) ** 2
+        k = off_width[local][row[walks]]
+        cols = np.arange(ANTICIPATION_STEPS)[None] * k[:, None] + off_column[pair][walks][:, None]
+        pair_risk = exact_row_sums(np.repeat(row[walks], ANTICIPATION_STEPS), cols.ravel(), intrusion.ravel(),
+                                   ANTICIPATION_STEPS * off_width[local], n_rows)
+        return too_close, pair_risk
+
+    def _candidates(self, step: Step, rows: np.ndarray, agents: np.ndarray, tau: np.ndarray,
+                    offset: np.ndarray) -> Candidates:
+        """Every place the choosers ``rows``, ``agents`` (J,), now at route points ``tau`` and sides ``offset`` (J,),
+        may choose, with all their bounds and costs but the terms between pedestrians, in one pass."""
+        index, run_frame = step.index[rows], tau.astype(int)
+        here = step.start[rows, agents]  # (J, 2)
+        first, last = self.run_first[run_frame, agents], self.run_last[run_frame, agents]
+        cap = np.maximum(tau, np.minimum(index, last).astype(np.float64))  # never ahead of the log
+        reach_m = np.maximum(CATCH_UP_MPS, CATCH_UP_FACTOR * self.log_speed_mps[run_frame, agents]) * STEP_S
+        taus = self.tau_ahead(agents, tau, reach_m[:, None] * PROGRESS_SHARES, run_frame)
+        taus = np.sort(np.clip(np.c_[taus, cap], first[:, None], cap[:, None]), axis=1)
+        sides = np.sort(np.c_[np.broadcast_to(OFFSETS_M, (len(agents), len(OFFSETS_M))), offset], axis=1)
+        grid = distinct(taus)[:, :, None] & distinct(sides)[:, None, :]  # (J, T, O): the tau-major grid of each
+        owner, t_col, o_col = np.nonzero(grid)
+        c_tau, c_off = taus[owner, t_col], sides[owner, o_col]
+        a, rf, start = agents[owner], run_frame[owner], here[owner]
+        places = self.place(a, c_tau, c_off, rf)  # (M, 2)
+        too_fast = np.maximum(np.linalg.norm(places - start, axis=1) - reach_m[owner], 0.0)
+        path = start[:, None] + np.array(PATH_SAMPLES)[:, None] * (places - start)[:, None]  # along the way
+        too_deep = self.too_deep_m(a[:, None], tau[owner][:, None], path, rf[:, None]).max(axis=1)
+        robot, heading = step.robot, step.robot.heading_rad[rows][owner]
+        reacts = step.weight[rows, agents] > 0
+        robot_to = np.where(reacts[:, None], robot.to_m[rows], robot.from_m[rows])[owner]  # noticed, or its body
+        robot_gap = self.body.swept_gap_m(start - robot.from_m[rows][owner], places - robot_to, heading)
+        into_robot = np.maximum(self.robot_reach_m - robot_gap, 0.0)
+        gain, away = self.headway(a, c_tau, c_off, step.farthest[rows, agents][owner], index[owner])
+        recent = step.recent_m[rows, agents].min(axis=1)[owner]
+        staying = (gain < HEADWAY_M) & (away > recent - HEADWAY_M)  # stuck: try another way
+        delay = np.minimum(index[owner] - c_tau, (away - np.abs(c_off)) / (STEP_S * LAG_PACE_MPS))  # [frame]
+        fixed_cost = LAG_COST * delay + OFFSET_COST * np.abs(c_off) + SWAY_COST * np.abs(c_off - offset[owner])
+        risk, later = self._robot_risk(step, rows[owner], a, c_tau, c_off, rf, heading)
+        stuck_cost = STUCK_COST * step.stuck[rows, agents][owner] * staying
+        firsts = np.r_[0, np.cumsum(grid.sum(axis=(1, 2)))]
+        way_cost = np.zeros(len(owner))
+        detour = np.flatnonzero(step.detour[rows, agents])
+        if detour.size:
+            way = self._way_round_m(step, rows[detour], agents[detour], tau[detour], run_frame[detour],
+                                    [places[firsts[j]:firsts[j + 1]] for j in detour])
+            for j, way_m in zip(detour, way, strict=True):
+                way_cost[firsts[j]:firsts[j + 1]] = DETOUR_COST * way_m
+        spots_low = np.minimum(places, later.min(axis=1))  # (M, 2) each candidate and where it walks on
+        spots_high = np.maximum(places, later.max(axis=1))
+        box = np.c_[np.minimum(np.minimum.reduceat(spots_low, firsts[:-1]), here),
+                    np.maximum(np.maximum.reduceat(spots_high, firsts[:-1]), here)]
+        return Candidates(owner, c_tau, c_off, places, firsts, too_fast, too_deep, into_robot, fixed_cost, risk,
+                          stuck_cost, way_cost, later, box)
+
+    def _robot_risk(self, step: Step, rows: np.ndarray, agents: np.ndarray, tau: np.ndarray, offset: np.ndarray,
+                    run_frame: np.ndarray, heading: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(risk (M,) [m^2], later (M, ANTICIPATION_STEPS, 2) [m]) of candidates at route points ``tau``, sides
+        ``offset`` of ``agents`` in crowds ``rows`` (M,) each: the squared intrusions, if the agent walks on along its
+        route at its log's pace, into its room round the robot going on at its velocity over ``anticipation_s`` (as
+        far as it reacts), or into ``COMFORT_M`` round the robot's body standing where it is over
+        ``ANTICIPATION_STEPS`` (as far as it does not: a body in the way); and where it walks on to."""
+        weight, robot = step.weight[rows, agents], step.robot
+        robot_steps = self.reaction.anticipation_steps
+        ahead = np.arange(max(robot_steps, ANTICIPATION_STEPS) + 1, dtype=np.float64)  # (H + 1,) from now on
+        later = self.place(agents[:, None], tau[:, None] + ahead, offset[:, None], run_frame[:, None])  # (M, H + 1, 2)
+        standing = later[:, :ANTICIPATION_STEPS + 1] - robot.from_m[rows][:, None]  # from the body standing
+        gap = self.body.swept_gap_m(standing[:, :-1], standing[:, 1:], heading[:, None])  # (M, H_s) along each step
+        risk = (1.0 - weight) * (np.maximum(self.robot_reach_m + COMFORT_M - gap, 0.0) ** 2).sum(axis=1)
+        react = np.flatnonzero(weight > 0)
+        if react.size:
+            course = robot.to_m[rows[react]][:, None] + (ahead[:robot_steps + 1, None] * STEP_S)[None] \
+                * robot.velocity_mps[rows[react]][:, None]  # (R, H_r + 1, 2)
+            moving = later[react, :robot_steps + 1] - course  # from the body on its course
+            gap = self.body.swept_gap_m(moving[:, :-1], moving[:, 1:], heading[react][:, None])  # (R, H_r)
+            room = self.robot_reach_m + step.room_m[rows[react], agents[react]]
+            risk[react] = risk[react] + weight[react] * (np.maximum(room[:, None] - gap, 0.0) ** 2).sum(axis=1)
+        return risk, later[:, 1:ANTICIPATION_STEPS + 1]
+
+    def _way_round_m(self, step: Step, rows: np.ndarray, agents: np.ndarray, tau: np.ndarray, run_frame: np.ndarray,
+                     places: list[np.ndarray]) -> list[np.ndarray]:
+        """For each of the choosers ``rows``, ``agents`` (D,) at route points ``tau`` (D,): (C,) how far [m] it would
+        have to walk from each of its ``places`` (C, 2) to a point of its route ahead (``DETOUR_AHEAD_M``) round the
+        robot's body (where it stands and where it is expected), over ground no deeper in the non-walkable area than
+        its log there (its route from ``DETOUR_BACK_FRAMES`` behind route point ``tau`` to that point); counted from
+        the nearest, and those cut off from that point 1 m beyond the farthest (0 for all when no such point is
+        known). The shortest walks of all of them are found in one search."""
+        robot = step.robot
+        ends = (robot.from_m[rows], robot.to_m[rows], robot.heading_rad[rows])  # (D, 2), (D, 2), (D,)
+        ahead = self.tau_ahead(agents, step.farthest[rows, agents], np.broadcast_to(DETOUR_AHEAD_M, (len(rows), 5)),
+                               run_frame)  # (D, 5) to its run's end
+        goals = self.place(agents[:, None], ahead, np.zeros(ahead.shape), run_frame[:, None])  # (D, 5, 2)
+        clear = self.clear_of_robot(goals, *(end[:, None] for end in ends))
+        pick = np.argmax(clear, axis=1)
+        goal_tau, goal = ahead[np.arange(len(rows)), pick], goals[np.arange(len(rows)), pick]
+        back = np.maximum(self.run_first[run_frame, agents].astype(np.float64), tau - DETOUR_BACK_FRAMES)
+        planned = np.flatnonzero(clear.any(axis=1))
+        grids = []
+        for j in planned:
+            route = self.log_xy_m[int(back[j]):int(np.ceil(goal_tau[j])) + 1, agents[j]]
+            around = np.vstack([places[j], route, goal[j][None], step.start[rows[j], agents[j]][None]])
+            grids.append(grid_cells(around.min(axis=0) - DETOUR_MARGIN_M, around.max(axis=0) + DETOUR_MARGIN_M))
+        cells = np.concatenate([grid.reshape(-1, 2) for grid in grids]) if grids else np.zeros((0, 2))
+        whose = planned[np.repeat(np.arange(len(grids)), [grid.shape[0] * grid.shape[1] for grid in grids])]
+        free = self.clear_of_robot(cells, *(end[whose] for end in ends))
+        free[free] = self.too_deep_m(agents[whose][free], back[whose][free], cells[free], run_frame[whose][free],
+                                     through=goal_tau[whose][free]) == 0
+        cuts = np.cumsum([grid.shape[0] * grid.shape[1] for grid in grids])[:-1]
+        walks = walking_distances_m(grids, [f.reshape(g.shape[:2]) for f, g in zip(np.split(free, cuts), grids,
+                                                                                      strict=True)],
+                                    goal[planned], [places[j] for j in planned])
+        way = [np.zeros(len(p)) for p in places]
+        for j, walk_m in zip(planned, walks, strict=True):
+            known = np.isfinite(walk_m)
+            if known.any():
+                nearest, farthest = walk_m[known].min(), walk_m[known].max()
+                way[j] = np.where(known, walk_m - nearest, farthest - nearest + 1.0)
+        return way
+
+    # ------------------------------------------------------------------------------------------------ the routes
+    def route(self, agents: np.ndarray, tau: np.ndarray, run_frame: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Point of each agent's logged route at fractional frame ``tau`` and the left normal there; (..., 2) each
-        for ``agents``/``tau`` of the same shape (...). ``tau`` is held within the run of the log that holds frame
-        ``run_frame`` (where the agents are on their routes now)."""
+        for ``agents``/``tau``/``run_frame`` broadcast to one shape (...). ``tau`` is held within the run of the log
+        that holds frame ``run_frame`` (where the agents are on their routes now)."""
         first, last = self.run_first[run_frame, agents], self.run_last[run_frame, agents]
         tau = np.clip(tau, first, last)
         frame = np.floor(tau).astype(int)
@@ -416,226 +789,128 @@ class ReactiveCrowd:
         tangent /= np.maximum(np.linalg.norm(tangent, axis=-1, keepdims=True), 1e-9)
         return point, np.stack([-tangent[..., 1], tangent[..., 0]], axis=-1)
 
-    def _tau_ahead(self, agent: int, tau: float, ahead_m: np.ndarray, run_frame: int) -> np.ndarray:
-        """(K,) the latest fractional frames whose route points lie ``ahead_m`` (K,) metres further along the agent's
-        logged route than ``tau`` (through any stretch where the log stood still), within the run of ``run_frame``."""
-        first, last = self.run_first[run_frame, agent], self.run_last[run_frame, agent]
-        arc = self.arc_m[first:last + 1, agent]
-        target = self._arc(agent, np.array([tau]), run_frame)[0] + ahead_m
-        k = np.clip(np.searchsorted(arc, target, side="right") - 1, 0, len(arc) - 1)
-        step = np.diff(arc, append=arc[-1])[k]
-        share = np.where(step > 0, np.clip((target - arc[k]) / np.where(step > 0, step, 1.0), 0.0, 1.0), 0.0)
-        return first + k + share
-
-    def _arc(self, agent: int, tau: np.ndarray, run_frame: int) -> np.ndarray:
-        """(K,) metres along the agent's logged route at fractional frames ``tau`` (K,), within the run of
-        ``run_frame``."""
-        first, last = self.run_first[run_frame, agent], self.run_last[run_frame, agent]
-        tau = np.clip(tau, first, last)
-        frame = np.floor(tau).astype(int)
-        arc = self.arc_m[:, agent]
-        return arc[frame] + (tau - frame) * (arc[np.minimum(frame + 1, last)] - arc[frame])
-
-    def _headway(self, agent: int, tau: np.ndarray, offset_m: np.ndarray, farthest: float,
-                 index: int) -> tuple[np.ndarray, np.ndarray]:
-        """For places at route points ``tau`` (K,) moved ``offset_m`` (K,) aside: how much farther along the route than
-        ``farthest`` they are [m], and how far from the log at frame ``index`` (metres behind it along the route plus
-        metres aside) [m]."""
-        run_frame = int(farthest)
-        now = min(float(index), float(self.run_last[run_frame, agent]))  # where its log is now, or where it ended
-        arc = self._arc(agent, np.r_[tau, farthest, now], run_frame)
-        return arc[:-2] - arc[-2], np.maximum(arc[-1] - arc[:-2], 0.0) + np.abs(offset_m)
-
-    def _place(self, agents: np.ndarray, tau: np.ndarray, offset_m: np.ndarray, run_frame: int) -> np.ndarray:
+    def place(self, agents: np.ndarray, tau: np.ndarray, offset_m: np.ndarray, run_frame: np.ndarray) -> np.ndarray:
         """(..., 2) positions at route points ``tau`` (within the run holding ``run_frame``) moved ``offset_m`` to the
-        side."""
-        point, normal = self._route(agents, tau, run_frame)
+        side, all broadcast to one shape (...)."""
+        point, normal = self.route(agents, tau, run_frame)
         return point + offset_m[..., None] * normal
 
-    def _clear_offset(self, agent: int, index: int, robot: Robot, others_m: np.ndarray) -> float:
-        """The smallest side offset [m] at frame ``index`` that clears the robot (where it stands and where it is
-        expected) and the pedestrians at ``others_m`` (K, 2), and stays as walkable as the log (0 if none does)."""
-        offsets = OFFSETS_M[np.argsort(np.abs(OFFSETS_M), kind="stable")]
-        who, taus = np.full(len(offsets), agent), np.full(len(offsets), float(index))
-        places = self._place(who, taus, offsets, index)
-        apart = np.linalg.norm(places[:, None] - others_m[None], axis=-1).min(axis=1, initial=np.inf)
-        fine = (self._clear_of_robot(places, robot) & (apart >= 2 * BODY_RADIUS_M - PAIR_GIVE_M)
-                & (self._too_deep_m(agent, index, places, index) == 0))
-        return float(offsets[np.argmax(fine)]) if fine.any() else 0.0
+    def arc(self, agents: np.ndarray, tau: np.ndarray, run_frame: np.ndarray) -> np.ndarray:
+        """(...) metres along the agents' logged routes at fractional frames ``tau``, within the run of ``run_frame``,
+        all broadcast to one shape (...)."""
+        first, last = self.run_first[run_frame, agents], self.run_last[run_frame, agents]
+        tau = np.clip(tau, first, last)
+        frame = np.floor(tau).astype(int)
+        return self.arc_m[frame, agents] + (tau - frame) * (self.arc_m[np.minimum(frame + 1, last), agents]
+                                                            - self.arc_m[frame, agents])
 
-    def _too_deep_m(self, agent: int, tau: float, places: np.ndarray, run_frame: int,
-                    through: float | None = None) -> np.ndarray:
-        """(...) how much deeper in the non-walkable area each place (..., 2) is than the agent's log: than the point
+    def tau_ahead(self, agents: np.ndarray, tau: np.ndarray, ahead_m: np.ndarray, run_frame: np.ndarray) -> np.ndarray:
+        """(J, K) the latest fractional frames whose route points lie ``ahead_m`` (J, K) metres further along the
+        logged routes of ``agents`` (J,) than ``tau`` (J,) (through any stretch where the log stood still), within the
+        run of ``run_frame`` (J,)."""
+        first, last = self.run_first[run_frame, agents][:, None], self.run_last[run_frame, agents][:, None]
+        target = self.arc(agents, tau, run_frame)[:, None] + ahead_m
+        who = agents[:, None]
+        low, high = np.broadcast_to(first - 1, target.shape), np.broadcast_to(last, target.shape)
+        while (low < high).any():  # the last frame of the run at most ``target`` along (``first - 1``: none)
+            middle = (low + high + 1) // 2
+            below = (low < high) & (self.arc_m[np.maximum(middle, first), who] <= target)
+            low, high = np.where(below, middle, low), np.where(below | (low >= high), high, middle - 1)
+        k = np.maximum(low, first)
+        step = self.arc_m[np.minimum(k + 1, last), who] - self.arc_m[k, who]
+        share = np.where(step > 0, np.clip((target - self.arc_m[k, who]) / np.where(step > 0, step, 1.0), 0.0, 1.0),
+                         0.0)
+        return k + share
+
+    def headway(self, agents: np.ndarray, tau: np.ndarray, offset_m: np.ndarray, farthest: np.ndarray,
+                index: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """For places at route points ``tau`` moved ``offset_m`` aside (all arguments (K,)): how much farther along the
+        route than ``farthest`` they are [m], and how far from the log at frame ``index`` (metres behind it along the
+        route plus metres aside) [m]."""
+        run_frame = farthest.astype(int)
+        now = np.minimum(index, self.run_last[run_frame, agents]).astype(np.float64)  # where its log is, or ended
+        arc = self.arc(agents, tau, run_frame)
+        return arc - self.arc(agents, farthest, run_frame), \
+            np.maximum(self.arc(agents, now, run_frame) - arc, 0.0) + np.abs(offset_m)
+
+    def too_deep_m(self, agents: np.ndarray | int, tau: np.ndarray | float, places: np.ndarray,
+                   run_frame: np.ndarray | int, through: np.ndarray | None = None) -> np.ndarray:
+        """(...) how much deeper in the non-walkable area each place (..., 2) is than its agent's log: than the point
         of its log nearest to it within ``DEPTH_WINDOW`` frames of route point ``tau``, or the log's deepest point
         within ``CROSSING_WINDOW`` frames of it (a crossing of a thin wall, beside it) [m]; with ``through``, than the
         point of its log nearest to it on the route from ``tau`` through ``through`` (and ``DEPTH_WINDOW`` frames
-        beyond) alone; 0 where that point is off the image, 1000 for a place off the image beside a log on it."""
+        beyond) alone; 0 where that point is off the image, 1000 for a place off the image beside a log on it.
+        ``agents``, ``tau``, ``run_frame`` (and ``through``) broadcast to the places' shape (...)."""
         depth = self.depth.at(places)
         excess = np.zeros(depth.shape)
         deep = depth > 0  # a place on walkable ground is never deeper than the log: compare only the others
         if not deep.any():
             return excess
-        first, last = self.run_first[run_frame, agent], self.run_last[run_frame, agent]
-        frame = int(np.floor(tau))
-        start = frame - DEPTH_WINDOW if through is None else frame
-        end = frame if through is None else max(frame, int(np.floor(through)))
-        window = slice(max(first, start), min(last, end + DEPTH_WINDOW) + 1)
-        trace = self.trace_m[window, agent].reshape(-1, 2)
-        trace_depth = self.trace_depth_m[window, agent].reshape(-1)
-        nearest = np.argmin(np.linalg.norm(places[deep][:, None, :] - trace, axis=-1), axis=-1)
-        log_depth = trace_depth[nearest]
+        agents, tau, run_frame = (np.broadcast_to(value, depth.shape)[deep] for value in (agents, tau, run_frame))
+        first, last = self.run_first[run_frame, agents], self.run_last[run_frame, agents]
+        frame = np.floor(tau).astype(int)
         if through is None:
-            close = slice(max(first, frame - CROSSING_WINDOW), min(last, frame + CROSSING_WINDOW) + 1)
-            log_depth = np.maximum(log_depth, self.trace_depth_m[close, agent].max())
+            low, high = np.maximum(first, frame - DEPTH_WINDOW), np.minimum(last, frame + DEPTH_WINDOW)
+        else:
+            end = np.maximum(frame, np.floor(np.broadcast_to(through, depth.shape)[deep]).astype(int))
+            low, high = np.maximum(first, frame), np.minimum(last, end + DEPTH_WINDOW)
+        log_depth = self._nearest_trace_depth(agents, low, high, places[deep])
+        if through is None:
+            close = self._trace_frames(agents, np.maximum(first, frame - CROSSING_WINDOW),
+                                       np.minimum(last, frame + CROSSING_WINDOW))
+            log_depth = np.maximum(log_depth, np.where(close[1][..., None], self.trace_depth_m[close[0]],
+                                                       -np.inf).max(axis=(1, 2)))
         over = np.minimum(np.maximum(depth[deep] - log_depth - DEPTH_TOLERANCE_M, 0.0), 1e3)
         excess[deep] = np.where(np.isinf(log_depth), 0.0, over)
         return excess
 
-    def _choose(self, agent: int, tau: float, offset: float, step: Step) -> tuple[float, float, np.ndarray]:
-        """(tau, offset [m], position (2,)) of ``agent`` at frame ``step.index``: the cheapest candidate that keeps
-        every bound (see the module docstring), or the one that breaks them the least."""
-        c = self._candidates(agent, tau, offset, step)
-        best = int(np.argmin(np.where(c.violation > 0, np.inf, c.cost))) if (c.violation == 0).any() else \
-            int(np.argmin(c.violation))
-        return float(c.tau[best]), float(c.offset_m[best]), c.xy_m[best]
+    def _trace_frames(self, agents: np.ndarray, low: np.ndarray, high: np.ndarray
+                      ) -> tuple[tuple[np.ndarray, np.ndarray], np.ndarray]:
+        """The (frame, agent) index (P, W) of frames ``low`` through ``high`` (P,) of each agent's log, padded to the
+        longest window W with its last frame, and (P, W) bool, the frame is within the window."""
+        span = np.arange(int((high - low).max(initial=0)) + 1)
+        frames = low[:, None] + span
+        return (np.minimum(frames, high[:, None]), agents[:, None]), frames <= high[:, None]
 
-    def _candidates(self, agent: int, tau: float, offset: float, step: Step) -> Candidates:
-        """Every place ``agent`` may choose at frame ``step.index``, how far each breaks the bounds, and its cost."""
-        run_frame = int(tau)
-        cap = max(tau, min(float(step.index), float(self.run_last[run_frame, agent])))  # never ahead of the log
-        reach_m = max(CATCH_UP_MPS, CATCH_UP_FACTOR * self.log_speed_mps[run_frame, agent]) * STEP_S
-        first = float(self.run_first[run_frame, agent])
-        taus = np.unique(np.r_[self._tau_ahead(agent, tau, reach_m * PROGRESS_SHARES, run_frame), cap].clip(first, cap))
-        offsets = np.unique(np.r_[OFFSETS_M, offset])
-        c_tau, c_off = np.repeat(taus, len(offsets)), np.tile(offsets, len(taus))
-        who = np.full(len(c_tau), agent)
-        places = self._place(who, c_tau, c_off, run_frame)  # (C, 2)
-        here = step.start[agent]
-        too_fast = np.maximum(np.linalg.norm(places - here, axis=1) - reach_m, 0.0)
-        too_deep = np.max([self._too_deep_m(agent, tau, here + share * (places - here), run_frame)
-                           for share in PATH_SAMPLES], axis=0)  # along the way: no jumping over a thin wall
-        robot_to = step.robot.to_m if step.weight[agent] > 0 else step.robot.from_m  # noticed, or only its body
-        robot_gap = self.body.swept_gap_m(here - step.robot.from_m, places - robot_to, step.robot.heading_rad)
-        into_robot = np.maximum(self.robot_reach_m - robot_gap, 0.0)
-        too_close = np.zeros(len(places))  # into the others
-        others = np.flatnonzero(step.present & (np.arange(len(step.present)) != agent))
-        if others.size:
-            their_from, their_to = step.start[others], step.xy[others]  # the log now, a choice, or where they stand
-            body_m = 2 * BODY_RADIUS_M - PAIR_GIVE_M
-            allowed = np.minimum(body_m, np.linalg.norm(their_from - here, axis=1) - 1e-6)
-            pair_gap, _ = closest_approach(here - their_from, places[:, None] - their_to[None])  # (C, O)
-            too_close = too_close + np.maximum(allowed - pair_gap, 0.0).sum(axis=1)
-            logged = np.linalg.norm(self.log_xy_m[step.index, agent] - self.log_xy_m[step.index, others], axis=1)
-            apart = np.minimum(body_m, np.nan_to_num(logged, nan=np.inf))  # closer than that now: part as the logs do
-            end_gap = np.linalg.norm(places[:, None] - their_to[None], axis=-1)  # (C, O)
-            too_close = too_close + np.maximum(apart - end_gap, 0.0).sum(axis=1)
-        gain, away = self._headway(agent, c_tau, c_off, step.farthest[agent], step.index)
-        staying = (gain < HEADWAY_M) & (away > step.recent_m[agent].min() - HEADWAY_M)  # stuck: try another way
-        delay = np.minimum(step.index - c_tau, (away - np.abs(c_off)) / (STEP_S * LAG_PACE_MPS))  # [frame]
-        cost = (LAG_COST * delay + OFFSET_COST * np.abs(c_off) + SWAY_COST * np.abs(c_off - offset)
-                + RISK_COST * self._risk(agent, c_tau, c_off, others, step, run_frame)
-                + STUCK_COST * step.stuck[agent] * staying)
-        if step.detour[agent]:
-            cost = cost + DETOUR_COST * self._way_round_m(agent, tau, step, places, run_frame)
-        violation = too_fast + too_close + WALL_WEIGHT * too_deep + ROBOT_WEIGHT * into_robot
-        return Candidates(c_tau, c_off, places, violation, cost)
+    def _nearest_trace_depth(self, agents: np.ndarray, low: np.ndarray, high: np.ndarray,
+                             places: np.ndarray) -> np.ndarray:
+        """(P,) depth [m] of the point of each agent's log trace (``trace_m``) between frames ``low`` and ``high``
+        (P,) that is nearest to its place (P, 2) (the first of equals), in chunks of ``CHUNK_VALUES`` distances."""
+        found = np.empty(len(places))
+        width = (int((high - low).max(initial=0)) + 1) * len(TRACE_SHARES)
+        size = max(1, CHUNK_VALUES // width)
+        for at in range(0, len(places), size):
+            part = slice(at, at + size)
+            index, inside = self._trace_frames(agents[part], low[part], high[part])
+            trace = self.trace_m[index].reshape(len(inside), -1, 2)  # (P, W K, 2), frame by frame
+            distance = np.linalg.norm(places[part][:, None, :] - trace, axis=-1)
+            distance[~np.repeat(inside, len(TRACE_SHARES), axis=1)] = np.inf
+            nearest = np.argmin(distance, axis=-1)
+            found[part] = self.trace_depth_m[index].reshape(len(inside), -1)[np.arange(len(inside)), nearest]
+        return found
 
-    def _way_round_m(self, agent: int, tau: float, step: Step, places: np.ndarray, run_frame: int) -> np.ndarray:
-        """(C,) how far [m] the agent would have to walk from each of ``places`` (C, 2) to a point of its route ahead
-        (``DETOUR_AHEAD_M``) round the robot's body (where it stands and where it is expected), over ground no deeper
-        in the non-walkable area than its log there (its route from ``DETOUR_BACK_FRAMES`` behind route point ``tau``
-        to that point); counted from the nearest, and those cut off from that point 1 m beyond the farthest (0 for all
-        when no such point is known)."""
-        ahead = self._tau_ahead(agent, step.farthest[agent], np.array(DETOUR_AHEAD_M), run_frame)  # to its run's end
-        goals = self._place(np.full(len(ahead), agent), ahead, np.zeros(len(ahead)), run_frame)
-        clear = self._clear_of_robot(goals, step.robot)
-        if not clear.any():
-            return np.zeros(len(places))
-        goal_tau, goal = ahead[np.argmax(clear)], goals[np.argmax(clear)]
-        back = max(float(self.run_first[run_frame, agent]), tau - DETOUR_BACK_FRAMES)
-        route = self.log_xy_m[int(back):int(np.ceil(goal_tau)) + 1, agent]
-        around = np.vstack([places, route, goal[None], step.start[[agent]]])
-        cells = grid_cells(around.min(axis=0) - DETOUR_MARGIN_M, around.max(axis=0) + DETOUR_MARGIN_M)  # (H, W, 2)
-        flat = cells.reshape(-1, 2)
-        free = self._clear_of_robot(flat, step.robot)
-        free[free] = self._too_deep_m(agent, back, flat[free], run_frame, through=goal_tau) == 0
-        walk_m = walking_distance_m(cells, free.reshape(cells.shape[:2]), goal, places)
-        known = np.isfinite(walk_m)
-        if not known.any():
-            return np.zeros(len(places))
-        nearest, farthest = walk_m[known].min(), walk_m[known].max()
-        return np.where(known, walk_m - nearest, farthest - nearest + 1.0)
 
-    def _risk(self, agent: int, c_tau: np.ndarray, c_off: np.ndarray, others: np.ndarray, step: Step,
-              run_frame: int) -> np.ndarray:
-        """(C,) squared intrusions [m^2], if the agent walks on along its route at its log's pace from each candidate:
-        into its room round the robot going on at its velocity over ``anticipation_s`` (as far as it reacts), or into
-        ``COMFORT_M`` round the robot's body standing where it is over ``ANTICIPATION_STEPS`` (as far as it does not:
-        a body in the way); and into the comfort gap round the others off their logs going on at their velocities
-        over ``ANTICIPATION_STEPS``."""
-        weight = step.weight[agent]
-        robot_steps = self.reaction.anticipation_steps if weight > 0 else 0
-        ahead = np.arange(max(robot_steps, ANTICIPATION_STEPS) + 1, dtype=np.float64)  # (H + 1,) from now on
-        later = self._place(np.full((len(c_tau), len(ahead)), agent), c_tau[:, None] + ahead,
-                            np.repeat(c_off[:, None], len(ahead), 1), run_frame)  # (C, H + 1, 2)
-        heading = step.robot.heading_rad
-        standing = later[:, :ANTICIPATION_STEPS + 1] - step.robot.from_m  # (C, H_s + 1, 2) from the body standing
-        gap = self.body.swept_gap_m(standing[:, :-1], standing[:, 1:], heading)  # (C, H_s) along each step
-        risk = (1.0 - weight) * (np.maximum(self.robot_reach_m + COMFORT_M - gap, 0.0) ** 2).sum(axis=1)
-        if robot_steps:
-            robot = step.robot.to_m + ahead[:robot_steps + 1, None] * STEP_S * step.robot.velocity_mps  # (H_r + 1, 2)
-            moving = later[:, :robot_steps + 1] - robot  # (C, H_r + 1, 2) from the body on its course
-            gap = self.body.swept_gap_m(moving[:, :-1], moving[:, 1:], heading)  # (C, H_r)
-            room = self.robot_reach_m + step.room_m[agent]
-            risk += weight * (np.maximum(room - gap, 0.0) ** 2).sum(axis=1)
-        off_log = others[step.off_log[others]]  # those on their logs keep to them: the hard bounds cover them
-        if off_log.size:
-            pair_ahead = ahead[1:ANTICIPATION_STEPS + 1]
-            moving = step.xy[off_log][None] + pair_ahead[:, None, None] * STEP_S * step.velocity_mps[off_log][None]
-            pair = np.linalg.norm(later[:, 1:ANTICIPATION_STEPS + 1, None] - moving[None], axis=-1)  # (C, H, O)
-            risk += (np.maximum(2 * BODY_RADIUS_M + COMFORT_M / 2 - pair, 0.0) ** 2).sum(axis=(1, 2))
-        return risk
+def distinct(values: np.ndarray) -> np.ndarray:
+    """(J, K) bool: the first of each run of equal values in the sorted rows ``values`` (J, K) (``np.unique``'s)."""
+    return np.c_[np.ones(len(values), bool), values[:, 1:] != values[:, :-1]]
 
-    def _robot_in_the_way(self, index: int, robot: Robot, weight: np.ndarray, room_m: np.ndarray) -> np.ndarray:
-        """(A,) bool: agents whose log's step into frame ``index`` would take them within ``robot_reach_m`` of the
-        robot's body (where it stands, for those that do not react; on its expected course, for those that do), or,
-        for those that react, whose log from frame ``index`` on comes within their room (A,) [m] of the robot's
-        expected course over ``anticipation_s``."""
-        hit = np.zeros(len(weight), bool)
-        if index >= len(self.present):
-            return hit
-        reacting = weight > 0
-        robot_to = np.where(reacting[:, None], robot.to_m, robot.from_m)
-        if index > 0:
-            gap = self.body.swept_gap_m(self.log_xy_m[index - 1] - robot.from_m, self.log_xy_m[index] - robot_to,
-                                        robot.heading_rad)
-            hit |= np.nan_to_num(gap, nan=np.inf) < self.robot_reach_m
-        frames = min(self.reaction.anticipation_steps, len(self.present) - index)
-        first = max(index - 1, 0)  # along every step of the log ahead, from where it stands now
-        course = robot.to_m + np.arange(first - index, frames)[:, None] * STEP_S * robot.velocity_mps  # (H', 2)
-        offset = self.log_xy_m[first:index + frames] - course[:, None]  # (H', A, 2)
-        if len(offset) > 1:
-            gap = self.body.swept_gap_m(offset[:-1], offset[1:], robot.heading_rad)  # (H' - 1, A)
-        else:
-            gap = self.body.gap_m(offset, robot.heading_rad)
-        return hit | (reacting & (np.nan_to_num(gap, nan=np.inf).min(axis=0) < self.robot_reach_m + room_m))
 
-    def _others_in_the_way(self, index: int, state: ReactiveState) -> np.ndarray:
-        """(A,) bool: agents whose log from frame ``index`` on comes within ``PAIR_CLEARANCE_M`` of a pedestrian off
-        its log (going on at its velocity) within ``PAIR_LOOK_AHEAD_STEPS``, where it comes closer than their own
-        logs would."""
-        frames = min(PAIR_LOOK_AHEAD_STEPS, len(self.present) - index)
-        others = np.flatnonzero(state.off_log & state.present)
-        if frames <= 0 or not others.size:
-            return np.zeros(len(state.off_log), bool)
-        ahead = np.arange(frames)[:, None] * STEP_S  # (H, 1) seconds
-        log = self.log_xy_m[index:index + frames]  # (H, A, 2), NaN where absent
-        where = state.xy_m[others] + ahead[:, :, None] * state.velocity_mps[others]  # (H, O, 2)
-        gap = np.linalg.norm(log[:, :, None] - where[:, None], axis=-1)  # (H, A, O)
-        logged_gap = np.linalg.norm(log[:, :, None] - log[:, others][:, None], axis=-1)
-        bound = np.minimum(2 * BODY_RADIUS_M + PAIR_CLEARANCE_M, np.nan_to_num(logged_gap, nan=np.inf) - PAIR_GIVE_M)
-        gap[:, others, np.arange(others.size)] = np.inf  # nobody is in their own way
-        return (np.nan_to_num(gap, nan=np.inf) < bound).any(axis=(0, 2))
+def exact_row_sums(row: np.ndarray, column: np.ndarray, value: np.ndarray, width: np.ndarray,
+                   n_rows: int) -> np.ndarray:
+    """(n_rows,) the row sums of a sparse matrix, each row as numpy sums it dense (zeros and the values at
+    ``column`` of row ``row``, (E,) each, a row ``width[row]`` (n_rows,) long): a row with at most two non-zero
+    values is their sum in any order; one with more is summed dense, so that the rounding is numpy's."""
+    keep = value != 0
+    row, column, value = row[keep], column[keep], value[keep]
+    total = np.bincount(row, value, minlength=n_rows)
+    many = np.flatnonzero(np.bincount(row, minlength=n_rows) > 2)
+    for size in np.unique(width[many]):
+        which = many[width[many] == size]
+        mine = np.isin(row, which)
+        dense = np.zeros((len(which), size))
+        dense[np.searchsorted(which, row[mine]), column[mine]] = value[mine]
+        total[which] = dense.sum(axis=1)
+    return total
 
 
 def heading_of(from_m: np.ndarray, to_m: np.ndarray, heading_rad: float | None = None) -> float:
@@ -647,8 +922,8 @@ def heading_of(from_m: np.ndarray, to_m: np.ndarray, heading_rad: float | None =
 
 
 def velocity(xy: np.ndarray, old_xy: np.ndarray, stays: np.ndarray) -> np.ndarray:
-    """(A, 2) velocity over the step [m/s] of the agents present before and after it (0 for the others)."""
-    return np.where(stays[:, None], np.nan_to_num(xy - old_xy) / STEP_S, 0.0)
+    """(..., 2) velocity over the step [m/s] of the agents present before and after it (0 for the others)."""
+    return np.where(stays[..., None], np.nan_to_num(xy - old_xy) / STEP_S, 0.0)
 
 
 def run_bounds(present: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
