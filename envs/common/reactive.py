@@ -186,20 +186,28 @@ class Step:
 
 @dataclass(frozen=True, eq=False)
 class Candidates:
-    """The places every chooser (a pedestrian off its log, J of them in all crowds) may choose in one step, their C
-    candidates in a row each (M = sum of C in all): chooser ``owner`` (M,), route point ``tau`` (M,), side
-    ``offset_m`` (M,), position ``xy_m`` (M, 2) [m]; ``first`` (J + 1,) where each chooser's rows start. What does not
-    depend on the others' choices, (M,) each: ``fixed_violation`` (too fast, into a wall or the robot's margin, as in
-    ``violation`` below, less the others), ``fixed_cost`` (delay, offset, sway), ``risk`` (round the robot),
-    ``stuck_cost`` (no headway again), ``way_cost`` (the way round; 0 where none is planned); ``later_m``
-    (M, ANTICIPATION_STEPS, 2) where it would walk on [m]; ``box_m`` (J, 4) the box (x low, y low, x high, y high) [m] holding each chooser's start, candidates and
-    ``later_m``."""
+    """The places every chooser (a pedestrian off its log, J of them in all crowds) may choose in one step, its C
+    candidates in a row (M = sum of C in all, in the order of its own grid: progress, then side).
+
+    Attributes:
+        owner: (M,) chooser.  first: (J + 1,) where each chooser's rows start.
+        tau: (M,) route point.  offset_m: (M,) side [m].  xy_m: (M, 2) position [m].
+        too_fast, too_deep, into_robot: (M,) the bounds it breaks but those between pedestrians (``violation``).
+        fixed_cost: (M,) delay, offset and sway.  risk: (M,) round the robot [m^2].  stuck_cost: (M,) no headway
+            again.  way_cost: (M,) the way round (0 where none is planned).
+        later_m: (M, ANTICIPATION_STEPS, 2) where it would walk on [m].
+        box_m: (J, 4) box (x low, y low, x high, y high) [m] holding each chooser's start, candidates and ``later_m``.
+        row_box_m: (M, 4) the same for each candidate: its step from the start and where it walks on.
+        block_box_m: (B, 4) the same for each block of candidates of a chooser on one side offset (its step from
+            its start included).  block_first: (J + 1,) where each chooser's blocks start.  block_rows: (M,) the
+            candidate rows block by block.  block_row_first: (B + 1,) where each block's rows start.
+    """
 
     owner: np.ndarray
+    first: np.ndarray
     tau: np.ndarray
     offset_m: np.ndarray
     xy_m: np.ndarray
-    first: np.ndarray
     too_fast: np.ndarray
     too_deep: np.ndarray
     into_robot: np.ndarray
@@ -209,6 +217,11 @@ class Candidates:
     way_cost: np.ndarray
     later_m: np.ndarray
     box_m: np.ndarray
+    row_box_m: np.ndarray
+    block_box_m: np.ndarray
+    block_first: np.ndarray
+    block_rows: np.ndarray
+    block_row_first: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -418,15 +431,15 @@ class Routes:
         # back on the log: caught up, beside it, and nothing in the way; out of the scene: where the log ended
         ahead = ReactiveState(xy, velocity(xy, old.xy_m, old.present & present), present, off_log, tau, offset,
                               old.linger, old.stuck, farthest, recent, detour, noticed, unseen, weight)
-        rejoin = (off_log & logged & (np.linalg.norm(np.nan_to_num(xy - log_now, nan=np.inf), axis=-1) <= REJOIN_M)
+        rejoin = (off_log & logged & (length_m(np.nan_to_num(xy - log_now, nan=np.inf)) <= REJOIN_M)
                   & ~self._robot_in_the_way(index + 1, robot.after(), weight, room)
                   & ~self._others_in_the_way(index + 1, ahead) & clear)
         xy[rejoin] = log_now[rejoin]
         off_log &= ~rejoin
         cols = np.arange(present.shape[1])
         log_end = self.log_xy_m[self.run_last[np.clip(np.floor(tau), 0, None).astype(int), cols], cols]
-        to_end = np.linalg.norm(np.nan_to_num(xy - log_end, nan=np.inf), axis=-1)
-        blocked = np.linalg.norm(np.nan_to_num(xy - start), axis=-1) < STILL_M  # the robot or others stand there
+        to_end = length_m(np.nan_to_num(xy - log_end, nan=np.inf))
+        blocked = length_m(np.nan_to_num(xy - start)) < STILL_M  # the robot or others stand there
         present &= ~(lingering & ((to_end <= REJOIN_M) | (blocked & (to_end <= LEAVE_BLOCKED_M))))
         off_log &= present
         xy[~present] = np.nan
@@ -452,7 +465,7 @@ class Routes:
     def _walking(self, state: ReactiveState) -> np.ndarray:
         """(N, A, 2) unit walking directions: the velocity of those faster than ``MOVING_MPS``, else the route's
         direction where they are on it."""
-        speed = np.linalg.norm(state.velocity_mps, axis=-1, keepdims=True)
+        speed = length_m(state.velocity_mps)[..., None]
         frame = np.clip(np.floor(state.tau), 0, len(self.present) - 1).astype(int)
         route = self.tangent[frame, np.arange(frame.shape[-1])]
         return np.where(speed > MOVING_MPS, state.velocity_mps / np.maximum(speed, 1e-12), route)
@@ -517,9 +530,9 @@ class Routes:
         rows = np.arange(len(index))[:, None]
         where = (state.xy_m[rows, who][:, None]
                  + (ahead * STEP_S)[None, :, None, None] * state.velocity_mps[rows, who][:, None])  # (N, H, O, 2)
-        gap = np.linalg.norm(log[:, :, :, None] - where[:, :, None], axis=-1)  # (N, H, A, O)
+        gap = length_m(log[:, :, :, None] - where[:, :, None])  # (N, H, A, O)
         their_log = np.take_along_axis(log, who[:, None, :, None], axis=2)  # (N, H, O, 2)
-        logged_gap = np.linalg.norm(log[:, :, :, None] - their_log[:, :, None], axis=-1)
+        logged_gap = length_m(log[:, :, :, None] - their_log[:, :, None])
         bound = np.minimum(2 * BODY_RADIUS_M + PAIR_CLEARANCE_M, np.nan_to_num(logged_gap, nan=np.inf) - PAIR_GIVE_M)
         apart = (real[:, None, None, :] & (seen < frames)[:, :, None, None]
                  & (who[:, None, None, :] != np.arange(others.shape[1])[None, None, :, None]))  # nobody in own way
@@ -554,9 +567,14 @@ class Routes:
     def _choose_all(self, step: Step, tau: np.ndarray, offset: np.ndarray) -> None:
         """Every pedestrian off its log and not placed yet takes the cheapest of its candidates that keeps every
         bound (see the module docstring), or the one that breaks them the least; ``step.xy``, ``tau`` and ``offset``
-        (N, A) are updated in place. In each crowd they choose one after another, the nearest to the robot first,
-        each seeing the choices made before it: all candidates are scored in one pass, and only the terms between
-        pedestrians are scored in turn, in rounds that gather those whose choices cannot touch one another."""
+        (N, A) are updated in place.
+
+        In each crowd they choose one after another, the nearest to the robot first, each seeing the choices made
+        before it. Here every candidate is scored in one pass, then the terms between pedestrians in rounds: the
+        first round scores every chooser against the others where they stand, and each further round only those
+        that see a pedestrian of their crowd before them whose choice changed in the last round. When no choice
+        changes, each is the one it makes seeing the choices before it: the walks are those of one after another.
+        """
         rows, agents = np.nonzero(step.off_log & ~step.chosen)
         if not len(agents):
             return
@@ -564,41 +582,58 @@ class Routes:
         order = np.lexsort((gap, rows))  # by crowd, then the nearest to the robot first (stable: by agent on ties)
         rows, agents = rows[order], agents[order]
         c = self._candidates(step, rows, agents, tau[rows, agents], offset[rows, agents])
-        for turn in self._turns(step, rows, agents, c):
-            best = self._best(step, rows[turn], agents[turn], c, turn)
-            tau[rows[turn], agents[turn]] = c.tau[best]
-            offset[rows[turn], agents[turn]] = c.offset_m[best]
-            step.xy[rows[turn], agents[turn]] = c.xy_m[best]
-            step.chosen[rows[turn], agents[turn]] = True
+        turn = np.full(step.present.shape, len(agents))  # (N, A) each chooser's turn; the others' come last
+        turn[rows, agents] = np.arange(len(agents))
+        near = self._near_pairs(step, rows, agents, c)
+        seen = step.xy.copy()  # (N, A, 2) the choices as they stand, for those whose turn comes later
+        best = np.full(len(agents), -1)
+        pending = np.arange(len(agents))
+        while pending.size:
+            choice = self._best(step, rows, agents, c, pending, near, seen, turn)
+            moved = pending[(best[pending] < 0) | (c.xy_m[choice] != c.xy_m[best[pending]]).any(axis=-1)]
+            best[pending] = choice
+            seen[rows[moved], agents[moved]] = c.xy_m[best[moved]]
+            changed = np.zeros(step.present.shape, bool)
+            changed[rows[moved], agents[moved]] = True
+            chooser, other = near
+            again = changed[rows[chooser], other] & (turn[rows[chooser], other] < chooser)
+            pending = np.unique(chooser[again])
+        tau[rows, agents], offset[rows, agents] = c.tau[best], c.offset_m[best]
+        step.xy[rows, agents] = c.xy_m[best]
+        step.chosen[rows, agents] = True
 
-    def _turns(self, step: Step, rows: np.ndarray, agents: np.ndarray, c: Candidates) -> list[np.ndarray]:
-        """Choosers (J,), sorted by crowd and turn, gathered in rounds: each chooses in the first round after those
-        before it in its crowd whose places (start, candidates, walking on at their velocity) come within
-        ``PAIR_REACH_M`` of its own box (``Candidates.box_m``), or whose box comes within reach of its places;
-        those that no earlier choice can touch share a
-        round, and the choices come out as if made one after another."""
-        reach = np.minimum.reduceat(c.xy_m, c.first[:-1]), np.maximum.reduceat(c.xy_m, c.first[:-1])
-        start = step.start[rows, agents]
-        low, high = np.minimum(reach[0], start), np.maximum(reach[1], start)  # where it may stand, (J, 2) each
-        drift = step.velocity_mps[rows, agents][:, None] * (np.arange(1, ANTICIPATION_STEPS + 1) * STEP_S)[:, None]
-        low = np.minimum(low, low + drift.min(axis=1))  # and walk on to, as the others see it
-        high = np.maximum(high, high + drift.max(axis=1))
-        apart = np.maximum(np.maximum(low[None] - c.box_m[:, None, 2:], c.box_m[:, None, :2] - high[None]), 0.0)
-        touches = (np.linalg.norm(apart, axis=-1) < PAIR_REACH_M + NEAR_SLACK_M) & (rows[:, None] == rows[None])
-        touches |= touches.T  # either may score the other: the later one must not see the earlier one's choice
-        rounds = np.zeros(len(rows), int)
-        for j in range(1, len(rows)):  # j waits for the earlier ones of its crowd that it touches
-            earlier = touches[j, :j]
-            rounds[j] = rounds[:j][earlier].max(initial=-1) + 1
-        return [np.flatnonzero(rounds == r) for r in range(rounds.max() + 1)]
+    def _near_pairs(self, step: Step, rows: np.ndarray, agents: np.ndarray, c: Candidates
+                    ) -> tuple[np.ndarray, np.ndarray]:
+        """(chooser (P,), agent (P,)): the pairs of a chooser (of ``rows``, ``agents`` (J,)) and a pedestrian present
+        in its crowd whose terms can be other than 0: the box where the other may be during the step (where it
+        stands and goes, any of its candidates for a chooser, walking on for one off its log) comes within
+        ``PAIR_REACH_M`` of the chooser's (``Candidates.box_m``)."""
+        low, high = np.fmin(step.start, step.xy), np.fmax(step.start, step.xy)  # (N, A, 2)
+        low[rows, agents] = np.minimum(low[rows, agents], np.minimum.reduceat(c.xy_m, c.first[:-1]))
+        high[rows, agents] = np.maximum(high[rows, agents], np.maximum.reduceat(c.xy_m, c.first[:-1]))
+        drift = step.velocity_mps[..., None, :] * (np.arange(1, ANTICIPATION_STEPS + 1) * STEP_S)[:, None]
+        walks = step.off_log[..., None]
+        low = np.where(walks, np.minimum(low, low + drift.min(axis=-2)), low)
+        high = np.where(walks, np.maximum(high, high + drift.max(axis=-2)), high)
+        apart = np.maximum(np.maximum(low[rows] - c.box_m[:, None, 2:], c.box_m[:, None, :2] - high[rows]), 0.0)
+        near = ((length_m(apart) < PAIR_REACH_M + NEAR_SLACK_M) & step.present[rows]
+                & (np.arange(step.present.shape[1]) != agents[:, None]))
+        return np.nonzero(near)
 
-    def _best(self, step: Step, rows: np.ndarray, agents: np.ndarray, c: Candidates, turn: np.ndarray) -> np.ndarray:
-        """(T,) the candidate row each of the choosers ``turn`` (T,) takes, with the terms between pedestrians scored
-        against the others as they are now."""
-        counts = c.first[turn + 1] - c.first[turn]
-        cand = np.repeat(c.first[turn] - np.cumsum(np.r_[0, counts[:-1]]), counts) + np.arange(counts.sum())
-        local = np.repeat(np.arange(len(turn)), counts)  # which of the turn's choosers each row belongs to
-        too_close, pair_risk = self._pair_terms(step, rows, agents, c.box_m[turn], c, cand, local)
+    def _best(self, step: Step, rows: np.ndarray, agents: np.ndarray, c: Candidates, pending: np.ndarray,
+              near: tuple[np.ndarray, np.ndarray], seen: np.ndarray, turn: np.ndarray) -> np.ndarray:
+        """(T,) the candidate each of the choosers ``pending`` (T,) takes, seeing the choices ``seen`` (N, A, 2) of
+        those whose ``turn`` (N, A) comes before theirs, the others where they stand (``step.xy``)."""
+        counts = c.first[pending + 1] - c.first[pending]
+        cand = spans(c.first[pending], counts)
+        local = np.repeat(np.arange(len(pending)), counts)  # which of the pending choosers each row belongs to
+        mine = np.full(len(agents), -1)
+        mine[pending] = np.arange(len(pending))
+        chooser, other = near
+        pair = np.flatnonzero(mine[chooser] >= 0)
+        too_close, pair_risk = self._pair_terms(step, pending, rows, agents, c, cand, local, mine[chooser[pair]],
+                                                other[pair], turn[rows[chooser[pair]], other[pair]] < chooser[pair],
+                                                seen)
         violation = (c.too_fast[cand] + too_close + WALL_WEIGHT * c.too_deep[cand]
                      + ROBOT_WEIGHT * c.into_robot[cand])
         cost = c.fixed_cost[cand] + RISK_COST * (c.risk[cand] + pair_risk) + c.stuck_cost[cand] + c.way_cost[cand]
@@ -607,60 +642,77 @@ class Routes:
         key = np.where(fine[local], np.where(violation > 0, np.inf, cost), violation)
         least = np.minimum.reduceat(key, starts)[local]
         hits = np.flatnonzero((key == least) | (np.isnan(least) & np.isnan(key)))
-        return cand[hits[np.searchsorted(local[hits], np.arange(len(turn)))]]
+        return cand[hits[np.searchsorted(local[hits], np.arange(len(pending)))]]
 
-    def _pair_terms(self, step: Step, rows: np.ndarray, agents: np.ndarray, box: np.ndarray, c: Candidates,
-                    cand: np.ndarray, local: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(too_close, pair_risk), (R,) each, of the candidate rows ``cand`` (R,) of the choosers ``rows``,
-        ``agents`` (T,) with boxes ``box`` (T, 4) (``local`` (R,): whose row): along the whole step it keeps
-        ``2 BODY_RADIUS_M - PAIR_GIVE_M`` from everybody else (or at least the gap it already had, and that much again by the end of the step where
-        their logs are that far apart) [m]; and the squared intrusions into the comfort gap round the others off
-        their logs going on at their velocities over ``ANTICIPATION_STEPS`` [m^2]. Only pairs within reach are
-        scored; the sums over the others come out as over all of them (``exact_row_sums``)."""
+    def _pair_terms(self, step: Step, pending: np.ndarray, rows: np.ndarray, agents: np.ndarray, c: Candidates,
+                    cand: np.ndarray, local: np.ndarray, chooser: np.ndarray, other: np.ndarray, earlier: np.ndarray,
+                    seen: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(too_close, pair_risk), (R,) each, of the candidate rows ``cand`` (R,) of the choosers ``pending`` (T,)
+        (of all choosers ``rows``, ``agents`` (J,); ``local`` (R,): which of ``pending`` a row is of), scored against
+        the pedestrians ``other`` (P,) of the pairs near enough to count (``chooser`` (P,) in 0..T-1; ``earlier`` (P,)
+        bool: the other chose before, and ``seen`` (N, A, 2) has its choice):
+
+        - too_close [m]: along the whole step it keeps ``2 BODY_RADIUS_M - PAIR_GIVE_M`` from everybody else (or at
+          least the gap it already had, and that much again by the end of the step where their logs are that far
+          apart);
+        - pair_risk [m^2]: the squared intrusions into the comfort gap round the others off their logs going on at
+          their velocities over ``ANTICIPATION_STEPS``.
+
+        Only the candidates of blocks (``Candidates.block_box_m``) within ``PAIR_REACH_M`` of where the other is
+        during the step are scored against it; the sums over the others come out as over all of them, the rest
+        adding 0 (``exact_row_sums``)."""
         body_m = 2 * BODY_RADIUS_M - PAIR_GIVE_M
-        present, off_log = step.present[rows], step.off_log[rows]  # (T, A)
+        crowd, agent = rows[pending], agents[pending]  # (T,)
+        present, walks = step.present[crowd], step.present[crowd] & step.off_log[crowd]  # (T, A)
+        width, walk_width = present.sum(axis=1) - 1, walks.sum(axis=1) - 1  # (T,) others, those off their logs
+        column = (np.cumsum(present, axis=1) - present)[chooser, other] - (agent[chooser] < other)  # the sums' order
+        walk_column = (np.cumsum(walks, axis=1) - walks)[chooser, other] - (agent[chooser] < other)
+        # where each other is during the step, and which blocks of its chooser's candidates come within reach
+        their_row = crowd[chooser]
+        their_from = step.start[their_row, other]
+        their_to = np.where(earlier[:, None], seen[their_row, other], step.xy[their_row, other])  # (P, 2)
         ahead = np.arange(1, ANTICIPATION_STEPS + 1) * STEP_S
-        xy, moving = step.xy[rows], step.velocity_mps[rows][:, None] * ahead[None, :, None, None]  # (T, A, 2)
-        future = xy[:, None] + moving  # (T, H, A, 2) the others walking on
-        low = np.fmin(np.fmin(step.start[rows], xy), np.where(off_log[:, None, :, None], future, np.nan).min(axis=1))
-        high = np.fmax(np.fmax(step.start[rows], xy), np.where(off_log[:, None, :, None], future, np.nan).max(axis=1))
-        apart = np.maximum(np.maximum(low - box[:, None, 2:], box[:, None, :2] - high), 0.0)
-        self_col = np.arange(present.shape[1])[None] == agents[:, None]
-        near = (np.linalg.norm(apart, axis=-1) < PAIR_REACH_M + NEAR_SLACK_M) & present & ~self_col
-        t_near, other = np.nonzero(near)
-        others_before = np.cumsum(present, axis=1) - present  # the others' columns as the full sums order them
-        off_before = np.cumsum(present & off_log, axis=1) - (present & off_log)
-        column = others_before[t_near, other] - (agents[t_near] < other)
-        off_column = off_before[t_near, other] - (agents[t_near] < other)
-        width = present.sum(axis=1) - 1  # (T,) others
-        off_width = (present & off_log).sum(axis=1) - 1
-        # every candidate row of the chooser against each of its near others
-        per_row = np.bincount(local, minlength=len(rows))
-        counts = per_row[t_near]
-        pair = np.repeat(np.arange(len(t_near)), counts)
-        first_row = np.r_[0, np.cumsum(per_row)[:-1]]
-        row = np.repeat(first_row[t_near], counts) + (np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts,
-                                                                                           counts))
-        t, o = t_near[pair], other[pair]
-        here, place = step.start[rows[t], agents[t]], c.xy_m[cand[row]]
-        their_from, their_to = step.start[rows[t], o], xy[t, o]
-        allowed = np.minimum(body_m, np.linalg.norm(their_from - here, axis=-1) - 1e-6)
-        pair_gap, _ = closest_approach(here - their_from, place - their_to)
-        index = step.index[rows[t]]
-        logged = np.linalg.norm(self.log_xy_m[index, agents[t]] - self.log_xy_m[index, o], axis=-1)
-        together = np.minimum(body_m, np.nan_to_num(logged, nan=np.inf))  # closer than that now: part as the logs do
-        end_gap = np.linalg.norm(place - their_to, axis=-1)
+        future = their_to[:, None] + ahead[:, None] * step.velocity_mps[their_row, other][:, None]  # (P, H, 2)
+        moving = walks[chooser, other]  # the others off their logs keep to no log: scored by how they walk on
+        low = np.where(moving[:, None], np.minimum(np.minimum(their_from, their_to), future.min(axis=1)),
+                       np.minimum(their_from, their_to))
+        high = np.where(moving[:, None], np.maximum(np.maximum(their_from, their_to), future.max(axis=1)),
+                        np.maximum(their_from, their_to))
+        blocks = c.block_first[pending[chooser] + 1] - c.block_first[pending[chooser]]
+        by_block = np.repeat(np.arange(len(chooser)), blocks)
+        block = spans(c.block_first[pending[chooser]], blocks)
+        box = c.block_box_m[block]
+        apart = np.maximum(np.maximum(low[by_block] - box[:, 2:], box[:, :2] - high[by_block]), 0.0)
+        kept = length_m(apart) < PAIR_REACH_M + NEAR_SLACK_M
+        block, by_block = block[kept], by_block[kept]
+        sizes = c.block_row_first[block + 1] - c.block_row_first[block]
+        pair = np.repeat(by_block, sizes)
+        candidate = c.block_rows[spans(c.block_row_first[block], sizes)]  # (E,) rows of c, then those within reach
+        box = c.row_box_m[candidate]
+        kept = length_m(np.maximum(np.maximum(low[pair] - box[:, 2:], box[:, :2] - high[pair]), 0.0)) \
+            < PAIR_REACH_M + NEAR_SLACK_M
+        pair, candidate = pair[kept], candidate[kept]
+        row_of = np.full(len(c.owner), -1)
+        row_of[cand] = np.arange(len(cand))
+        row = row_of[candidate]  # (E,) rows of cand
+        here = step.start[crowd[chooser], agent[chooser]]  # (P, 2)
+        allowed = np.minimum(body_m, length_m(their_from - here) - 1e-6)[pair]
+        index = step.index[crowd[chooser]]
+        logged = length_m(self.log_xy_m[index, agent[chooser]] - self.log_xy_m[index, other])
+        together = np.minimum(body_m, np.nan_to_num(logged, nan=np.inf))[pair]  # closer now: part as the logs do
+        place, to = c.xy_m[candidate], their_to[pair]
+        pair_gap, _ = closest_approach(here[pair] - their_from[pair], place - to)
         n_rows = len(cand)
         too_close = (exact_row_sums(row, column[pair], np.maximum(allowed - pair_gap, 0.0), width[local], n_rows)
-                     + exact_row_sums(row, column[pair], np.maximum(together - end_gap, 0.0), width[local], n_rows))
-        walks = off_log[t, o]  # the others off their logs keep to no log: scored by how they walk on
-        later = c.later_m[cand[row[walks]]]  # (P, H, 2)
-        gap = np.linalg.norm(later - future[t[walks], :, o[walks]], axis=-1)  # (P, H)
-        intrusion = np.maximum(PAIR_REACH_M - gap, 0.0) ** 2
-        k = off_width[local][row[walks]]
-        cols = np.arange(ANTICIPATION_STEPS)[None] * k[:, None] + off_column[pair][walks][:, None]
-        pair_risk = exact_row_sums(np.repeat(row[walks], ANTICIPATION_STEPS), cols.ravel(), intrusion.ravel(),
-                                   ANTICIPATION_STEPS * off_width[local], n_rows)
+                     + exact_row_sums(row, column[pair], np.maximum(together - length_m(place - to), 0.0),
+                                      width[local], n_rows))
+        walking = moving[pair]
+        gap = length_m(c.later_m[candidate[walking]] - future[pair[walking]])  # (Q, H)
+        cols = (np.arange(ANTICIPATION_STEPS) * walk_width[chooser[pair[walking]]][:, None]
+                + walk_column[pair[walking]][:, None])
+        pair_risk = exact_row_sums(np.repeat(row[walking], ANTICIPATION_STEPS), cols.ravel(),
+                                   (np.maximum(PAIR_REACH_M - gap, 0.0) ** 2).ravel(),
+                                   ANTICIPATION_STEPS * walk_width[local], n_rows)
         return too_close, pair_risk
 
     def _candidates(self, step: Step, rows: np.ndarray, agents: np.ndarray, tau: np.ndarray,
@@ -680,7 +732,7 @@ class Routes:
         c_tau, c_off = taus[owner, t_col], sides[owner, o_col]
         a, rf, start = agents[owner], run_frame[owner], here[owner]
         places = self.place(a, c_tau, c_off, rf)  # (M, 2)
-        too_fast = np.maximum(np.linalg.norm(places - start, axis=1) - reach_m[owner], 0.0)
+        too_fast = np.maximum(length_m(places - start) - reach_m[owner], 0.0)
         path = start[:, None] + np.array(PATH_SAMPLES)[:, None] * (places - start)[:, None]  # along the way
         too_deep = self.too_deep_m(a[:, None], tau[owner][:, None], path, rf[:, None]).max(axis=1)
         robot, heading = step.robot, step.robot.heading_rad[rows][owner]
@@ -703,12 +755,18 @@ class Routes:
                                     [places[firsts[j]:firsts[j + 1]] for j in detour])
             for j, way_m in zip(detour, way, strict=True):
                 way_cost[firsts[j]:firsts[j + 1]] = DETOUR_COST * way_m
-        spots_low = np.minimum(places, later.min(axis=1))  # (M, 2) each candidate and where it walks on
-        spots_high = np.maximum(places, later.max(axis=1))
-        box = np.c_[np.minimum(np.minimum.reduceat(spots_low, firsts[:-1]), here),
-                    np.maximum(np.maximum.reduceat(spots_high, firsts[:-1]), here)]
-        return Candidates(owner, c_tau, c_off, places, firsts, too_fast, too_deep, into_robot, fixed_cost, risk,
-                          stuck_cost, way_cost, later, box)
+        low = np.minimum(np.minimum(places, later.min(axis=1)), start)  # (M, 2) its step and where it walks on
+        high = np.maximum(np.maximum(places, later.max(axis=1)), start)
+        blocks, block_of = np.unique(owner * sides.shape[1] + o_col, return_inverse=True)  # (chooser, side)
+        block_rows = np.argsort(block_of, kind="stable")
+        block_row_first = np.r_[0, np.cumsum(np.bincount(block_of))]
+        block_box = np.c_[np.minimum.reduceat(low[block_rows], block_row_first[:-1]),
+                          np.maximum.reduceat(high[block_rows], block_row_first[:-1])]
+        block_first = np.r_[0, np.cumsum(np.bincount(blocks // sides.shape[1], minlength=len(agents)))]
+        box = np.c_[np.minimum.reduceat(low, firsts[:-1]), np.maximum.reduceat(high, firsts[:-1])]
+        return Candidates(owner, firsts, c_tau, c_off, places, too_fast, too_deep, into_robot, fixed_cost, risk,
+                          stuck_cost, way_cost, later, box, np.c_[low, high], block_box, block_first, block_rows,
+                          block_row_first)
 
     def _robot_risk(self, step: Step, rows: np.ndarray, agents: np.ndarray, tau: np.ndarray, offset: np.ndarray,
                     run_frame: np.ndarray, heading: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -721,9 +779,11 @@ class Routes:
         robot_steps = self.reaction.anticipation_steps
         ahead = np.arange(max(robot_steps, ANTICIPATION_STEPS) + 1, dtype=np.float64)  # (H + 1,) from now on
         later = self.place(agents[:, None], tau[:, None] + ahead, offset[:, None], run_frame[:, None])  # (M, H + 1, 2)
-        standing = later[:, :ANTICIPATION_STEPS + 1] - robot.from_m[rows][:, None]  # from the body standing
-        gap = self.body.swept_gap_m(standing[:, :-1], standing[:, 1:], heading[:, None])  # (M, H_s) along each step
-        risk = (1.0 - weight) * (np.maximum(self.robot_reach_m + COMFORT_M - gap, 0.0) ** 2).sum(axis=1)
+        risk = np.zeros(len(tau))  # as far as it does not react (0 for those that react fully: 0 times a finite sum)
+        body = np.flatnonzero(weight < 1.0)
+        standing = later[body, :ANTICIPATION_STEPS + 1] - robot.from_m[rows[body]][:, None]  # from the body standing
+        gap = self.body.swept_gap_m(standing[:, :-1], standing[:, 1:], heading[body][:, None])  # (B, H_s)
+        risk[body] = (1.0 - weight[body]) * (np.maximum(self.robot_reach_m + COMFORT_M - gap, 0.0) ** 2).sum(axis=1)
         react = np.flatnonzero(weight > 0)
         if react.size:
             course = robot.to_m[rows[react]][:, None] + (ahead[:robot_steps + 1, None] * STEP_S)[None] \
@@ -752,12 +812,15 @@ class Routes:
         goal_tau, goal = ahead[np.arange(len(rows)), pick], goals[np.arange(len(rows)), pick]
         back = np.maximum(self.run_first[run_frame, agents].astype(np.float64), tau - DETOUR_BACK_FRAMES)
         planned = np.flatnonzero(clear.any(axis=1))
+        way = [np.zeros(len(p)) for p in places]
+        if not planned.size:
+            return way
         grids = []
         for j in planned:
             route = self.log_xy_m[int(back[j]):int(np.ceil(goal_tau[j])) + 1, agents[j]]
             around = np.vstack([places[j], route, goal[j][None], step.start[rows[j], agents[j]][None]])
             grids.append(grid_cells(around.min(axis=0) - DETOUR_MARGIN_M, around.max(axis=0) + DETOUR_MARGIN_M))
-        cells = np.concatenate([grid.reshape(-1, 2) for grid in grids]) if grids else np.zeros((0, 2))
+        cells = np.concatenate([grid.reshape(-1, 2) for grid in grids])
         whose = planned[np.repeat(np.arange(len(grids)), [grid.shape[0] * grid.shape[1] for grid in grids])]
         free = self.clear_of_robot(cells, *(end[whose] for end in ends))
         free[free] = self.too_deep_m(agents[whose][free], back[whose][free], cells[free], run_frame[whose][free],
@@ -766,7 +829,6 @@ class Routes:
         walks = walking_distances_m(grids, [f.reshape(g.shape[:2]) for f, g in zip(np.split(free, cuts), grids,
                                                                                       strict=True)],
                                     goal[planned], [places[j] for j in planned])
-        way = [np.zeros(len(p)) for p in places]
         for j, walk_m in zip(planned, walks, strict=True):
             known = np.isfinite(walk_m)
             if known.any():
@@ -786,7 +848,7 @@ class Routes:
         share = (tau - frame)[..., None]
         point = (1 - share) * self.log_xy_m[frame, agents] + share * self.log_xy_m[after, agents]
         tangent = (1 - share) * self.tangent[frame, agents] + share * self.tangent[after, agents]
-        tangent /= np.maximum(np.linalg.norm(tangent, axis=-1, keepdims=True), 1e-9)
+        tangent /= np.maximum(length_m(tangent)[..., None], 1e-9)
         return point, np.stack([-tangent[..., 1], tangent[..., 0]], axis=-1)
 
     def place(self, agents: np.ndarray, tau: np.ndarray, offset_m: np.ndarray, run_frame: np.ndarray) -> np.ndarray:
@@ -839,8 +901,9 @@ class Routes:
         of its log nearest to it within ``DEPTH_WINDOW`` frames of route point ``tau``, or the log's deepest point
         within ``CROSSING_WINDOW`` frames of it (a crossing of a thin wall, beside it) [m]; with ``through``, than the
         point of its log nearest to it on the route from ``tau`` through ``through`` (and ``DEPTH_WINDOW`` frames
-        beyond) alone; 0 where that point is off the image, 1000 for a place off the image beside a log on it.
-        ``agents``, ``tau``, ``run_frame`` (and ``through``) broadcast to the places' shape (...)."""
+        beyond) alone, and only whether it is (inf) or not (0); 0 where that point is off the image, 1000 for a place
+        off the image beside a log on it. ``agents``, ``tau``, ``run_frame`` (and ``through``) broadcast to the
+        places' shape (...)."""
         depth = self.depth.at(places)
         excess = np.zeros(depth.shape)
         deep = depth > 0  # a place on walkable ground is never deeper than the log: compare only the others
@@ -851,18 +914,38 @@ class Routes:
         frame = np.floor(tau).astype(int)
         if through is None:
             low, high = np.maximum(first, frame - DEPTH_WINDOW), np.minimum(last, frame + DEPTH_WINDOW)
+            crossing = self._window_depths(agents, np.maximum(first, frame - CROSSING_WINDOW),
+                                           np.minimum(last, frame + CROSSING_WINDOW))[1]
         else:
             end = np.maximum(frame, np.floor(np.broadcast_to(through, depth.shape)[deep]).astype(int))
             low, high = np.maximum(first, frame), np.minimum(last, end + DEPTH_WINDOW)
-        log_depth = self._nearest_trace_depth(agents, low, high, places[deep])
-        if through is None:
-            close = self._trace_frames(agents, np.maximum(first, frame - CROSSING_WINDOW),
-                                       np.minimum(last, frame + CROSSING_WINDOW))
-            log_depth = np.maximum(log_depth, np.where(close[1][..., None], self.trace_depth_m[close[0]],
-                                                       -np.inf).max(axis=(1, 2)))
-        over = np.minimum(np.maximum(depth[deep] - log_depth - DEPTH_TOLERANCE_M, 0.0), 1e3)
-        excess[deep] = np.where(np.isinf(log_depth), 0.0, over)
+            crossing = np.full(len(agents), -np.inf)
+        # the nearest point of the window is looked for only where its depth matters: not where the place lies no
+        # deeper than the window's shallowest point, nor where every point of the window lies as deep
+        least, most = self._window_depths(agents, low, high)
+        here = depth[deep]
+        log_depth = np.maximum(least, crossing)  # exact where the window's points all lie equally deep
+        search = (here > log_depth) & (least < most)
+        if through is not None:  # whether, not how much: deeper than the window's deepest point is deeper
+            search &= here <= np.maximum(most, crossing)
+            log_depth = np.where((here > np.maximum(most, crossing)) & (least < most), most, log_depth)
+        log_depth[search] = np.maximum(self._nearest_trace_depth(agents[search], low[search], high[search],
+                                                                 places[deep][search]), crossing[search])
+        over = np.minimum(np.maximum(here - log_depth - DEPTH_TOLERANCE_M, 0.0), 1e3)
+        excess[deep] = np.where(np.isinf(log_depth), 0.0, over if through is None else np.where(over > 0, np.inf, 0.0))
         return excess
+
+    def _window_depths(self, agents: np.ndarray, low: np.ndarray, high: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(least, most) (P,) each: the depths [m] of the shallowest and the deepest point of each agent's log trace
+        (``trace_depth_m``) between frames ``low`` and ``high`` (P,), found once per distinct window."""
+        frames = len(self.present)
+        windows, which = np.unique((agents.astype(np.int64) * frames + low) * frames + high, return_inverse=True)
+        index, inside = self._trace_frames(windows // (frames * frames), windows // frames % frames,
+                                           windows % frames)
+        depths = self.trace_depth_m[index]  # (U, W, K)
+        least = np.where(inside[..., None], depths, np.inf).min(axis=(1, 2))
+        most = np.where(inside[..., None], depths, -np.inf).max(axis=(1, 2))
+        return least[which], most[which]
 
     def _trace_frames(self, agents: np.ndarray, low: np.ndarray, high: np.ndarray
                       ) -> tuple[tuple[np.ndarray, np.ndarray], np.ndarray]:
@@ -883,7 +966,7 @@ class Routes:
             part = slice(at, at + size)
             index, inside = self._trace_frames(agents[part], low[part], high[part])
             trace = self.trace_m[index].reshape(len(inside), -1, 2)  # (P, W K, 2), frame by frame
-            distance = np.linalg.norm(places[part][:, None, :] - trace, axis=-1)
+            distance = length_m(places[part][:, None, :] - trace)
             distance[~np.repeat(inside, len(TRACE_SHARES), axis=1)] = np.inf
             nearest = np.argmin(distance, axis=-1)
             found[part] = self.trace_depth_m[index].reshape(len(inside), -1)[np.arange(len(inside)), nearest]
@@ -893,6 +976,11 @@ class Routes:
 def distinct(values: np.ndarray) -> np.ndarray:
     """(J, K) bool: the first of each run of equal values in the sorted rows ``values`` (J, K) (``np.unique``'s)."""
     return np.c_[np.ones(len(values), bool), values[:, 1:] != values[:, :-1]]
+
+
+def spans(starts: np.ndarray, counts: np.ndarray) -> np.ndarray:
+    """(sum of counts,) the runs ``starts[i], ..., starts[i] + counts[i] - 1`` (K,) each, one after another."""
+    return np.repeat(starts - np.r_[0, np.cumsum(counts)[:-1]], counts) + np.arange(counts.sum())
 
 
 def exact_row_sums(row: np.ndarray, column: np.ndarray, value: np.ndarray, width: np.ndarray,
@@ -911,6 +999,11 @@ def exact_row_sums(row: np.ndarray, column: np.ndarray, value: np.ndarray, width
         dense[np.searchsorted(which, row[mine]), column[mine]] = value[mine]
         total[which] = dense.sum(axis=1)
     return total
+
+
+def length_m(vector_m: np.ndarray) -> np.ndarray:
+    """(...) lengths [m] of vectors (..., 2) [m], rounded as ``np.linalg.norm(vector_m, axis=-1)`` rounds them."""
+    return np.sqrt(vector_m[..., 0] * vector_m[..., 0] + vector_m[..., 1] * vector_m[..., 1])
 
 
 def heading_of(from_m: np.ndarray, to_m: np.ndarray, heading_rad: float | None = None) -> float:
