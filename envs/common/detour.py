@@ -37,33 +37,36 @@ def walking_distance_m(cells_m: np.ndarray, free: np.ndarray, goal_m: np.ndarray
 def walking_distances_m(cells_m: Sequence[np.ndarray], free: Sequence[np.ndarray], goals_m: np.ndarray,
                         points_m: Sequence[np.ndarray]) -> list[np.ndarray]:
     """``walking_distance_m`` on G grids at once: grid g is ``cells_m[g]`` (H_g, W_g, 2) [m] with ``free[g]``
-    (H_g, W_g) bool, its goal ``goals_m[g]`` (G, 2) [m] and its points ``points_m[g]`` (P_g, 2) [m]; the grids are
-    parts of one graph that share no edge, searched from all their goals in one pass (each cell's walk is to the
-    goal of its own grid, as alone)."""
-    starts, ends, lengths, sources, where = [], [], [], [], []
-    base = 0
-    for cells, open_, goal, points in zip(cells_m, free, goals_m, points_m, strict=True):
-        height, width = open_.shape
+    (H_g, W_g) bool, its goal ``goals_m[g]`` (G, 2) [m] and its points ``points_m[g]`` (P_g, 2) [m]. The grids lie
+    side by side on one canvas, a column of blocked cells between them, searched from all their goals in one pass:
+    each cell's walk is to the goal of its own grid, as alone."""
+    height = max(open_.shape[0] for open_ in free)
+    left = np.r_[0, np.cumsum([open_.shape[1] + 1 for open_ in free])]  # each grid's first column on the canvas
+    canvas = np.zeros((height, left[-1]), bool)
+    sources, where = [], []
+    for cells, open_, goal, points, column in zip(cells_m, free, goals_m, points_m, left[:-1], strict=True):
         rows, cols = _cell(cells[0, 0], points)
-        inside = (rows >= 0) & (rows < height) & (cols >= 0) & (cols < width)
+        inside = (rows >= 0) & (rows < open_.shape[0]) & (cols >= 0) & (cols < open_.shape[1])
         goal_row, goal_col = _cell(cells[0, 0], goal)
-        reachable = 0 <= goal_row[0] < height and 0 <= goal_col[0] < width and open_[goal_row[0], goal_col[0]]
-        index = base + np.arange(height * width).reshape(height, width)
-        where.append((index[rows * inside, cols * inside], inside & reachable))
+        reachable = (0 <= goal_row[0] < open_.shape[0] and 0 <= goal_col[0] < open_.shape[1]
+                     and open_[goal_row[0], goal_col[0]])
+        canvas[:open_.shape[0], column:column + open_.shape[1]] = open_
+        where.append(((rows * inside) * left[-1] + column + cols * inside, inside & reachable))
         if reachable:
-            sources.append(int(index[goal_row[0], goal_col[0]]))
-            for d_row, d_col in NEIGHBOURS:
-                a = index[max(0, -d_row):height - max(0, d_row), max(0, -d_col):width - max(0, d_col)]
-                b = index[max(0, d_row):height + min(0, d_row), max(0, d_col):width + min(0, d_col)]
-                both = open_.ravel()[a - base] & open_.ravel()[b - base]
-                starts.append(a[both])
-                ends.append(b[both])
-                lengths.append(np.full(int(both.sum()), CELL_M * np.hypot(d_row, d_col)))
-        base += height * width
-    distance = np.full(base, np.inf)
+            sources.append(int(goal_row[0] * left[-1] + column + goal_col[0]))
+    distance = np.full(canvas.size, np.inf)
     if sources:
+        index = np.arange(canvas.size).reshape(canvas.shape)
+        starts, ends, lengths = [], [], []
+        for d_row, d_col in NEIGHBOURS:
+            a = index[max(0, -d_row):height - max(0, d_row), max(0, -d_col):left[-1] - max(0, d_col)]
+            b = index[max(0, d_row):height + min(0, d_row), max(0, d_col):left[-1] + min(0, d_col)]
+            both = canvas.ravel()[a] & canvas.ravel()[b]
+            starts.append(a[both])
+            ends.append(b[both])
+            lengths.append(np.full(int(both.sum()), CELL_M * np.hypot(d_row, d_col)))
         graph = coo_matrix((np.concatenate(lengths), (np.concatenate(starts), np.concatenate(ends))),
-                           shape=(base, base)).tocsr()
+                           shape=(canvas.size, canvas.size)).tocsr()
         distance = dijkstra(graph, directed=False, indices=sources, min_only=True)
     return [np.where(found, distance[nodes], np.inf) for nodes, found in where]
 

@@ -197,9 +197,10 @@ class Candidates:
             again.  way_cost: (M,) the way round (0 where none is planned).
         later_m: (M, ANTICIPATION_STEPS, 2) where it would walk on [m].
         box_m: (J, 4) box (x low, y low, x high, y high) [m] holding each chooser's start, candidates and ``later_m``.
-        row_box_m: (M, 4) the same for each candidate: its step from the start and where it walks on.
-        block_box_m: (B, 4) the same for each block of candidates of a chooser on one side offset (its step from
-            its start included).  block_first: (J + 1,) where each chooser's blocks start.  block_rows: (M,) the
+        step_box_m: (M, 4) the box of each candidate's step from the start.  later_box_m: (M, 4) the box of its
+            ``later_m``.
+        block_step_box_m, block_later_box_m: (B, 4) the same for each block of candidates of a chooser on one side
+            offset.  block_first: (J + 1,) where each chooser's blocks start.  block_rows: (M,) the
             candidate rows block by block.  block_row_first: (B + 1,) where each block's rows start.
     """
 
@@ -217,8 +218,10 @@ class Candidates:
     way_cost: np.ndarray
     later_m: np.ndarray
     box_m: np.ndarray
-    row_box_m: np.ndarray
-    block_box_m: np.ndarray
+    step_box_m: np.ndarray
+    later_box_m: np.ndarray
+    block_step_box_m: np.ndarray
+    block_later_box_m: np.ndarray
     block_first: np.ndarray
     block_rows: np.ndarray
     block_row_first: np.ndarray
@@ -667,53 +670,60 @@ class Routes:
         width, walk_width = present.sum(axis=1) - 1, walks.sum(axis=1) - 1  # (T,) others, those off their logs
         column = (np.cumsum(present, axis=1) - present)[chooser, other] - (agent[chooser] < other)  # the sums' order
         walk_column = (np.cumsum(walks, axis=1) - walks)[chooser, other] - (agent[chooser] < other)
-        # where each other is during the step, and which blocks of its chooser's candidates come within reach
+        # where each other is during the step
         their_row = crowd[chooser]
         their_from = step.start[their_row, other]
         their_to = np.where(earlier[:, None], seen[their_row, other], step.xy[their_row, other])  # (P, 2)
         ahead = np.arange(1, ANTICIPATION_STEPS + 1) * STEP_S
         future = their_to[:, None] + ahead[:, None] * step.velocity_mps[their_row, other][:, None]  # (P, H, 2)
-        moving = walks[chooser, other]  # the others off their logs keep to no log: scored by how they walk on
-        low = np.where(moving[:, None], np.minimum(np.minimum(their_from, their_to), future.min(axis=1)),
-                       np.minimum(their_from, their_to))
-        high = np.where(moving[:, None], np.maximum(np.maximum(their_from, their_to), future.max(axis=1)),
-                        np.maximum(their_from, their_to))
-        blocks = c.block_first[pending[chooser] + 1] - c.block_first[pending[chooser]]
-        by_block = np.repeat(np.arange(len(chooser)), blocks)
-        block = spans(c.block_first[pending[chooser]], blocks)
-        box = c.block_box_m[block]
-        apart = np.maximum(np.maximum(low[by_block] - box[:, 2:], box[:, :2] - high[by_block]), 0.0)
-        kept = length_m(apart) < PAIR_REACH_M + NEAR_SLACK_M
-        block, by_block = block[kept], by_block[kept]
-        sizes = c.block_row_first[block + 1] - c.block_row_first[block]
-        pair = np.repeat(by_block, sizes)
-        candidate = c.block_rows[spans(c.block_row_first[block], sizes)]  # (E,) rows of c, then those within reach
-        box = c.row_box_m[candidate]
-        kept = length_m(np.maximum(np.maximum(low[pair] - box[:, 2:], box[:, :2] - high[pair]), 0.0)) \
-            < PAIR_REACH_M + NEAR_SLACK_M
-        pair, candidate = pair[kept], candidate[kept]
+        their_box = np.c_[np.minimum(their_from, their_to), np.maximum(their_from, their_to)]  # (P, 4)
+        future_box = np.c_[future.min(axis=1), future.max(axis=1)]
         row_of = np.full(len(c.owner), -1)
         row_of[cand] = np.arange(len(cand))
-        row = row_of[candidate]  # (E,) rows of cand
+        n_rows = len(cand)
+        # along the step: the rows whose step comes within a body of where the other goes
+        close, candidate = self._within(c, pending[chooser], np.ones(len(chooser), bool), their_box, body_m,
+                                        c.block_step_box_m, c.step_box_m)
+        row = row_of[candidate]
         here = step.start[crowd[chooser], agent[chooser]]  # (P, 2)
-        allowed = np.minimum(body_m, length_m(their_from - here) - 1e-6)[pair]
+        allowed = np.minimum(body_m, length_m(their_from - here) - 1e-6)[close]
         index = step.index[crowd[chooser]]
         logged = length_m(self.log_xy_m[index, agent[chooser]] - self.log_xy_m[index, other])
-        together = np.minimum(body_m, np.nan_to_num(logged, nan=np.inf))[pair]  # closer now: part as the logs do
-        place, to = c.xy_m[candidate], their_to[pair]
-        pair_gap, _ = closest_approach(here[pair] - their_from[pair], place - to)
-        n_rows = len(cand)
-        too_close = (exact_row_sums(row, column[pair], np.maximum(allowed - pair_gap, 0.0), width[local], n_rows)
-                     + exact_row_sums(row, column[pair], np.maximum(together - length_m(place - to), 0.0),
+        together = np.minimum(body_m, np.nan_to_num(logged, nan=np.inf))[close]  # closer now: part as the logs do
+        place, to = c.xy_m[candidate], their_to[close]
+        pair_gap, _ = closest_approach(here[close] - their_from[close], place - to)
+        too_close = (exact_row_sums(row, column[close], np.maximum(allowed - pair_gap, 0.0), width[local], n_rows)
+                     + exact_row_sums(row, column[close], np.maximum(together - length_m(place - to), 0.0),
                                       width[local], n_rows))
-        walking = moving[pair]
-        gap = length_m(c.later_m[candidate[walking]] - future[pair[walking]])  # (Q, H)
-        cols = (np.arange(ANTICIPATION_STEPS) * walk_width[chooser[pair[walking]]][:, None]
-                + walk_column[pair[walking]][:, None])
-        pair_risk = exact_row_sums(np.repeat(row[walking], ANTICIPATION_STEPS), cols.ravel(),
+        # walking on: the rows whose walk comes within reach of where one off its log walks on (those on their logs
+        # keep to them: the hard bounds cover them)
+        walk, candidate = self._within(c, pending[chooser], walks[chooser, other], future_box, PAIR_REACH_M,
+                                       c.block_later_box_m, c.later_box_m)
+        row = row_of[candidate]
+        gap = length_m(c.later_m[candidate] - future[walk])  # (Q, H)
+        cols = np.arange(ANTICIPATION_STEPS) * walk_width[chooser[walk]][:, None] + walk_column[walk][:, None]
+        pair_risk = exact_row_sums(np.repeat(row, ANTICIPATION_STEPS), cols.ravel(),
                                    (np.maximum(PAIR_REACH_M - gap, 0.0) ** 2).ravel(),
                                    ANTICIPATION_STEPS * walk_width[local], n_rows)
         return too_close, pair_risk
+
+    @staticmethod
+    def _within(c: Candidates, chooser: np.ndarray, counted: np.ndarray, box_m: np.ndarray, reach_m: float,
+                block_box_m: np.ndarray, row_box_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(pair (E,), candidate (E,)): the candidate rows of each pair's chooser (``chooser`` (P,), of all
+        choosers) whose box (``row_box_m`` (M, 4), in blocks ``block_box_m`` (B, 4)) comes within ``reach_m`` of the
+        pair's ``box_m`` (P, 4), for the pairs ``counted`` (P,) bool."""
+        pairs = np.flatnonzero(counted)
+        blocks = c.block_first[chooser[pairs] + 1] - c.block_first[chooser[pairs]]
+        pair = np.repeat(pairs, blocks)
+        block = spans(c.block_first[chooser[pairs]], blocks)
+        kept = within(block_box_m[block], box_m[pair], reach_m)
+        block, pair = block[kept], pair[kept]
+        sizes = c.block_row_first[block + 1] - c.block_row_first[block]
+        pair = np.repeat(pair, sizes)
+        candidate = c.block_rows[spans(c.block_row_first[block], sizes)]
+        kept = within(row_box_m[candidate], box_m[pair], reach_m)
+        return pair[kept], candidate[kept]
 
     def _candidates(self, step: Step, rows: np.ndarray, agents: np.ndarray, tau: np.ndarray,
                     offset: np.ndarray) -> Candidates:
@@ -755,18 +765,20 @@ class Routes:
                                     [places[firsts[j]:firsts[j + 1]] for j in detour])
             for j, way_m in zip(detour, way, strict=True):
                 way_cost[firsts[j]:firsts[j + 1]] = DETOUR_COST * way_m
-        low = np.minimum(np.minimum(places, later.min(axis=1)), start)  # (M, 2) its step and where it walks on
-        high = np.maximum(np.maximum(places, later.max(axis=1)), start)
+        step_box = np.c_[np.minimum(places, start), np.maximum(places, start)]  # (M, 4)
+        later_box = np.c_[later.min(axis=1), later.max(axis=1)]
         blocks, block_of = np.unique(owner * sides.shape[1] + o_col, return_inverse=True)  # (chooser, side)
         block_rows = np.argsort(block_of, kind="stable")
         block_row_first = np.r_[0, np.cumsum(np.bincount(block_of))]
-        block_box = np.c_[np.minimum.reduceat(low[block_rows], block_row_first[:-1]),
-                          np.maximum.reduceat(high[block_rows], block_row_first[:-1])]
+        block_step_box, block_later_box = (np.c_[np.minimum.reduceat(rows_box[block_rows, :2], block_row_first[:-1]),
+                                                 np.maximum.reduceat(rows_box[block_rows, 2:], block_row_first[:-1])]
+                                           for rows_box in (step_box, later_box))
         block_first = np.r_[0, np.cumsum(np.bincount(blocks // sides.shape[1], minlength=len(agents)))]
-        box = np.c_[np.minimum.reduceat(low, firsts[:-1]), np.maximum.reduceat(high, firsts[:-1])]
+        box = np.c_[np.minimum.reduceat(np.minimum(step_box[:, :2], later_box[:, :2]), firsts[:-1]),
+                    np.maximum.reduceat(np.maximum(step_box[:, 2:], later_box[:, 2:]), firsts[:-1])]
         return Candidates(owner, firsts, c_tau, c_off, places, too_fast, too_deep, into_robot, fixed_cost, risk,
-                          stuck_cost, way_cost, later, box, np.c_[low, high], block_box, block_first, block_rows,
-                          block_row_first)
+                          stuck_cost, way_cost, later, box, step_box, later_box, block_step_box, block_later_box,
+                          block_first, block_rows, block_row_first)
 
     def _robot_risk(self, step: Step, rows: np.ndarray, agents: np.ndarray, tau: np.ndarray, offset: np.ndarray,
                     run_frame: np.ndarray, heading: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -976,6 +988,13 @@ class Routes:
 def distinct(values: np.ndarray) -> np.ndarray:
     """(J, K) bool: the first of each run of equal values in the sorted rows ``values`` (J, K) (``np.unique``'s)."""
     return np.c_[np.ones(len(values), bool), values[:, 1:] != values[:, :-1]]
+
+
+def within(box_m: np.ndarray, other_m: np.ndarray, reach_m: float) -> np.ndarray:
+    """(K,) bool: the boxes ``box_m`` (K, 4) (x low, y low, x high, y high) [m] come within ``reach_m`` [m] (plus
+    ``NEAR_SLACK_M``) of the boxes ``other_m`` (K, 4)."""
+    apart = np.maximum(np.maximum(other_m[:, :2] - box_m[:, 2:], box_m[:, :2] - other_m[:, 2:]), 0.0)
+    return length_m(apart) < reach_m + NEAR_SLACK_M
 
 
 def spans(starts: np.ndarray, counts: np.ndarray) -> np.ndarray:
