@@ -112,6 +112,7 @@ DETOUR_BACK_FRAMES: Final[int] = 16  # ... and round its route from this many fr
 DETOUR_COST: Final[float] = 10.0  # ... and pays this per metre it would then have to walk to that point [1/m]
 PAIR_REACH_M: Final[float] = 2 * BODY_RADIUS_M + COMFORT_M / 2  # the farthest two pedestrians' terms reach [m]
 NEAR_SLACK_M: Final[float] = 1e-6  # a pair is left out of a step's terms only beyond PAIR_REACH_M plus this [m]
+FIRST_LOOK: Final[int] = 32  # candidates each chooser scores in full at first, those least costly first [-]
 CHUNK_VALUES: Final[int] = 1 << 21  # nearest-trace searches run in chunks of at most this many distances [-]
 
 
@@ -190,41 +191,39 @@ class Candidates:
     candidates in a row (M = sum of C in all, in the order of its own grid: progress, then side).
 
     Attributes:
-        owner: (M,) chooser.  first: (J + 1,) where each chooser's rows start.
+        owner: (M,) chooser.  first: (J + 1,) where each chooser's rows start.  tau_now: (J,) the route point
+            each chooser's place is taken from now.
         tau: (M,) route point.  offset_m: (M,) side [m].  xy_m: (M, 2) position [m].
-        too_fast, too_deep, into_robot: (M,) the bounds it breaks but those between pedestrians (``violation``).
-        fixed_cost: (M,) delay, offset and sway.  risk: (M,) round the robot [m^2].  stuck_cost: (M,) no headway
-            again.  way_cost: (M,) the way round (0 where none is planned).
-        later_m: (M, ANTICIPATION_STEPS, 2) where it would walk on [m].
+        too_fast, into_robot: (M,) two of the bounds it breaks (``violation``).  too_deep: (M,) a third, NaN until
+            scored (``Routes._settle``).
+        fixed_cost: (M,) delay, offset and sway.  stuck_cost: (M,) no headway again.  way_cost: (M,) the way round
+            (0 where none is planned).  risk: (M,) round the robot [m^2], NaN until scored.
+        later_m: (M, H, 2) where it would walk on over the longer of ``ANTICIPATION_STEPS`` and the reaction's
+            anticipation [m].
         box_m: (J, 4) box (x low, y low, x high, y high) [m] holding each chooser's start, candidates and ``later_m``.
-        step_box_m: (M, 4) the box of each candidate's step from the start.  later_box_m: (M, 4) the box of its
-            ``later_m``.
-        block_step_box_m, block_later_box_m: (B, 4) the same for each block of candidates of a chooser on one side
-            offset.  block_first: (J + 1,) where each chooser's blocks start.  block_rows: (M,) the
-            candidate rows block by block.  block_row_first: (B + 1,) where each block's rows start.
+        least_cost: (M,) the least its cost can be (with no risk): the cost of a place that breaks no bound.
+        order: (M,) each chooser's rows, those that may break no bound first (``too_fast`` and ``into_robot`` 0) by
+            ``least_cost``, then the others.  hopeful: (J,) how many of each chooser's rows may break no bound.
     """
 
     owner: np.ndarray
     first: np.ndarray
+    tau_now: np.ndarray
     tau: np.ndarray
     offset_m: np.ndarray
     xy_m: np.ndarray
     too_fast: np.ndarray
-    too_deep: np.ndarray
     into_robot: np.ndarray
+    too_deep: np.ndarray
     fixed_cost: np.ndarray
-    risk: np.ndarray
     stuck_cost: np.ndarray
     way_cost: np.ndarray
+    risk: np.ndarray
     later_m: np.ndarray
     box_m: np.ndarray
-    step_box_m: np.ndarray
-    later_box_m: np.ndarray
-    block_step_box_m: np.ndarray
-    block_later_box_m: np.ndarray
-    block_first: np.ndarray
-    block_rows: np.ndarray
-    block_row_first: np.ndarray
+    least_cost: np.ndarray
+    order: np.ndarray
+    hopeful: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -626,34 +625,77 @@ class Routes:
     def _best(self, step: Step, rows: np.ndarray, agents: np.ndarray, c: Candidates, pending: np.ndarray,
               near: tuple[np.ndarray, np.ndarray], seen: np.ndarray, turn: np.ndarray) -> np.ndarray:
         """(T,) the candidate each of the choosers ``pending`` (T,) takes, seeing the choices ``seen`` (N, A, 2) of
-        those whose ``turn`` (N, A) comes before theirs, the others where they stand (``step.xy``)."""
-        counts = c.first[pending + 1] - c.first[pending]
-        cand = spans(c.first[pending], counts)
-        local = np.repeat(np.arange(len(pending)), counts)  # which of the pending choosers each row belongs to
+        those whose ``turn`` (N, A) comes before theirs, the others where they stand (``step.xy``).
+
+        A candidate's cost is at least its ``least_cost``, and one that breaks ``too_fast`` or ``into_robot`` breaks
+        a bound: each chooser scores its candidates in full in the order of ``Candidates.order``, first
+        ``FIRST_LOOK`` of them, until every hopeful one it has not scored costs at least more than the cheapest
+        within every bound it has (all of them if none is). What it leaves unscored could not have been chosen."""
+        count, hopeful = c.first[pending + 1] - c.first[pending], c.hopeful[pending]
+        take = np.where(hopeful > 0, np.minimum(hopeful, FIRST_LOOK), count)
+        while True:
+            local = np.repeat(np.arange(len(pending)), take)
+            scored = c.order[spans(c.first[pending], take)]  # (R,) rows of c, each chooser's in a run
+            violation, cost = self._score(step, rows, agents, c, pending, scored, local, near, seen, turn)
+            starts = np.r_[0, np.cumsum(take)[:-1]]
+            fine = np.logical_or.reduceat(violation == 0, starts)
+            cheapest = np.minimum.reduceat(np.where(violation > 0, np.inf, cost), starts)  # (T,)
+            runs = spans(c.first[pending], hopeful)  # every hopeful row of the pending choosers
+            owner = np.repeat(np.arange(len(pending)), hopeful)
+            needed = np.bincount(owner, c.least_cost[c.order[runs]] <= cheapest[owner], minlength=len(pending))
+            wider = np.where(fine, np.maximum(take, needed.astype(int)),
+                             np.where(take < hopeful, np.minimum(2 * take, hopeful), count))
+            if (wider == take).all():
+                break
+            take = wider
+        key = np.where(fine[local], np.where(violation > 0, np.inf, cost), violation)  # as np.argmin over all rows
+        key = np.where(np.isnan(key), -np.inf, key)  # (np.argmin takes the first NaN)
+        least = np.minimum.reduceat(key, starts)
+        return np.minimum.reduceat(np.where(key == least[local], scored, len(c.owner)), starts)
+
+    def _score(self, step: Step, rows: np.ndarray, agents: np.ndarray, c: Candidates, pending: np.ndarray,
+               scored: np.ndarray, local: np.ndarray, near: tuple[np.ndarray, np.ndarray], seen: np.ndarray,
+               turn: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(violation, cost), (R,) each, of the candidate rows ``scored`` (R,) of the choosers ``pending`` (T,)
+        (``local`` (R,): which of them a row is of), seeing the choices ``seen`` of those before them: ``violation``
+        0 where it keeps every bound (a metre into a wall weighs ``WALL_WEIGHT``, into the robot's margin
+        ``ROBOT_WEIGHT``), ``cost`` [-]."""
+        self._settle(step, rows, agents, c, scored)
         mine = np.full(len(agents), -1)
         mine[pending] = np.arange(len(pending))
         chooser, other = near
         pair = np.flatnonzero(mine[chooser] >= 0)
-        too_close, pair_risk = self._pair_terms(step, pending, rows, agents, c, cand, local, mine[chooser[pair]],
-                                                other[pair], turn[rows[chooser[pair]], other[pair]] < chooser[pair],
-                                                seen)
-        violation = (c.too_fast[cand] + too_close + WALL_WEIGHT * c.too_deep[cand]
-                     + ROBOT_WEIGHT * c.into_robot[cand])
-        cost = c.fixed_cost[cand] + RISK_COST * (c.risk[cand] + pair_risk) + c.stuck_cost[cand] + c.way_cost[cand]
-        starts = np.r_[0, np.cumsum(counts)[:-1]]
-        fine = np.logical_or.reduceat(violation == 0, starts)
-        key = np.where(fine[local], np.where(violation > 0, np.inf, cost), violation)
-        least = np.minimum.reduceat(key, starts)[local]
-        hits = np.flatnonzero((key == least) | (np.isnan(least) & np.isnan(key)))
-        return cand[hits[np.searchsorted(local[hits], np.arange(len(pending)))]]
+        too_close, pair_risk = self._pair_terms(step, rows[pending], agents[pending], c, scored, local,
+                                                mine[chooser[pair]], other[pair],
+                                                turn[rows[chooser[pair]], other[pair]] < chooser[pair], seen)
+        violation = (c.too_fast[scored] + too_close + WALL_WEIGHT * c.too_deep[scored]
+                     + ROBOT_WEIGHT * c.into_robot[scored])
+        cost = (c.fixed_cost[scored] + RISK_COST * (c.risk[scored] + pair_risk) + c.stuck_cost[scored]
+                + c.way_cost[scored])
+        return violation, cost
 
-    def _pair_terms(self, step: Step, pending: np.ndarray, rows: np.ndarray, agents: np.ndarray, c: Candidates,
-                    cand: np.ndarray, local: np.ndarray, chooser: np.ndarray, other: np.ndarray, earlier: np.ndarray,
+    def _settle(self, step: Step, rows: np.ndarray, agents: np.ndarray, c: Candidates, scored: np.ndarray) -> None:
+        """Score ``too_deep`` and ``risk`` (round the robot) of the rows ``scored`` of ``c`` not scored yet, in
+        place."""
+        new = scored[np.isnan(c.too_deep[scored])]
+        if not new.size:
+            return
+        j = c.owner[new]
+        crowd, agent, tau = rows[j], agents[j], c.tau_now[j]
+        run_frame = tau.astype(int)
+        start = step.start[crowd, agent]
+        path = start[:, None] + np.array(PATH_SAMPLES)[:, None] * (c.xy_m[new] - start)[:, None]  # along the way
+        c.too_deep[new] = self.too_deep_m(agent[:, None], tau[:, None], path, run_frame[:, None]).max(axis=1)
+        c.risk[new] = self._robot_risk(step, crowd, agent, np.concatenate([c.xy_m[new][:, None], c.later_m[new]],
+                                                                          axis=1))
+
+    def _pair_terms(self, step: Step, rows: np.ndarray, agents: np.ndarray, c: Candidates, scored: np.ndarray,
+                    local: np.ndarray, chooser: np.ndarray, other: np.ndarray, earlier: np.ndarray,
                     seen: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(too_close, pair_risk), (R,) each, of the candidate rows ``cand`` (R,) of the choosers ``pending`` (T,)
-        (of all choosers ``rows``, ``agents`` (J,); ``local`` (R,): which of ``pending`` a row is of), scored against
-        the pedestrians ``other`` (P,) of the pairs near enough to count (``chooser`` (P,) in 0..T-1; ``earlier`` (P,)
-        bool: the other chose before, and ``seen`` (N, A, 2) has its choice):
+        """(too_close, pair_risk), (R,) each, of the candidate rows ``scored`` (R,) of the choosers ``rows``,
+        ``agents`` (T,) (``local`` (R,): whose row, each chooser's rows in a run), scored against the pedestrians
+        ``other`` (P,) of the pairs near enough to count (``chooser`` (P,) in 0..T-1; ``earlier`` (P,) bool: the
+        other chose before, and ``seen`` (N, A, 2) has its choice):
 
         - too_close [m]: along the whole step it keeps ``2 BODY_RADIUS_M - PAIR_GIVE_M`` from everybody else (or at
           least the gap it already had, and that much again by the end of the step where their logs are that far
@@ -661,74 +703,48 @@ class Routes:
         - pair_risk [m^2]: the squared intrusions into the comfort gap round the others off their logs going on at
           their velocities over ``ANTICIPATION_STEPS``.
 
-        Only the candidates of blocks (``Candidates.block_box_m``) within ``PAIR_REACH_M`` of where the other is
-        during the step are scored against it; the sums over the others come out as over all of them, the rest
-        adding 0 (``exact_row_sums``)."""
+        The sums over the others come out as over all of them, those out of reach adding 0 (``exact_row_sums``)."""
         body_m = 2 * BODY_RADIUS_M - PAIR_GIVE_M
-        crowd, agent = rows[pending], agents[pending]  # (T,)
-        present, walks = step.present[crowd], step.present[crowd] & step.off_log[crowd]  # (T, A)
+        present, walks = step.present[rows], step.present[rows] & step.off_log[rows]  # (T, A)
         width, walk_width = present.sum(axis=1) - 1, walks.sum(axis=1) - 1  # (T,) others, those off their logs
-        column = (np.cumsum(present, axis=1) - present)[chooser, other] - (agent[chooser] < other)  # the sums' order
-        walk_column = (np.cumsum(walks, axis=1) - walks)[chooser, other] - (agent[chooser] < other)
-        # where each other is during the step
-        their_row = crowd[chooser]
+        column = (np.cumsum(present, axis=1) - present)[chooser, other] - (agents[chooser] < other)  # sums' order
+        walk_column = (np.cumsum(walks, axis=1) - walks)[chooser, other] - (agents[chooser] < other)
+        # where each other is during the step: from, to, and walking on
+        their_row = rows[chooser]
         their_from = step.start[their_row, other]
         their_to = np.where(earlier[:, None], seen[their_row, other], step.xy[their_row, other])  # (P, 2)
         ahead = np.arange(1, ANTICIPATION_STEPS + 1) * STEP_S
         future = their_to[:, None] + ahead[:, None] * step.velocity_mps[their_row, other][:, None]  # (P, H, 2)
-        their_box = np.c_[np.minimum(their_from, their_to), np.maximum(their_from, their_to)]  # (P, 4)
-        future_box = np.c_[future.min(axis=1), future.max(axis=1)]
-        row_of = np.full(len(c.owner), -1)
-        row_of[cand] = np.arange(len(cand))
-        n_rows = len(cand)
-        # along the step: the rows whose step comes within a body of where the other goes
-        close, candidate = self._within(c, pending[chooser], np.ones(len(chooser), bool), their_box, body_m,
-                                        c.block_step_box_m, c.step_box_m)
-        row = row_of[candidate]
-        here = step.start[crowd[chooser], agent[chooser]]  # (P, 2)
-        allowed = np.minimum(body_m, length_m(their_from - here) - 1e-6)[close]
-        index = step.index[crowd[chooser]]
-        logged = length_m(self.log_xy_m[index, agent[chooser]] - self.log_xy_m[index, other])
-        together = np.minimum(body_m, np.nan_to_num(logged, nan=np.inf))[close]  # closer now: part as the logs do
-        place, to = c.xy_m[candidate], their_to[close]
-        pair_gap, _ = closest_approach(here[close] - their_from[close], place - to)
-        too_close = (exact_row_sums(row, column[close], np.maximum(allowed - pair_gap, 0.0), width[local], n_rows)
-                     + exact_row_sums(row, column[close], np.maximum(together - length_m(place - to), 0.0),
+        # every scored row of the pair's chooser
+        per_chooser = np.bincount(local, minlength=len(rows))
+        sizes = per_chooser[chooser]
+        pair = np.repeat(np.arange(len(chooser)), sizes)
+        row = spans(np.r_[0, np.cumsum(per_chooser)[:-1]][chooser], sizes)  # (E,) rows of ``scored``
+        here, place = step.start[their_row, agents[chooser]], c.xy_m[scored]  # (P, 2), (R, 2)
+        n_rows = len(scored)
+        # along the step
+        allowed = np.minimum(body_m, length_m(their_from - here) - 1e-6)[pair]
+        index = step.index[their_row]
+        logged = length_m(self.log_xy_m[index, agents[chooser]] - self.log_xy_m[index, other])
+        together = np.minimum(body_m, np.nan_to_num(logged, nan=np.inf))[pair]  # closer now: part as the logs do
+        to = their_to[pair]
+        pair_gap, _ = closest_approach(here[pair] - their_from[pair], place[row] - to)
+        too_close = (exact_row_sums(row, column[pair], np.maximum(allowed - pair_gap, 0.0), width[local], n_rows)
+                     + exact_row_sums(row, column[pair], np.maximum(together - length_m(place[row] - to), 0.0),
                                       width[local], n_rows))
-        # walking on: the rows whose walk comes within reach of where one off its log walks on (those on their logs
-        # keep to them: the hard bounds cover them)
-        walk, candidate = self._within(c, pending[chooser], walks[chooser, other], future_box, PAIR_REACH_M,
-                                       c.block_later_box_m, c.later_box_m)
-        row = row_of[candidate]
-        gap = length_m(c.later_m[candidate] - future[walk])  # (Q, H)
-        cols = np.arange(ANTICIPATION_STEPS) * walk_width[chooser[walk]][:, None] + walk_column[walk][:, None]
-        pair_risk = exact_row_sums(np.repeat(row, ANTICIPATION_STEPS), cols.ravel(),
+        # walking on, against those off their logs (those on their logs keep to them: the hard bounds cover them)
+        walk = np.flatnonzero(walks[chooser, other][pair])
+        gap = length_m(c.later_m[scored[row[walk]], :ANTICIPATION_STEPS] - future[pair[walk]])  # (Q, H)
+        cols = np.arange(ANTICIPATION_STEPS) * walk_width[chooser[pair[walk]]][:, None] + walk_column[pair[walk]][:, None]
+        pair_risk = exact_row_sums(np.repeat(row[walk], ANTICIPATION_STEPS), cols.ravel(),
                                    (np.maximum(PAIR_REACH_M - gap, 0.0) ** 2).ravel(),
                                    ANTICIPATION_STEPS * walk_width[local], n_rows)
         return too_close, pair_risk
 
-    @staticmethod
-    def _within(c: Candidates, chooser: np.ndarray, counted: np.ndarray, box_m: np.ndarray, reach_m: float,
-                block_box_m: np.ndarray, row_box_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(pair (E,), candidate (E,)): the candidate rows of each pair's chooser (``chooser`` (P,), of all
-        choosers) whose box (``row_box_m`` (M, 4), in blocks ``block_box_m`` (B, 4)) comes within ``reach_m`` of the
-        pair's ``box_m`` (P, 4), for the pairs ``counted`` (P,) bool."""
-        pairs = np.flatnonzero(counted)
-        blocks = c.block_first[chooser[pairs] + 1] - c.block_first[chooser[pairs]]
-        pair = np.repeat(pairs, blocks)
-        block = spans(c.block_first[chooser[pairs]], blocks)
-        kept = within(block_box_m[block], box_m[pair], reach_m)
-        block, pair = block[kept], pair[kept]
-        sizes = c.block_row_first[block + 1] - c.block_row_first[block]
-        pair = np.repeat(pair, sizes)
-        candidate = c.block_rows[spans(c.block_row_first[block], sizes)]
-        kept = within(row_box_m[candidate], box_m[pair], reach_m)
-        return pair[kept], candidate[kept]
-
     def _candidates(self, step: Step, rows: np.ndarray, agents: np.ndarray, tau: np.ndarray,
                     offset: np.ndarray) -> Candidates:
         """Every place the choosers ``rows``, ``agents`` (J,), now at route points ``tau`` and sides ``offset`` (J,),
-        may choose, with all their bounds and costs but the terms between pedestrians, in one pass."""
+        may choose, with the bounds and costs that do not need its depth, its risk or the others, in one pass."""
         index, run_frame = step.index[rows], tau.astype(int)
         here = step.start[rows, agents]  # (J, 2)
         first, last = self.run_first[run_frame, agents], self.run_last[run_frame, agents]
@@ -743,8 +759,6 @@ class Routes:
         a, rf, start = agents[owner], run_frame[owner], here[owner]
         places = self.place(a, c_tau, c_off, rf)  # (M, 2)
         too_fast = np.maximum(length_m(places - start) - reach_m[owner], 0.0)
-        path = start[:, None] + np.array(PATH_SAMPLES)[:, None] * (places - start)[:, None]  # along the way
-        too_deep = self.too_deep_m(a[:, None], tau[owner][:, None], path, rf[:, None]).max(axis=1)
         robot, heading = step.robot, step.robot.heading_rad[rows][owner]
         reacts = step.weight[rows, agents] > 0
         robot_to = np.where(reacts[:, None], robot.to_m[rows], robot.from_m[rows])[owner]  # noticed, or its body
@@ -755,7 +769,6 @@ class Routes:
         staying = (gain < HEADWAY_M) & (away > recent - HEADWAY_M)  # stuck: try another way
         delay = np.minimum(index[owner] - c_tau, (away - np.abs(c_off)) / (STEP_S * LAG_PACE_MPS))  # [frame]
         fixed_cost = LAG_COST * delay + OFFSET_COST * np.abs(c_off) + SWAY_COST * np.abs(c_off - offset[owner])
-        risk, later = self._robot_risk(step, rows[owner], a, c_tau, c_off, rf, heading)
         stuck_cost = STUCK_COST * step.stuck[rows, agents][owner] * staying
         firsts = np.r_[0, np.cumsum(grid.sum(axis=(1, 2)))]
         way_cost = np.zeros(len(owner))
@@ -765,46 +778,41 @@ class Routes:
                                     [places[firsts[j]:firsts[j + 1]] for j in detour])
             for j, way_m in zip(detour, way, strict=True):
                 way_cost[firsts[j]:firsts[j + 1]] = DETOUR_COST * way_m
-        step_box = np.c_[np.minimum(places, start), np.maximum(places, start)]  # (M, 4)
-        later_box = np.c_[later.min(axis=1), later.max(axis=1)]
-        blocks, block_of = np.unique(owner * sides.shape[1] + o_col, return_inverse=True)  # (chooser, side)
-        block_rows = np.argsort(block_of, kind="stable")
-        block_row_first = np.r_[0, np.cumsum(np.bincount(block_of))]
-        block_step_box, block_later_box = (np.c_[np.minimum.reduceat(rows_box[block_rows, :2], block_row_first[:-1]),
-                                                 np.maximum.reduceat(rows_box[block_rows, 2:], block_row_first[:-1])]
-                                           for rows_box in (step_box, later_box))
-        block_first = np.r_[0, np.cumsum(np.bincount(blocks // sides.shape[1], minlength=len(agents)))]
-        box = np.c_[np.minimum.reduceat(np.minimum(step_box[:, :2], later_box[:, :2]), firsts[:-1]),
-                    np.maximum.reduceat(np.maximum(step_box[:, 2:], later_box[:, 2:]), firsts[:-1])]
-        return Candidates(owner, firsts, c_tau, c_off, places, too_fast, too_deep, into_robot, fixed_cost, risk,
-                          stuck_cost, way_cost, later, box, step_box, later_box, block_step_box, block_later_box,
-                          block_first, block_rows, block_row_first)
+        horizon = max(self.reaction.anticipation_steps, ANTICIPATION_STEPS)
+        later = self.place(a[:, None], c_tau[:, None] + np.arange(1, horizon + 1), c_off[:, None],
+                           rf[:, None])  # (M, H, 2) walking on along its route at its log's pace
+        low = np.minimum(np.minimum(places, start), np.minimum.reduce([later[:, k] for k in range(later.shape[1])]))
+        high = np.maximum(np.maximum(places, start), np.maximum.reduce([later[:, k] for k in range(later.shape[1])]))
+        box = np.c_[np.minimum.reduceat(low, firsts[:-1]), np.maximum.reduceat(high, firsts[:-1])]
+        least_cost = fixed_cost + stuck_cost + way_cost  # the cost with no risk: no more than any cost
+        hopeful = ~(too_fast + ROBOT_WEIGHT * into_robot > 0)  # no more than any violation
+        order = np.lexsort((np.where(hopeful, least_cost, 0.0), ~hopeful, owner))
+        return Candidates(owner, firsts, tau, c_tau, c_off, places, too_fast, into_robot, np.full(len(owner), np.nan),
+                          fixed_cost, stuck_cost, way_cost, np.full(len(owner), np.nan), later, box, least_cost,
+                          order, np.bincount(owner, hopeful, minlength=len(agents)).astype(int))
 
-    def _robot_risk(self, step: Step, rows: np.ndarray, agents: np.ndarray, tau: np.ndarray, offset: np.ndarray,
-                    run_frame: np.ndarray, heading: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(risk (M,) [m^2], later (M, ANTICIPATION_STEPS, 2) [m]) of candidates at route points ``tau``, sides
-        ``offset`` of ``agents`` in crowds ``rows`` (M,) each: the squared intrusions, if the agent walks on along its
-        route at its log's pace, into its room round the robot going on at its velocity over ``anticipation_s`` (as
-        far as it reacts), or into ``COMFORT_M`` round the robot's body standing where it is over
-        ``ANTICIPATION_STEPS`` (as far as it does not: a body in the way); and where it walks on to."""
-        weight, robot = step.weight[rows, agents], step.robot
+    def _robot_risk(self, step: Step, rows: np.ndarray, agents: np.ndarray, walk: np.ndarray) -> np.ndarray:
+        """(K,) squared intrusions [m^2], if ``agents`` in crowds ``rows`` (K,) walk on along their routes at their
+        logs' pace through ``walk`` (K, H + 1, 2) [m] (from the candidate on, ``Candidates.later_m``): into their room round the robot going
+        on at its velocity over ``anticipation_s`` (as far as they react), or into ``COMFORT_M`` round the robot's
+        body standing where it is over ``ANTICIPATION_STEPS`` (as far as they do not: a body in the way)."""
+        weight, robot, heading = step.weight[rows, agents], step.robot, step.robot.heading_rad[rows]
         robot_steps = self.reaction.anticipation_steps
-        ahead = np.arange(max(robot_steps, ANTICIPATION_STEPS) + 1, dtype=np.float64)  # (H + 1,) from now on
-        later = self.place(agents[:, None], tau[:, None] + ahead, offset[:, None], run_frame[:, None])  # (M, H + 1, 2)
-        risk = np.zeros(len(tau))  # as far as it does not react (0 for those that react fully: 0 times a finite sum)
+        risk = np.zeros(len(rows))  # as far as it does not react (0 for those that react fully: 0 times a finite sum)
         body = np.flatnonzero(weight < 1.0)
-        standing = later[body, :ANTICIPATION_STEPS + 1] - robot.from_m[rows[body]][:, None]  # from the body standing
+        standing = walk[body, :ANTICIPATION_STEPS + 1] - robot.from_m[rows[body]][:, None]  # from the body standing
         gap = self.body.swept_gap_m(standing[:, :-1], standing[:, 1:], heading[body][:, None])  # (B, H_s)
         risk[body] = (1.0 - weight[body]) * (np.maximum(self.robot_reach_m + COMFORT_M - gap, 0.0) ** 2).sum(axis=1)
         react = np.flatnonzero(weight > 0)
         if react.size:
-            course = robot.to_m[rows[react]][:, None] + (ahead[:robot_steps + 1, None] * STEP_S)[None] \
+            ahead = np.arange(robot_steps + 1, dtype=np.float64)
+            course = robot.to_m[rows[react]][:, None] + (ahead[:, None] * STEP_S)[None] \
                 * robot.velocity_mps[rows[react]][:, None]  # (R, H_r + 1, 2)
-            moving = later[react, :robot_steps + 1] - course  # from the body on its course
+            moving = walk[react, :robot_steps + 1] - course  # from the body on its course
             gap = self.body.swept_gap_m(moving[:, :-1], moving[:, 1:], heading[react][:, None])  # (R, H_r)
             room = self.robot_reach_m + step.room_m[rows[react], agents[react]]
             risk[react] = risk[react] + weight[react] * (np.maximum(room[:, None] - gap, 0.0) ** 2).sum(axis=1)
-        return risk, later[:, 1:ANTICIPATION_STEPS + 1]
+        return risk
 
     def _way_round_m(self, step: Step, rows: np.ndarray, agents: np.ndarray, tau: np.ndarray, run_frame: np.ndarray,
                      places: list[np.ndarray]) -> list[np.ndarray]:
@@ -827,14 +835,15 @@ class Routes:
         way = [np.zeros(len(p)) for p in places]
         if not planned.size:
             return way
-        grids = []
+        grids, clear_cells = [], []
         for j in planned:
             route = self.log_xy_m[int(back[j]):int(np.ceil(goal_tau[j])) + 1, agents[j]]
             around = np.vstack([places[j], route, goal[j][None], step.start[rows[j], agents[j]][None]])
             grids.append(grid_cells(around.min(axis=0) - DETOUR_MARGIN_M, around.max(axis=0) + DETOUR_MARGIN_M))
+            clear_cells.append(self.clear_of_robot(grids[-1].reshape(-1, 2), *(end[j] for end in ends)))
         cells = np.concatenate([grid.reshape(-1, 2) for grid in grids])
         whose = planned[np.repeat(np.arange(len(grids)), [grid.shape[0] * grid.shape[1] for grid in grids])]
-        free = self.clear_of_robot(cells, *(end[whose] for end in ends))
+        free = np.concatenate(clear_cells)
         free[free] = self.too_deep_m(agents[whose][free], back[whose][free], cells[free], run_frame[whose][free],
                                      through=goal_tau[whose][free]) == 0
         cuts = np.cumsum([grid.shape[0] * grid.shape[1] for grid in grids])[:-1]
