@@ -14,12 +14,22 @@ the ratios of each round and their median:
 - vector env against one env: ``vector-steps`` steps of ``gym.make_vec(env, num_envs=N, pedestrians="reactive")``
   (its crowds stepped in one batched call per step, sub-env i reset with seed + i), then as many env steps of one
   reactive env (episodes from the same seeds); env steps per second, a vector step counting N.
+
+``--digest FILE`` times nothing: it writes, for the same episodes of UNIV and ZARA1 with reactive pedestrians, one
+SHA-256 line per episode over the reactive crowd's whole state after every step (positions, route points, offsets,
+who is off its log, stuck, detouring ...) and the rewards, to compare two commits bit for bit (``diff``):
+
+    (cd ../base && PYTHONPATH=. python "$OLDPWD/benchmarks/bench_reactive.py" --episodes 60 --digest /tmp/base.txt)
+    python benchmarks/bench_reactive.py --episodes 60 --digest /tmp/head.txt && diff /tmp/base.txt /tmp/head.txt
 """
 
 from __future__ import annotations
 
 import argparse
+import hashlib
 import time
+from dataclasses import fields
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
@@ -65,6 +75,27 @@ def vector_rate(env_id: str, num_envs: int, seed: int, vector_steps: int) -> flo
     return num_envs * vector_steps / elapsed_s
 
 
+def digest_lines(env_id: str, seeds: list[int]) -> list[str]:
+    """One line per episode of ``env_id`` with reactive pedestrians and the straight planner: the seed, the steps and
+    a SHA-256 over the crowd's state after every step and every reward."""
+    env = gym.make(env_id, predictor=StaticPredictor(), pedestrians="reactive")
+    planner = StraightPlanner(world_of(env))
+    lines = []
+    for seed in seeds:
+        obs, _ = env.reset(seed=seed)
+        digest, steps, done = hashlib.sha256(), 0, False
+        while not done:
+            obs, reward, terminated, truncated, _ = env.step(planner.act(obs))
+            state = env.unwrapped.reactive.state
+            for field in fields(state):
+                digest.update(np.ascontiguousarray(getattr(state, field.name)).tobytes())
+            digest.update(np.float64(reward).tobytes())
+            done, steps = terminated or truncated, steps + 1
+        lines.append(f"{env_id} seed {seed} steps {steps} {digest.hexdigest()}")
+    env.close()
+    return lines
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--env", default="STCrowd-Univ-v0", help="replay id (default: STCrowd-Univ-v0)")
@@ -73,8 +104,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--rounds", type=int, default=2, help="rounds of each comparison (default: 2)")
     parser.add_argument("--num-envs", type=int, default=16, help="sub-envs of the vector env (default: 16)")
     parser.add_argument("--vector-steps", type=int, default=40, help="vector env steps per round (default: 40)")
+    parser.add_argument("--digest", type=Path, help="write the episodes' digests of UNIV and ZARA1 here, time nothing")
     args = parser.parse_args(argv)
     seeds = list(range(args.seed, args.seed + args.episodes))
+    if args.digest is not None:
+        lines = digest_lines("STCrowd-Univ-v0", seeds) + digest_lines("STCrowd-Zara1-v0", seeds)
+        args.digest.write_text("\n".join(lines) + "\n")
+        print(f"wrote {len(lines)} episode digests to {args.digest}")
+        return 0
     gym.make(args.env, predictor=StaticPredictor(), pedestrians="reactive").close()  # load the data once, untimed
 
     print(f"{args.env}, straight planner, no predictor; env steps per second")
