@@ -79,7 +79,8 @@ def segment_box_distance(a: np.ndarray, b: np.ndarray, half: np.ndarray) -> np.n
 def corners(half: np.ndarray) -> list[tuple[float, float]]:
     """The distinct corners (x, y) [m] of the rectangle [-half, half] (2,): four, two for a segment, one for a
     point."""
-    return [(x, y) for x in sorted({float(half[0]), -float(half[0])}) for y in sorted({float(half[1]), -float(half[1])})]
+    xs, ys = sorted({float(half[0]), -float(half[0])}), sorted({float(half[1]), -float(half[1])})
+    return [(x, y) for x in xs for y in ys]
 
 
 def _meets(a: np.ndarray, d: np.ndarray, half: np.ndarray) -> np.ndarray:

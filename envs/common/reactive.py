@@ -43,15 +43,23 @@ When no place keeps every bound, it takes the one that breaks them least, a metr
 beyond its pace 1.
 
 The pedestrians off their log choose one after another, the one nearest the robot first, each seeing the choices
-already made. **Batched**: every candidate of every pedestrian off its log (of every crowd stepped together,
-``ReactiveCrowd.step_all``: the sub-envs of a vector env) is scored in one array pass; only the terms between
-pedestrians are scored in turn, in rounds of those whose choices cannot touch one another (their places lie farther
-apart than any such term reaches), so that every choice is the one it would be, one after another.
-
-Once a pedestrian is within ``REJOIN_M`` of where its log is now and nothing is in its way, it is on its log again. A pedestrian whose log ends while it is behind walks on to where its log ends and leaves there (at most
+already made. Once a pedestrian is within ``REJOIN_M`` of where its log is now and nothing is in its way, it is on
+its log again. A pedestrian whose log ends while it is behind walks on to where its log ends and leaves there (at most
 ``MAX_LINGER_STEPS`` later; within ``LEAVE_BLOCKED_M`` of it where the robot or others keep it away); one who
 appears where the robot (or a pedestrian off its log) stands starts beside its log, just clear of them. With the robot
 out of everyone's way, the replay is the recording exactly.
+
+**Batched, with the same walks.** One step of N crowds of a replay (``ReactiveCrowd.step_all``: the sub-envs of a
+vector env; ``Routes`` holds the replay's tables, shared) is one pass over arrays (N, A): who notices the robot, who
+leaves or rejoins its log. Every candidate of every pedestrian off its log, in every crowd, is placed and checked for
+its pace and the robot's margin in one pass (``Routes._candidates``); its depth, its risk and the terms between
+pedestrians are scored only for the candidates that could still be chosen (a candidate costs at least its cost with
+no risk: ``Routes._best`` scores them least costly first until the cheapest within every bound is cheaper than every
+one left). The pedestrians of each crowd choose in rounds (``Routes._choose_all``): all at once against the others
+where they stand, then again only those that see, before them in their crowd's order, a pedestrian within reach whose
+choice changed, until none changes; each has then chosen seeing the choices made before it, as one after another.
+Terms are summed over the others as numpy sums them all (``exact_row_sums``): the walks are those of scoring every
+pedestrian alone, to the last bit (``tests/test_reactive_batched.py``; ``benchmarks/bench_reactive.py --digest``).
 """
 
 from __future__ import annotations
@@ -735,7 +743,8 @@ class Routes:
         # walking on, against those off their logs (those on their logs keep to them: the hard bounds cover them)
         walk = np.flatnonzero(walks[chooser, other][pair])
         gap = length_m(c.later_m[scored[row[walk]], :ANTICIPATION_STEPS] - future[pair[walk]])  # (Q, H)
-        cols = np.arange(ANTICIPATION_STEPS) * walk_width[chooser[pair[walk]]][:, None] + walk_column[pair[walk]][:, None]
+        cols = (np.arange(ANTICIPATION_STEPS) * walk_width[chooser[pair[walk]]][:, None]
+                + walk_column[pair[walk]][:, None])
         pair_risk = exact_row_sums(np.repeat(row[walk], ANTICIPATION_STEPS), cols.ravel(),
                                    (np.maximum(PAIR_REACH_M - gap, 0.0) ** 2).ravel(),
                                    ANTICIPATION_STEPS * walk_width[local], n_rows)
@@ -793,9 +802,10 @@ class Routes:
 
     def _robot_risk(self, step: Step, rows: np.ndarray, agents: np.ndarray, walk: np.ndarray) -> np.ndarray:
         """(K,) squared intrusions [m^2], if ``agents`` in crowds ``rows`` (K,) walk on along their routes at their
-        logs' pace through ``walk`` (K, H + 1, 2) [m] (from the candidate on, ``Candidates.later_m``): into their room round the robot going
-        on at its velocity over ``anticipation_s`` (as far as they react), or into ``COMFORT_M`` round the robot's
-        body standing where it is over ``ANTICIPATION_STEPS`` (as far as they do not: a body in the way)."""
+        logs' pace through ``walk`` (K, H + 1, 2) [m] (from the candidate on, ``Candidates.later_m``): into their
+        room round the robot going on at its velocity over ``anticipation_s`` (as far as they react), or into
+        ``COMFORT_M`` round the robot's body standing where it is over ``ANTICIPATION_STEPS`` (as far as they do not:
+        a body in the way)."""
         weight, robot, heading = step.weight[rows, agents], step.robot, step.robot.heading_rad[rows]
         robot_steps = self.reaction.anticipation_steps
         risk = np.zeros(len(rows))  # as far as it does not react (0 for those that react fully: 0 times a finite sum)
