@@ -37,36 +37,37 @@ def walking_distance_m(cells_m: np.ndarray, free: np.ndarray, goal_m: np.ndarray
 def walking_distances_m(cells_m: Sequence[np.ndarray], free: Sequence[np.ndarray], goals_m: np.ndarray,
                         points_m: Sequence[np.ndarray]) -> list[np.ndarray]:
     """``walking_distance_m`` on G grids at once: grid g is ``cells_m[g]`` (H_g, W_g, 2) [m] with ``free[g]``
-    (H_g, W_g) bool, its goal ``goals_m[g]`` (G, 2) [m] and its points ``points_m[g]`` (P_g, 2) [m]. The grids lie
-    side by side on one canvas, a column of blocked cells between them, searched from all their goals in one pass:
-    each cell's walk is to the goal of its own grid, as alone."""
-    height = max(open_.shape[0] for open_ in free)
-    left = np.r_[0, np.cumsum([open_.shape[1] + 1 for open_ in free])]  # each grid's first column on the canvas
-    canvas = np.zeros((height, left[-1]), bool)
+    (H_g, W_g) bool, its goal ``goals_m[g]`` (G, 2) [m] and its points ``points_m[g]`` (P_g, 2) [m]. The grids are
+    parts of one graph that share no edge, searched from all their goals in one pass: each cell's walk is to the goal
+    of its own grid, as alone."""
+    shapes = np.array([open_.shape for open_ in free]).reshape(-1, 2)  # (G, 2) rows, columns
+    base = np.r_[0, np.cumsum(shapes.prod(axis=1))]  # where each grid's cells start, row by row
     sources, where = [], []
-    for cells, open_, goal, points, column in zip(cells_m, free, goals_m, points_m, left[:-1], strict=True):
+    for g, (cells, open_, goal, points) in enumerate(zip(cells_m, free, goals_m, points_m, strict=True)):
         rows, cols = _cell(cells[0, 0], points)
-        inside = (rows >= 0) & (rows < open_.shape[0]) & (cols >= 0) & (cols < open_.shape[1])
+        inside = (rows >= 0) & (rows < shapes[g, 0]) & (cols >= 0) & (cols < shapes[g, 1])
         goal_row, goal_col = _cell(cells[0, 0], goal)
-        reachable = (0 <= goal_row[0] < open_.shape[0] and 0 <= goal_col[0] < open_.shape[1]
+        reachable = (0 <= goal_row[0] < shapes[g, 0] and 0 <= goal_col[0] < shapes[g, 1]
                      and open_[goal_row[0], goal_col[0]])
-        canvas[:open_.shape[0], column:column + open_.shape[1]] = open_
-        where.append(((rows * inside) * left[-1] + column + cols * inside, inside & reachable))
+        where.append((base[g] + (rows * shapes[g, 1] + cols) * inside, inside & reachable))
         if reachable:
-            sources.append(int(goal_row[0] * left[-1] + column + goal_col[0]))
-    distance = np.full(canvas.size, np.inf)
+            sources.append(int(base[g] + goal_row[0] * shapes[g, 1] + goal_col[0]))
+    distance = np.full(base[-1], np.inf)
     if sources:
-        index = np.arange(canvas.size).reshape(canvas.shape)
+        node = np.arange(base[-1])
+        grid = np.repeat(np.arange(len(shapes)), np.diff(base))
+        height, width = shapes[grid, 0], shapes[grid, 1]
+        row, col = divmod(node - base[grid], width)
+        open_all = np.concatenate([open_.ravel() for open_ in free])
         starts, ends, lengths = [], [], []
         for d_row, d_col in NEIGHBOURS:
-            a = index[max(0, -d_row):height - max(0, d_row), max(0, -d_col):left[-1] - max(0, d_col)]
-            b = index[max(0, d_row):height + min(0, d_row), max(0, d_col):left[-1] + min(0, d_col)]
-            both = canvas.ravel()[a] & canvas.ravel()[b]
-            starts.append(a[both])
-            ends.append(b[both])
+            both = open_all & (row + d_row >= 0) & (row + d_row < height) & (col + d_col >= 0) & (col + d_col < width)
+            both[both] = open_all[(node + d_row * width + d_col)[both]]
+            starts.append(node[both])
+            ends.append((node + d_row * width + d_col)[both])
             lengths.append(np.full(int(both.sum()), CELL_M * np.hypot(d_row, d_col)))
         graph = coo_matrix((np.concatenate(lengths), (np.concatenate(starts), np.concatenate(ends))),
-                           shape=(canvas.size, canvas.size)).tocsr()
+                           shape=(base[-1], base[-1])).tocsr()
         distance = dijkstra(graph, directed=False, indices=sources, min_only=True)
     return [np.where(found, distance[nodes], np.inf) for nodes, found in where]
 

@@ -503,50 +503,55 @@ class Routes:
         """(N, A) bool: agents whose log's step into frame ``index`` (N,) would take them within ``robot_reach_m`` of
         their robot's body (where it stands, for those that do not react; on its expected course, for those that
         do), or, for those that react, whose log from frame ``index`` on comes within their room (N, A) [m] of the
-        robot's expected course over ``anticipation_s``."""
+        robot's expected course over ``anticipation_s``. Only agents whose log is present then are looked at."""
         frames = len(self.present)
-        live = (index < frames)[:, None]  # a crowd past its recording's end: nobody
-        heading = robot.heading_rad[:, None]
-        reacting = weight > 0
-        robot_to = np.where(reacting[..., None], robot.to_m[:, None], robot.from_m[:, None])
-        before, now = self.log_xy_m[np.clip(index - 1, 0, frames - 1)], self.log_xy_m[np.minimum(index, frames - 1)]
-        gap = self.body.swept_gap_m(before - robot.from_m[:, None], now - robot_to, heading)
-        hit = (index > 0)[:, None] & (np.nan_to_num(gap, nan=np.inf) < self.robot_reach_m)
         ahead = np.arange(-1, self.reaction.anticipation_steps)  # frames from index on, from where it stands now
         seen = index[:, None] + ahead  # (N, H + 1)
         valid = (seen >= 0) & (seen < frames)
+        clipped = np.clip(seen, 0, frames - 1)
+        cols, real = leading(self.present[clipped].any(axis=1) & (index < frames)[:, None])  # (N, K) logs present
+        rows = np.arange(len(index))[:, None]
+        log = self.log_xy_m[clipped[:, :, None], cols[:, None, :]]  # (N, H + 1, K, 2)
+        heading = robot.heading_rad[:, None]
+        reacting = weight[rows, cols] > 0
+        robot_to = np.where(reacting[..., None], robot.to_m[:, None], robot.from_m[:, None])
+        gap = self.body.swept_gap_m(log[:, 0] - robot.from_m[:, None], log[:, 1] - robot_to, heading)
+        hit = (index > 0)[:, None] & (np.nan_to_num(gap, nan=np.inf) < self.robot_reach_m)
         course = robot.to_m[:, None] + (ahead * STEP_S)[None, :, None] * robot.velocity_mps[:, None]  # (N, H + 1, 2)
-        offset = self.log_xy_m[np.clip(seen, 0, frames - 1)] - course[:, :, None]  # (N, H + 1, A, 2)
-        swept = self.body.swept_gap_m(offset[:, :-1], offset[:, 1:], heading[:, None])  # (N, H, A)
+        offset = log - course[:, :, None]  # (N, H + 1, K, 2)
+        swept = self.body.swept_gap_m(offset[:, :-1], offset[:, 1:], heading[:, None])  # (N, H, K)
         swept = np.where((valid[:, :-1] & valid[:, 1:])[..., None], np.nan_to_num(swept, nan=np.inf), np.inf)
         alone = np.nan_to_num(self.body.gap_m(offset[:, 1], heading), nan=np.inf)  # the one frame of a 1-frame look
         least = np.where((valid.sum(axis=1) > 1)[:, None], swept.min(axis=1), alone)
-        return live & (hit | (reacting & (least < self.robot_reach_m + room_m)))
+        found = np.zeros(weight.shape, bool)
+        found[rows, cols] = real & (hit | (reacting & (least < self.robot_reach_m + room_m[rows, cols])))
+        return found
 
     def _others_in_the_way(self, index: np.ndarray, state: ReactiveState) -> np.ndarray:
         """(N, A) bool: agents whose log from frame ``index`` (N,) on comes within ``PAIR_CLEARANCE_M`` of a
         pedestrian of their crowd off its log (going on at its velocity) within ``PAIR_LOOK_AHEAD_STEPS``, where it
-        comes closer than their own logs would."""
-        others = state.off_log & state.present
-        width = int(others.sum(axis=1).max(initial=0))
+        comes closer than their own logs would. Only agents whose log is present then are looked at."""
         frames = len(self.present)
-        if not width or (index >= frames).all():
-            return np.zeros(others.shape, bool)
-        who = np.argsort(~others, axis=1, kind="stable")[:, :width]  # (N, O) the crowd's others first, ascending
-        real = np.take_along_axis(others, who, axis=1)
+        found = np.zeros(state.present.shape, bool)
+        who, real = leading(state.off_log & state.present)  # (N, O) the crowd's others, ascending
+        if not who.shape[1] or (index >= frames).all():
+            return found
         ahead = np.arange(PAIR_LOOK_AHEAD_STEPS)
         seen = index[:, None] + ahead  # (N, H)
-        log = self.log_xy_m[np.minimum(seen, frames - 1)]  # (N, H, A, 2), NaN where absent
+        clipped = np.minimum(seen, frames - 1)
+        cols, logged = leading(self.present[clipped].any(axis=1))  # (N, K) logs present then
+        log = self.log_xy_m[clipped[:, :, None], cols[:, None, :]]  # (N, H, K, 2), NaN where absent
         rows = np.arange(len(index))[:, None]
         where = (state.xy_m[rows, who][:, None]
                  + (ahead * STEP_S)[None, :, None, None] * state.velocity_mps[rows, who][:, None])  # (N, H, O, 2)
-        gap = length_m(log[:, :, :, None] - where[:, :, None])  # (N, H, A, O)
-        their_log = np.take_along_axis(log, who[:, None, :, None], axis=2)  # (N, H, O, 2)
+        gap = length_m(log[:, :, :, None] - where[:, :, None])  # (N, H, K, O)
+        their_log = self.log_xy_m[clipped[:, :, None], who[:, None, :]]  # (N, H, O, 2)
         logged_gap = length_m(log[:, :, :, None] - their_log[:, :, None])
         bound = np.minimum(2 * BODY_RADIUS_M + PAIR_CLEARANCE_M, np.nan_to_num(logged_gap, nan=np.inf) - PAIR_GIVE_M)
         apart = (real[:, None, None, :] & (seen < frames)[:, :, None, None]
-                 & (who[:, None, None, :] != np.arange(others.shape[1])[None, None, :, None]))  # nobody in own way
-        return (apart & (np.nan_to_num(gap, nan=np.inf) < bound)).any(axis=(1, 3))
+                 & (who[:, None, None, :] != cols[:, None, :, None]))  # nobody is in their own way
+        found[rows, cols] = logged & (apart & (np.nan_to_num(gap, nan=np.inf) < bound)).any(axis=(1, 3))
+        return found
 
     # ------------------------------------------------------------------------------------------------ choosing
     def _place_newcomers(self, step: Step, appearing: np.ndarray, clear: np.ndarray, offset: np.ndarray) -> None:
@@ -723,12 +728,23 @@ class Routes:
         their_to = np.where(earlier[:, None], seen[their_row, other], step.xy[their_row, other])  # (P, 2)
         ahead = np.arange(1, ANTICIPATION_STEPS + 1) * STEP_S
         future = their_to[:, None] + ahead[:, None] * step.velocity_mps[their_row, other][:, None]  # (P, H, 2)
+        # the pairs whose other comes within reach of the box of the chooser's scored rows (steps and walks on)
+        later = c.later_m[scored, :ANTICIPATION_STEPS]  # (R, H, 2)
+        place, starts = c.xy_m[scored], np.r_[0, np.cumsum(np.bincount(local, minlength=len(rows)))[:-1]]
+        low = np.minimum(place, np.minimum.reduce([later[:, k] for k in range(ANTICIPATION_STEPS)]))
+        high = np.maximum(place, np.maximum.reduce([later[:, k] for k in range(ANTICIPATION_STEPS)]))
+        start = step.start[rows, agents]  # (T, 2)
+        box = np.c_[np.minimum(np.minimum.reduceat(low, starts), start), np.maximum(np.maximum.reduceat(high, starts),
+                                                                                    start)]
+        their = np.c_[np.minimum(np.minimum(their_from, their_to), future.min(axis=1)),
+                      np.maximum(np.maximum(their_from, their_to), future.max(axis=1))]  # walking on or not
+        counted = within(box[chooser], their, PAIR_REACH_M)
         # every scored row of the pair's chooser
         per_chooser = np.bincount(local, minlength=len(rows))
-        sizes = per_chooser[chooser]
+        sizes = np.where(counted, per_chooser[chooser], 0)
         pair = np.repeat(np.arange(len(chooser)), sizes)
-        row = spans(np.r_[0, np.cumsum(per_chooser)[:-1]][chooser], sizes)  # (E,) rows of ``scored``
-        here, place = step.start[their_row, agents[chooser]], c.xy_m[scored]  # (P, 2), (R, 2)
+        row = spans(starts[chooser], sizes)  # (E,) rows of ``scored``
+        here = start[chooser]  # (P, 2)
         n_rows = len(scored)
         # along the step
         allowed = np.minimum(body_m, length_m(their_from - here) - 1e-6)[pair]
@@ -742,7 +758,7 @@ class Routes:
                                       width[local], n_rows))
         # walking on, against those off their logs (those on their logs keep to them: the hard bounds cover them)
         walk = np.flatnonzero(walks[chooser, other][pair])
-        gap = length_m(c.later_m[scored[row[walk]], :ANTICIPATION_STEPS] - future[pair[walk]])  # (Q, H)
+        gap = length_m(later[row[walk]] - future[pair[walk]])  # (Q, H)
         cols = (np.arange(ANTICIPATION_STEPS) * walk_width[chooser[pair[walk]]][:, None]
                 + walk_column[pair[walk]][:, None])
         pair_risk = exact_row_sums(np.repeat(row[walk], ANTICIPATION_STEPS), cols.ravel(),
@@ -1002,6 +1018,14 @@ class Routes:
             nearest = np.argmin(distance, axis=-1)
             found[part] = self.trace_depth_m[index].reshape(len(inside), -1)[np.arange(len(inside)), nearest]
         return found
+
+
+def leading(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(columns (N, K), real (N, K) bool): each row's True columns of ``mask`` (N, A) first, ascending, the rows cut
+    to the most True columns of any, K (padded with False columns, ``real`` False)."""
+    width = int(mask.sum(axis=1).max(initial=0))
+    columns = np.argsort(~mask, axis=1, kind="stable")[:, :width]
+    return columns, np.take_along_axis(mask, columns, axis=1)
 
 
 def distinct(values: np.ndarray) -> np.ndarray:
