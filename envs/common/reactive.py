@@ -207,8 +207,9 @@ class Candidates:
         fixed_cost: (M,) delay, offset and sway.  stuck_cost: (M,) no headway again.  way_cost: (M,) the way round
             (0 where none is planned).  risk: (M,) round the robot [m^2], NaN until scored.
         later_m: (M, H, 2) where it would walk on over the longer of ``ANTICIPATION_STEPS`` and the reaction's
-            anticipation [m].
-        box_m: (J, 4) box (x low, y low, x high, y high) [m] holding each chooser's start, candidates and ``later_m``.
+            anticipation [m], NaN until scored.
+        box_m: (J, 4) box (x low, y low, x high, y high) [m] holding each chooser's start, candidates and ``later_m``
+            (its log over those frames, widened by its farthest side offset).
         least_cost: (M,) the least its cost can be (with no risk): the cost of a place that breaks no bound.
         order: (M,) each chooser's rows, those that may break no bound first (``too_fast`` and ``into_robot`` 0) by
             ``least_cost``, then the others.  hopeful: (J,) how many of each chooser's rows may break no bound.
@@ -688,8 +689,8 @@ class Routes:
         return violation, cost
 
     def _settle(self, step: Step, rows: np.ndarray, agents: np.ndarray, c: Candidates, scored: np.ndarray) -> None:
-        """Score ``too_deep`` and ``risk`` (round the robot) of the rows ``scored`` of ``c`` not scored yet, in
-        place."""
+        """Score ``too_deep``, ``later_m`` and ``risk`` (round the robot) of the rows ``scored`` of ``c`` not scored
+        yet, in place."""
         new = scored[np.isnan(c.too_deep[scored])]
         if not new.size:
             return
@@ -699,6 +700,8 @@ class Routes:
         start = step.start[crowd, agent]
         path = start[:, None] + np.array(PATH_SAMPLES)[:, None] * (c.xy_m[new] - start)[:, None]  # along the way
         c.too_deep[new] = self.too_deep_m(agent[:, None], tau[:, None], path, run_frame[:, None]).max(axis=1)
+        c.later_m[new] = self.place(agent[:, None], c.tau[new][:, None] + np.arange(1, c.later_m.shape[1] + 1),
+                                    c.offset_m[new][:, None], run_frame[:, None])  # along its route at its log's pace
         c.risk[new] = self._robot_risk(step, crowd, agent, np.concatenate([c.xy_m[new][:, None], c.later_m[new]],
                                                                           axis=1))
 
@@ -804,16 +807,23 @@ class Routes:
             for j, way_m in zip(detour, way, strict=True):
                 way_cost[firsts[j]:firsts[j + 1]] = DETOUR_COST * way_m
         horizon = max(self.reaction.anticipation_steps, ANTICIPATION_STEPS)
-        later = self.place(a[:, None], c_tau[:, None] + np.arange(1, horizon + 1), c_off[:, None],
-                           rf[:, None])  # (M, H, 2) walking on along its route at its log's pace
-        low = np.minimum(np.minimum(places, start), np.minimum.reduce([later[:, k] for k in range(later.shape[1])]))
-        high = np.maximum(np.maximum(places, start), np.maximum.reduce([later[:, k] for k in range(later.shape[1])]))
-        box = np.c_[np.minimum.reduceat(low, firsts[:-1]), np.maximum.reduceat(high, firsts[:-1])]
+        # where each may walk on to: its route's points over those frames (the log between them), moved aside
+        ahead = np.clip(np.c_[np.minimum.reduceat(c_tau, firsts[:-1]) + 1, np.maximum.reduceat(c_tau, firsts[:-1])
+                              + horizon], first[:, None], last[:, None])
+        window, inside = self._frames_of(agents, np.floor(ahead[:, 0]).astype(int),
+                                         np.minimum(np.floor(ahead[:, 1]).astype(int) + 1, last))
+        route = self.log_xy_m[window]  # (J, W, 2)
+        aside = np.maximum.reduceat(np.abs(c_off), firsts[:-1])[:, None] + NEAR_SLACK_M
+        box = np.c_[np.minimum(np.minimum(np.minimum.reduceat(places, firsts[:-1]), here),
+                               np.where(inside[..., None], route, np.inf).min(axis=1) - aside),
+                    np.maximum(np.maximum(np.maximum.reduceat(places, firsts[:-1]), here),
+                               np.where(inside[..., None], route, -np.inf).max(axis=1) + aside)]
         least_cost = fixed_cost + stuck_cost + way_cost  # the cost with no risk: no more than any cost
         hopeful = ~(too_fast + ROBOT_WEIGHT * into_robot > 0)  # no more than any violation
         order = np.lexsort((np.where(hopeful, least_cost, 0.0), ~hopeful, owner))
         return Candidates(owner, firsts, tau, c_tau, c_off, places, too_fast, into_robot, np.full(len(owner), np.nan),
-                          fixed_cost, stuck_cost, way_cost, np.full(len(owner), np.nan), later, box, least_cost,
+                          fixed_cost, stuck_cost, way_cost, np.full(len(owner), np.nan),
+                          np.full((len(owner), horizon, 2), np.nan), box, least_cost,
                           order, np.bincount(owner, hopeful, minlength=len(agents)).astype(int))
 
     def _robot_risk(self, step: Step, rows: np.ndarray, agents: np.ndarray, walk: np.ndarray) -> np.ndarray:
@@ -987,15 +997,15 @@ class Routes:
         (``trace_depth_m``) between frames ``low`` and ``high`` (P,), found once per distinct window."""
         frames = len(self.present)
         windows, which = np.unique((agents.astype(np.int64) * frames + low) * frames + high, return_inverse=True)
-        index, inside = self._trace_frames(windows // (frames * frames), windows // frames % frames,
+        index, inside = self._frames_of(windows // (frames * frames), windows // frames % frames,
                                            windows % frames)
         depths = self.trace_depth_m[index]  # (U, W, K)
         least = np.where(inside[..., None], depths, np.inf).min(axis=(1, 2))
         most = np.where(inside[..., None], depths, -np.inf).max(axis=(1, 2))
         return least[which], most[which]
 
-    def _trace_frames(self, agents: np.ndarray, low: np.ndarray, high: np.ndarray
-                      ) -> tuple[tuple[np.ndarray, np.ndarray], np.ndarray]:
+    def _frames_of(self, agents: np.ndarray, low: np.ndarray, high: np.ndarray
+                  ) -> tuple[tuple[np.ndarray, np.ndarray], np.ndarray]:
         """The (frame, agent) index (P, W) of frames ``low`` through ``high`` (P,) of each agent's log, padded to the
         longest window W with its last frame, and (P, W) bool, the frame is within the window."""
         span = np.arange(int((high - low).max(initial=0)) + 1)
@@ -1011,7 +1021,7 @@ class Routes:
         size = max(1, CHUNK_VALUES // width)
         for at in range(0, len(places), size):
             part = slice(at, at + size)
-            index, inside = self._trace_frames(agents[part], low[part], high[part])
+            index, inside = self._frames_of(agents[part], low[part], high[part])
             trace = self.trace_m[index].reshape(len(inside), -1, 2)  # (P, W K, 2), frame by frame
             distance = length_m(places[part][:, None, :] - trace)
             distance[~np.repeat(inside, len(TRACE_SHARES), axis=1)] = np.inf
