@@ -19,8 +19,11 @@ the ratios of each round and their median:
 SHA-256 line per episode over the reactive crowd's whole state after every step (positions, route points, offsets,
 who is off its log, stuck, detouring ...) and the rewards, to compare two commits bit for bit (``diff``):
 
-    (cd ../base && PYTHONPATH=. python "$OLDPWD/benchmarks/bench_reactive.py" --episodes 60 --digest /tmp/base.txt)
-    python benchmarks/bench_reactive.py --episodes 60 --digest /tmp/head.txt && diff /tmp/base.txt /tmp/head.txt
+    git worktree add ../base 7af71e1
+    (cd ../base && PYTHONPATH=. python "$OLDPWD/benchmarks/bench_reactive.py" --episodes 60 \
+        --digest "$OLDPWD/runs/digest-base.txt")
+    python benchmarks/bench_reactive.py --episodes 60 --digest runs/digest-head.txt
+    diff runs/digest-base.txt runs/digest-head.txt
 """
 
 from __future__ import annotations
@@ -109,6 +112,7 @@ def main(argv: list[str] | None = None) -> int:
     seeds = list(range(args.seed, args.seed + args.episodes))
     if args.digest is not None:
         lines = digest_lines("STCrowd-Univ-v0", seeds) + digest_lines("STCrowd-Zara1-v0", seeds)
+        args.digest.parent.mkdir(parents=True, exist_ok=True)
         args.digest.write_text("\n".join(lines) + "\n")
         print(f"wrote {len(lines)} episode digests to {args.digest}")
         return 0
