@@ -117,7 +117,7 @@ def test_sparse_row_sums_round_as_numpy_sums_the_dense_rows(seed: int, rows: int
 
 @settings(max_examples=20, deadline=None)
 @given(seed=st.integers(0, 2**31), grids=st.integers(1, 5))
-def test_ways_round_on_one_canvas_equal_each_grid_alone(seed: int, grids: int) -> None:
+def test_ways_round_of_several_grids_in_one_search_equal_each_grid_alone(seed: int, grids: int) -> None:
     rng = np.random.default_rng(seed)
     cells, free, goals, points = [], [], [], []
     for _ in range(grids):
