@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
@@ -16,7 +17,7 @@ from envs.common.ego import move_within, spawn_start_goal, walkable_points
 from envs.common.errors import EnvInputError, ResetOptionsError
 from envs.common.footprint import Body
 from envs.common.predictors import shipped_checkpoint
-from envs.common.reactive import ReactiveCrowd
+from envs.common.reactive import ReactiveCrowd, Routes
 from envs.common.tracks import Frame
 from replays.constants import COORD_DECIMALS, MIN_AGENTS_PER_WINDOW, STEP_S, T_PRED
 from replays.data_root import data_root
@@ -77,6 +78,13 @@ def _load_replay(path: Path, version: tuple[int, int, int]) -> Replay:
 def scene_depth(scene: str, root: Path) -> MapDepth:
     """How deep points lie in a scene's non-walkable area, as reactive pedestrians check it (built once)."""
     return MapDepth(load_scene(scene, root))
+
+
+@cache
+def reactive_routes(replay: Replay, scene: str, root: Path, body: Body, touch_m: float) -> Routes:
+    """The reactive pedestrians' tables of a replay (built once, shared by every env replaying it, so that a vector
+    env steps their crowds together)."""
+    return Routes(replay.xy_m, replay.present, scene_depth(scene, root), body, touch_m)
 
 
 class ReplayCrowdEnv(CrowdEnv):
@@ -207,8 +215,9 @@ class ReplayCrowdEnv(CrowdEnv):
         self.index = 0
         self.reactive: ReactiveCrowd | None = None
         if pedestrians == "reactive":
-            self.reactive = ReactiveCrowd(self.replay.xy_m, self.replay.present, scene_depth(info.name, root),
-                                          Body(radius_m=self.cfg.ego_radius_m), self.cfg.pedestrian_radius_m)
+            self.reactive = ReactiveCrowd.on(reactive_routes(self.replay, info.name, root,
+                                                             Body(radius_m=self.cfg.ego_radius_m),
+                                                             self.cfg.pedestrian_radius_m))
 
     def _check_options(self, options: dict[str, Any]) -> None:
         if "start_index" not in options:
@@ -237,7 +246,33 @@ class ReplayCrowdEnv(CrowdEnv):
         first = max(0, self.index - self.t_obs + 1)
         return [self.replay.frame(i) for i in range(first, self.index + 1)]
 
+    @classmethod
+    def advance_all(cls, envs: Sequence[ReplayCrowdEnv], velocities_mps: Sequence[np.ndarray | None]) -> None:
+        """``advance`` of several replays, their reactive crowds stepped in one batched call
+        (``ReactiveCrowd.step_all``)."""
+        if all(env.reactive is None for env in envs):
+            super().advance_all(envs, velocities_mps)
+            return
+        moves = []
+        for env, velocity_mps in zip(envs, velocities_mps, strict=True):
+            env._previous_xy_m = env.ego_xy_m.copy()
+            moves.append(env._move_ego(velocity_mps))
+        reactive = [(env, move) for env, move in zip(envs, moves, strict=True) if env.reactive is not None]
+        ReactiveCrowd.step_all([env.reactive for env, _ in reactive], [env.index for env, _ in reactive],
+                               [start for _, (start, _) in reactive], [end for _, (_, end) in reactive],
+                               [None] * len(reactive))
+        for env in envs:
+            env._advanced(env._frame_now())
+
     def _step_world(self, ego_velocity_mps: np.ndarray | None) -> Frame:
+        robot = self._move_ego(ego_velocity_mps)
+        if self.reactive is not None:
+            self.reactive.step(self.index, *robot)
+        return self._frame_now()
+
+    def _move_ego(self, ego_velocity_mps: np.ndarray | None) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """Step to the next frame and move the ego; returns the robot's move over the step as the pedestrians expect
+        it, (from, to) (2,) [m] each (None, None without an ego)."""
         self.index += 1  # the base class refuses a step once the recording has ended
         start_m, seen_mps = self.ego_xy_m.copy(), self.ego_velocity_mps.copy()
         if ego_velocity_mps is not None:
@@ -245,14 +280,16 @@ class ReplayCrowdEnv(CrowdEnv):
                                 self.arena_high_m)
             self.ego_velocity_mps = (moved - self.ego_xy_m) / STEP_S
             self.ego_xy_m = moved
-        if self.reactive is None:
-            return self.replay.frame(self.index)
         # Pedestrians see where the robot is and how it moved in the last step, not its command for this one: they
         # expect it to keep that velocity over the step (a robot that turns into them can still hit them).
-        robot = (start_m, start_m + seen_mps * STEP_S) if self.ego else (None, None)
-        xy = self.reactive.step(self.index, *robot)
+        return (start_m, start_m + seen_mps * STEP_S) if self.ego else (None, None)
+
+    def _frame_now(self) -> Frame:
+        """The pedestrians of the current frame: the recording's, or the reactive crowd's."""
+        if self.reactive is None:
+            return self.replay.frame(self.index)
         cols = np.flatnonzero(self.reactive.state.present)
-        return Frame(int(self.replay.frames[self.index]), self.replay.agents[cols], xy[cols])
+        return Frame(int(self.replay.frames[self.index]), self.replay.agents[cols], self.reactive.state.xy_m[cols])
 
     def _info(self, reward_parts: dict[str, float], termination: str | None) -> dict[str, Any]:
         info = {**super()._info(reward_parts, termination), "pedestrians": self.pedestrians}

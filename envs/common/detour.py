@@ -8,6 +8,7 @@ rather than as the crow flies.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Final
 
 import numpy as np
@@ -30,30 +31,49 @@ def walking_distance_m(cells_m: np.ndarray, free: np.ndarray, goal_m: np.ndarray
     (eight neighbours) from each of ``points_m`` (P, 2) [m] to ``goal_m`` (2,) [m], counted from the cells holding
     them; inf for points off the grid, in a cell that is not free or cut off from the goal (all inf when the goal's
     cell is not free)."""
-    height, width = free.shape
-    origin = cells_m[0, 0]
+    return walking_distances_m([cells_m], [free], np.asarray(goal_m, np.float64)[None], [points_m])[0]
 
-    def cell(xy_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        col, row = np.rint((np.asarray(xy_m, np.float64) - origin) / CELL_M).astype(np.intp).T
-        return row, col
 
-    rows, cols = cell(np.atleast_2d(points_m))
-    inside = (rows >= 0) & (rows < height) & (cols >= 0) & (cols < width)
-    goal_row, goal_col = cell(np.atleast_2d(goal_m))
-    if not (0 <= goal_row[0] < height and 0 <= goal_col[0] < width) or not free[goal_row[0], goal_col[0]]:
-        return np.full(len(rows), np.inf)
-    index = np.arange(height * width).reshape(height, width)
-    starts, ends, lengths = [], [], []
-    for d_row, d_col in NEIGHBOURS:
-        a = index[max(0, -d_row):height - max(0, d_row), max(0, -d_col):width - max(0, d_col)]
-        b = index[max(0, d_row):height + min(0, d_row), max(0, d_col):width + min(0, d_col)]
-        both = free.ravel()[a] & free.ravel()[b]
-        starts.append(a[both])
-        ends.append(b[both])
-        lengths.append(np.full(int(both.sum()), CELL_M * np.hypot(d_row, d_col)))
-    graph = coo_matrix((np.concatenate(lengths), (np.concatenate(starts), np.concatenate(ends))),
-                       shape=(height * width, height * width)).tocsr()
-    distance = dijkstra(graph, directed=False, indices=int(index[goal_row[0], goal_col[0]]))
-    found = np.full(len(rows), np.inf)
-    found[inside] = distance[index[rows[inside], cols[inside]]]
-    return found
+def walking_distances_m(cells_m: Sequence[np.ndarray], free: Sequence[np.ndarray], goals_m: np.ndarray,
+                        points_m: Sequence[np.ndarray]) -> list[np.ndarray]:
+    """``walking_distance_m`` on G grids at once: grid g is ``cells_m[g]`` (H_g, W_g, 2) [m] with ``free[g]``
+    (H_g, W_g) bool, its goal ``goals_m[g]`` (G, 2) [m] and its points ``points_m[g]`` (P_g, 2) [m]. The grids are
+    parts of one graph that share no edge, searched from all their goals in one pass: each cell's walk is to the goal
+    of its own grid, as alone."""
+    shapes = np.array([open_.shape for open_ in free]).reshape(-1, 2)  # (G, 2) rows, columns
+    base = np.r_[0, np.cumsum(shapes.prod(axis=1))]  # where each grid's cells start, row by row
+    sources, where = [], []
+    for g, (cells, open_, goal, points) in enumerate(zip(cells_m, free, goals_m, points_m, strict=True)):
+        rows, cols = _cell(cells[0, 0], points)
+        inside = (rows >= 0) & (rows < shapes[g, 0]) & (cols >= 0) & (cols < shapes[g, 1])
+        goal_row, goal_col = _cell(cells[0, 0], goal)
+        reachable = (0 <= goal_row[0] < shapes[g, 0] and 0 <= goal_col[0] < shapes[g, 1]
+                     and open_[goal_row[0], goal_col[0]])
+        where.append((base[g] + (rows * shapes[g, 1] + cols) * inside, inside & reachable))
+        if reachable:
+            sources.append(int(base[g] + goal_row[0] * shapes[g, 1] + goal_col[0]))
+    distance = np.full(base[-1], np.inf)
+    if sources:
+        node = np.arange(base[-1])
+        grid = np.repeat(np.arange(len(shapes)), np.diff(base))
+        height, width = shapes[grid, 0], shapes[grid, 1]
+        row, col = divmod(node - base[grid], width)
+        open_all = np.concatenate([open_.ravel() for open_ in free])
+        starts, ends, lengths = [], [], []
+        for d_row, d_col in NEIGHBOURS:
+            both = open_all & (row + d_row >= 0) & (row + d_row < height) & (col + d_col >= 0) & (col + d_col < width)
+            both[both] = open_all[(node + d_row * width + d_col)[both]]
+            starts.append(node[both])
+            ends.append((node + d_row * width + d_col)[both])
+            lengths.append(np.full(int(both.sum()), CELL_M * np.hypot(d_row, d_col)))
+        graph = coo_matrix((np.concatenate(lengths), (np.concatenate(starts), np.concatenate(ends))),
+                           shape=(base[-1], base[-1])).tocsr()
+        distance = dijkstra(graph, directed=False, indices=sources, min_only=True)
+    return [np.where(found, distance[nodes], np.inf) for nodes, found in where]
+
+
+def _cell(origin_m: np.ndarray, xy_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(row, column) (P,) each of the cells holding points ``xy_m`` (P, 2) or (2,) [m] of a grid whose first cell's
+    centre is ``origin_m`` (2,) [m]."""
+    col, row = np.rint((np.atleast_2d(np.asarray(xy_m, np.float64)) - origin_m) / CELL_M).astype(np.intp).T
+    return row, col

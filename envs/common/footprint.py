@@ -57,21 +57,30 @@ class Body:
 def box_distance(p: np.ndarray, half: np.ndarray) -> np.ndarray:
     """(...) distance [m] of points ``p`` (..., 2) from the rectangle [-half, half] (2,); 0 inside."""
     outside = np.maximum(np.abs(p) - half, 0.0)
-    return np.sqrt((outside ** 2).sum(-1))
+    return np.sqrt(outside[..., 0] * outside[..., 0] + outside[..., 1] * outside[..., 1])
 
 
 def segment_box_distance(a: np.ndarray, b: np.ndarray, half: np.ndarray) -> np.ndarray:
     """(...) least distance [m] between the segments ``a`` -> ``b`` (..., 2) and the rectangle [-half, half] (2,)."""
     a, b = np.broadcast_arrays(a, b)
     ends = np.minimum(box_distance(a, half), box_distance(b, half))
-    corners = np.array([[1, 1], [1, -1], [-1, 1], [-1, -1]]) * half  # (4, 2)
     d = b - a
-    length2 = (d ** 2).sum(-1)[..., None]  # (..., 1)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        t = np.where(length2 > 0, ((corners - a[..., None, :]) * d[..., None, :]).sum(-1) / length2, 0.0)
-    nearest = a[..., None, :] + np.clip(t, 0.0, 1.0)[..., None] * d[..., None, :]  # (..., 4, 2)
-    to_corner = np.sqrt(((nearest - corners) ** 2).sum(-1)).min(-1)
+    length2 = d[..., 0] * d[..., 0] + d[..., 1] * d[..., 1]
+    to_corner = np.full(length2.shape, np.inf)
+    for x, y in corners(half):  # one for a disc
+        with np.errstate(invalid="ignore", divide="ignore"):
+            t = np.clip(np.where(length2 > 0, ((x - a[..., 0]) * d[..., 0] + (y - a[..., 1]) * d[..., 1]) / length2,
+                                 0.0), 0.0, 1.0)
+        off_x, off_y = a[..., 0] + t * d[..., 0] - x, a[..., 1] + t * d[..., 1] - y
+        to_corner = np.minimum(to_corner, np.sqrt(off_x * off_x + off_y * off_y))
     return np.where(_meets(a, d, half), 0.0, np.minimum(ends, to_corner))
+
+
+def corners(half: np.ndarray) -> list[tuple[float, float]]:
+    """The distinct corners (x, y) [m] of the rectangle [-half, half] (2,): four, two for a segment, one for a
+    point."""
+    xs, ys = sorted({float(half[0]), -float(half[0])}), sorted({float(half[1]), -float(half[1])})
+    return [(x, y) for x in xs for y in ys]
 
 
 def _meets(a: np.ndarray, d: np.ndarray, half: np.ndarray) -> np.ndarray:

@@ -48,16 +48,29 @@ its log again. A pedestrian whose log ends while it is behind walks on to where 
 ``MAX_LINGER_STEPS`` later; within ``LEAVE_BLOCKED_M`` of it where the robot or others keep it away); one who
 appears where the robot (or a pedestrian off its log) stands starts beside its log, just clear of them. With the robot
 out of everyone's way, the replay is the recording exactly.
+
+**Batched, with the same walks.** One step of N crowds of a replay (``ReactiveCrowd.step_all``: the sub-envs of a
+vector env; ``Routes`` holds the replay's tables, shared) is one pass over arrays (N, A): who notices the robot, who
+leaves or rejoins its log. Every candidate of every pedestrian off its log, in every crowd, is placed and checked for
+its pace and the robot's margin in one pass (``Routes._candidates``); its depth, its risk and the terms between
+pedestrians are scored only for the candidates that could still be chosen (a candidate costs at least its cost with
+no risk: ``Routes._best`` scores them least costly first until the cheapest within every bound is cheaper than every
+one left). The pedestrians of each crowd choose in rounds (``Routes._choose_all``): all at once against the others
+where they stand, then again only those that see, before them in their crowd's order, a pedestrian within reach whose
+choice changed, until none changes; each has then chosen seeing the choices made before it, as one after another.
+Terms are summed over the others as numpy sums them all (``exact_row_sums``): the walks are those of scoring every
+pedestrian alone, to the last bit (``tests/test_reactive_batched.py``; ``benchmarks/bench_reactive.py --digest``).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Sequence
+from dataclasses import dataclass, fields
 from typing import Final, Protocol
 
 import numpy as np
 
-from envs.common.detour import grid_cells, walking_distance_m
+from envs.common.detour import grid_cells, walking_distances_m
 from envs.common.footprint import Body
 from envs.common.reaction import MOVING_MPS, Reaction, attend, fitted_reaction, notices
 from replays.constants import STEP_S
@@ -105,6 +118,10 @@ DETOUR_AHEAD_M: Final[tuple[float, ...]] = (3.0, 3.5, 4.0, 4.5, 5.0)  # ... to t
 DETOUR_MARGIN_M: Final[float] = 1.5  # ... on a grid reaching this far round it, the goal and its candidates [m]
 DETOUR_BACK_FRAMES: Final[int] = 16  # ... and round its route from this many frames behind its route point [-]
 DETOUR_COST: Final[float] = 10.0  # ... and pays this per metre it would then have to walk to that point [1/m]
+PAIR_REACH_M: Final[float] = 2 * BODY_RADIUS_M + COMFORT_M / 2  # the farthest two pedestrians' terms reach [m]
+NEAR_SLACK_M: Final[float] = 1e-6  # a pair is left out of a step's terms only beyond PAIR_REACH_M plus this [m]
+FIRST_LOOK: Final[int] = 32  # candidates each chooser scores in full at first, those least costly first [-]
+CHUNK_VALUES: Final[int] = 1 << 21  # nearest-trace searches run in chunks of at most this many distances [-]
 
 
 class Depth(Protocol):
@@ -124,40 +141,43 @@ class OpenGround:
 
 @dataclass(frozen=True)
 class Robot:
-    """The robot's move over the step as the pedestrians expect it: from ``from_m`` to ``to_m`` (2,) [m] in a straight
-    line, its body turned to ``heading_rad``."""
+    """The robots' moves over the step as the pedestrians expect them, one row per crowd: from ``from_m`` to ``to_m``
+    (N, 2) [m] in a straight line, each body turned to ``heading_rad`` (N,)."""
 
     from_m: np.ndarray
     to_m: np.ndarray
-    heading_rad: float
+    heading_rad: np.ndarray
 
     @property
     def velocity_mps(self) -> np.ndarray:
+        """(N, 2) [m/s]."""
         return (self.to_m - self.from_m) / STEP_S
 
     @property
     def heading(self) -> np.ndarray:
-        """(2,) unit heading."""
-        return np.array([np.cos(self.heading_rad), np.sin(self.heading_rad)])
+        """(N, 2) unit headings."""
+        return np.stack([np.cos(self.heading_rad), np.sin(self.heading_rad)], axis=-1)
+
+    def after(self) -> Robot:
+        """The same robots over the next step, holding their velocities."""
+        return Robot(self.to_m, 2 * self.to_m - self.from_m, self.heading_rad)
 
 
 @dataclass(frozen=True, eq=False)
 class Step:
-    """What the pedestrians off their log see while they choose, one after another, within one step to frame
-    ``index``: rows are the replay's agents.
+    """What the pedestrians off their log see while they choose within one step of N crowds to frames ``index`` (N,):
+    rows are crowds, columns the replay's agents.
 
     Attributes:
-        start: (A, 2) positions before the step [m].  xy: (A, 2) positions after it, as far as chosen (the log for
-            those on it, the choice for those who chose, the start for those yet to choose) [m].
-        present, off_log, chosen: (A,) bool.  velocity_mps: (A, 2) velocities over the previous step [m/s].
-        stuck: (A,) steps in a row each has made no headway off its log.  farthest: (A,) the farthest route point
-            (fractional frame) each has reached since it left its log.  recent_m: (A, RECENT_STEPS) how near it was to
-            its log after each of its last steps [m] (inf before it left its log).  detour: (A,) bool, planning a way
-            round (``ReactiveState.detour``).
-        weight: (A,) how far each reacts to the robot in this step, in [0, 1].  room_m: (A,) the room it keeps [m].
+        start: (N, A, 2) positions before the step [m].  xy: (N, A, 2) positions after it, as far as chosen (the log
+            for those on it, the choice for those who chose, the start for those yet to choose) [m].
+        present, off_log, chosen: (N, A) bool.  velocity_mps: (N, A, 2) velocities over the previous step [m/s].
+        stuck, farthest, recent_m, detour: as ``ReactiveState`` (N, A, ...), for this step.
+        weight: (N, A) how far each reacts to its crowd's robot in this step, in [0, 1].  room_m: (N, A) the room it
+            keeps [m].
     """
 
-    index: int
+    index: np.ndarray
     start: np.ndarray
     xy: np.ndarray
     present: np.ndarray
@@ -175,20 +195,50 @@ class Step:
 
 @dataclass(frozen=True, eq=False)
 class Candidates:
-    """The places a pedestrian off its log may choose in one step: route point ``tau`` (C,), side ``offset_m`` (C,),
-    position ``xy_m`` (C, 2) [m], ``violation`` (C,) of the bounds (0: keeps them all; a metre into a wall weighs
-    ``WALL_WEIGHT``, into the robot's margin ``ROBOT_WEIGHT``) and ``cost`` (C,) [-]."""
+    """The places every chooser (a pedestrian off its log, J of them in all crowds) may choose in one step, its C
+    candidates in a row (M = sum of C in all, in the order of its own grid: progress, then side).
 
+    Attributes:
+        owner: (M,) chooser.  first: (J + 1,) where each chooser's rows start.  tau_now: (J,) the route point
+            each chooser's place is taken from now.
+        tau: (M,) route point.  offset_m: (M,) side [m].  xy_m: (M, 2) position [m].
+        too_fast, into_robot: (M,) two of the bounds it breaks (``violation``).  too_deep: (M,) a third, NaN until
+            scored (``Routes._settle``).
+        fixed_cost: (M,) delay, offset and sway.  stuck_cost: (M,) no headway again.  way_cost: (M,) the way round
+            (0 where none is planned).  risk: (M,) round the robot [m^2], NaN until scored.
+        later_m: (M, H, 2) where it would walk on over the longer of ``ANTICIPATION_STEPS`` and the reaction's
+            anticipation [m], NaN until scored.
+        box_m: (J, 4) box (x low, y low, x high, y high) [m] holding each chooser's start, candidates and ``later_m``
+            (its log over those frames, widened by its farthest side offset).
+        least_cost: (M,) the least its cost can be (with no risk): the cost of a place that breaks no bound.
+        order: (M,) each chooser's rows, those that may break no bound first (``too_fast`` and ``into_robot`` 0) by
+            ``least_cost``, then the others.  hopeful: (J,) how many of each chooser's rows may break no bound.
+    """
+
+    owner: np.ndarray
+    first: np.ndarray
+    tau_now: np.ndarray
     tau: np.ndarray
     offset_m: np.ndarray
     xy_m: np.ndarray
-    violation: np.ndarray
-    cost: np.ndarray
+    too_fast: np.ndarray
+    into_robot: np.ndarray
+    too_deep: np.ndarray
+    fixed_cost: np.ndarray
+    stuck_cost: np.ndarray
+    way_cost: np.ndarray
+    risk: np.ndarray
+    later_m: np.ndarray
+    box_m: np.ndarray
+    least_cost: np.ndarray
+    order: np.ndarray
+    hopeful: np.ndarray
 
 
 @dataclass(frozen=True)
 class ReactiveState:
-    """Where the pedestrians of a replay are, one row per recorded agent (the replay's ``agents`` order).
+    """Where the pedestrians of a replay are, one row per recorded agent (the replay's ``agents`` order); the arrays
+    of N crowds stepped together carry a leading crowd axis (N, A, ...).
 
     Attributes:
         xy_m: (A, 2) positions [m]; NaN for agents absent now.
@@ -226,6 +276,17 @@ class ReactiveState:
     weight: np.ndarray
 
 
+def stack_states(states: Sequence[ReactiveState]) -> ReactiveState:
+    """The states of N crowds of one replay as one, every array with a leading crowd axis (N, A, ...)."""
+    return ReactiveState(*(np.stack([getattr(state, field.name) for state in states])
+                           for field in fields(ReactiveState)))
+
+
+def unstack_state(state: ReactiveState, crowd: int) -> ReactiveState:
+    """Row ``crowd`` of a stacked state."""
+    return ReactiveState(*(getattr(state, field.name)[crowd] for field in fields(ReactiveState)))
+
+
 class ReactiveCrowd:
     """The recorded pedestrians of one replay, reacting to a robot.
 
@@ -237,6 +298,84 @@ class ReactiveCrowd:
             the env's contact rule).
         reaction: when the pedestrians notice the robot and react, and the room they keep (default: the fitted one).
     """
+
+    def __init__(self, log_xy_m: np.ndarray, present: np.ndarray, depth: Depth, body: Body, touch_m: float,
+                 reaction: Reaction | None = None):
+        self.routes = Routes(log_xy_m, present, depth, body, touch_m, reaction)
+        self.state = self.routes.on_log(0)
+
+    @classmethod
+    def on(cls, routes: Routes) -> ReactiveCrowd:
+        """A crowd walking ``routes``, shared with other crowds of the same replay (the sub-envs of a vector env), so
+        that ``step_all`` steps them together."""
+        crowd = cls.__new__(cls)
+        crowd.routes, crowd.state = routes, routes.on_log(0)
+        return crowd
+
+    @staticmethod
+    def capacity(present: np.ndarray) -> int:
+        """Most pedestrians present at once in reactive mode: those of the log and those still on their way out."""
+        ended = np.zeros_like(present)
+        ended[1:] = present[:-1] & ~present[1:]  # logs that ended just before frame f
+        window = np.cumsum(ended, axis=0)
+        lingering = window - np.r_[np.zeros((MAX_LINGER_STEPS, present.shape[1]), int),
+                                   window[:-MAX_LINGER_STEPS]][: len(window)]
+        return int((present.sum(axis=1) + ((lingering > 0) & ~present).sum(axis=1)).max())
+
+    def reset(self, index: int) -> np.ndarray:
+        """Everybody on their log at frame ``index``, nobody has noticed the robot; returns the (A, 2) positions."""
+        self.state = self.routes.on_log(index)
+        return self.state.xy_m
+
+    def deviation_m(self, index: int) -> np.ndarray:
+        """(present agents,) distance of each pedestrian present now from its log at frame ``index`` (from where its
+        log ended, for one still on its way out) [m]."""
+        cols = np.flatnonzero(self.state.present)
+        ended = self.routes.run_last[np.floor(self.state.tau[cols]).astype(int), cols]
+        frames = np.where(self.routes.present[index, cols], index, ended)
+        return np.linalg.norm(self.state.xy_m[cols] - self.routes.log_xy_m[frames, cols], axis=1)
+
+    def step(self, index: int, robot_from_m: np.ndarray | None, robot_to_m: np.ndarray | None,
+             robot_heading_rad: float | None = None) -> np.ndarray:
+        """Advance from frame ``index - 1`` to ``index`` while, as the pedestrians expect, the robot moves from
+        ``robot_from_m`` to ``robot_to_m`` (2,) [m] (None: no robot; the replay env passes the robot's last velocity
+        held, not its command), its body turned to ``robot_heading_rad`` (default: along that move); returns the
+        (A, 2) positions at ``index`` (NaN: absent; who is present is ``state.present``)."""
+        return self.step_all([self], [index], [robot_from_m], [robot_to_m], [robot_heading_rad])[0]
+
+    @staticmethod
+    def step_all(crowds: Sequence[ReactiveCrowd], indices: Sequence[int], robots_from_m: Sequence[np.ndarray | None],
+                 robots_to_m: Sequence[np.ndarray | None], robots_heading_rad: Sequence[float | None]
+                 ) -> list[np.ndarray]:
+        """``step`` of several crowds, each with its own frame index and robot (the arguments one per crowd): the
+        crowds on the same ``routes`` in one batched pass, every pedestrian as it would walk stepped alone; returns
+        each crowd's (A, 2) positions."""
+        groups: dict[int, list[int]] = {}
+        for i, crowd in enumerate(crowds):
+            if robots_to_m[i] is None:  # no robot: everybody on their log
+                old = crowd.state
+                crowd.state = crowd.routes.on_log(indices[i])
+                crowd.state.velocity_mps[:] = velocity(crowd.state.xy_m, old.xy_m,
+                                                       old.present & crowd.routes.present[indices[i]])
+            else:
+                groups.setdefault(id(crowd.routes), []).append(i)
+        for members in groups.values():
+            robot = Robot(np.array([robots_from_m[i] for i in members], np.float64),
+                          np.array([robots_to_m[i] for i in members], np.float64),
+                          np.array([heading_of(robots_from_m[i], robots_to_m[i], robots_heading_rad[i])
+                                    for i in members]))
+            routes = crowds[members[0]].routes
+            state = routes.advance(stack_states([crowds[i].state for i in members]),
+                                   np.array([indices[i] for i in members]), robot)
+            for row, i in enumerate(members):
+                crowds[i].state = unstack_state(state, row)
+        return [crowd.state.xy_m for crowd in crowds]
+
+
+class Routes:
+    """The logged routes of one replay as reactive pedestrians walk them: the tables built once (shared by every crowd
+    of the replay, ``ReactiveCrowd.on``) and the step of N crowds on them at once (``advance``). Arguments as
+    ``ReactiveCrowd``'s."""
 
     def __init__(self, log_xy_m: np.ndarray, present: np.ndarray, depth: Depth, body: Body, touch_m: float,
                  reaction: Reaction | None = None):
@@ -259,19 +398,9 @@ class ReactiveCrowd:
         """(F, A, K) how deep each of those lies in the non-walkable area [m]"""
         self.tangent = smoothed(route_tangents(step, moving & (length >= MIN_STEP_M), present), self.run_first,
                                 self.run_last)  # (F, A, 2)
-        self.state = self._on_log(0)
 
-    @staticmethod
-    def capacity(present: np.ndarray) -> int:
-        """Most pedestrians present at once in reactive mode: those of the log and those still on their way out."""
-        ended = np.zeros_like(present)
-        ended[1:] = present[:-1] & ~present[1:]  # logs that ended just before frame f
-        window = np.cumsum(ended, axis=0)
-        lingering = window - np.r_[np.zeros((MAX_LINGER_STEPS, present.shape[1]), int),
-                                   window[:-MAX_LINGER_STEPS]][: len(window)]
-        return int((present.sum(axis=1) + ((lingering > 0) & ~present).sum(axis=1)).max())
-
-    def _on_log(self, index: int) -> ReactiveState:
+    def on_log(self, index: int) -> ReactiveState:
+        """Everybody on their log at frame ``index``, nobody has noticed the robot."""
         now = self.present[index]
         xy = np.where(now[:, None], self.log_xy_m[index], np.nan)
         agents = len(now)
@@ -280,132 +409,495 @@ class ReactiveCrowd:
                              zero, np.zeros(agents, int), np.zeros(agents, int), np.full(agents, float(index)),
                              np.full((agents, RECENT_STEPS), np.inf), np.zeros(agents, bool), zero, zero, zero)
 
-    def reset(self, index: int) -> np.ndarray:
-        """Everybody on their log at frame ``index``, nobody has noticed the robot; returns the (A, 2) positions."""
-        self.state = self._on_log(index)
-        return self.state.xy_m
-
-    def deviation_m(self, index: int) -> np.ndarray:
-        """(present agents,) distance of each pedestrian present now from its log at frame ``index`` (from where its
-        log ended, for one still on its way out) [m]."""
-        cols = np.flatnonzero(self.state.present)
-        ended = self.run_last[np.floor(self.state.tau[cols]).astype(int), cols]
-        frames = np.where(self.present[index, cols], index, ended)
-        return np.linalg.norm(self.state.xy_m[cols] - self.log_xy_m[frames, cols], axis=1)
-
-    def step(self, index: int, robot_from_m: np.ndarray | None, robot_to_m: np.ndarray | None,
-             robot_heading_rad: float | None = None) -> np.ndarray:
-        """Advance from frame ``index - 1`` to ``index`` while, as the pedestrians expect, the robot moves from
-        ``robot_from_m`` to ``robot_to_m`` (2,) [m] (None: no robot; the replay env passes the robot's last velocity
-        held, not its command), its body turned to ``robot_heading_rad`` (default: along that move); returns the
-        (A, 2) positions at ``index`` (NaN: absent; who is present is ``state.present``)."""
-        old = self.state
-        logged, log_now = self.present[index], self.log_xy_m[index]
-        if robot_to_m is None:
-            self.state = self._on_log(index)
-            self.state.velocity_mps[:] = velocity(self.state.xy_m, old.xy_m, old.present & logged)
-            return self.state.xy_m
-        robot = Robot(np.asarray(robot_from_m, np.float64), np.asarray(robot_to_m, np.float64),
-                      heading_of(robot_from_m, robot_to_m, robot_heading_rad))
+    def advance(self, old: ReactiveState, index: np.ndarray, robot: Robot) -> ReactiveState:
+        """The stacked state (N, A, ...) of N crowds after their step from frames ``index - 1`` to ``index`` (N,),
+        each crowd's robot moving as ``robot`` (N rows) expects (``ReactiveCrowd.step``)."""
+        frame = index[:, None].astype(np.float64)  # (N, 1)
+        logged, log_now = self.present[index], self.log_xy_m[index]  # (N, A), (N, A, 2)
         walking = self._walking(old)
         noticed, unseen = attend(old.noticed_s, old.unseen_s, self._notices(old, robot, walking))
         weight = np.where(old.present, self.reaction.weight(noticed), 0.0)
-        room = self.reaction.room_m(robot.velocity_mps, robot.heading, walking,
-                                    np.nan_to_num((old.xy_m - robot.from_m) @ robot.velocity_mps) > 0)
+        room = np.stack([self.reaction.room_m(robot.velocity_mps[n], robot.heading[n], walking[n],
+                                              np.nan_to_num((old.xy_m[n] - robot.from_m[n]) @ robot.velocity_mps[n])
+                                              > 0) for n in range(len(index))])
         lingering = old.present & old.off_log & ~logged & (old.linger < MAX_LINGER_STEPS)  # on their way out
         present = logged | lingering
         off_log = (old.off_log & old.present & logged & (old.linger == 0)) | lingering  # a log that starts again: on
-        start = np.where(old.present[:, None], old.xy_m, log_now)  # (A, 2) where each one is before the step
+        start = np.where(old.present[..., None], old.xy_m, log_now)  # (N, A, 2) where each one is before the step
         going = old.present & logged & ~off_log & (self._robot_in_the_way(index, robot, weight, room)
                                                    | self._others_in_the_way(index, old))
         off_log |= going
-        tau = np.where(off_log, old.tau, float(index))
-        tau[going] = index - 1.0  # from where they stood: their log at the previous frame
-        farthest = np.where(off_log, np.where(going, tau, old.farthest), float(index))
-        recent = np.where((off_log & ~going)[:, None], old.recent_m, np.inf)
+        tau = np.where(going, frame - 1.0, np.where(off_log, old.tau, frame))  # going: from their log's last frame
+        farthest = np.where(off_log, np.where(going, tau, old.farthest), frame)
+        recent = np.where((off_log & ~going)[..., None], old.recent_m, np.inf)
         detour = off_log & ~going & old.detour
         offset = np.where(off_log, old.offset_m, 0.0)
-        xy = np.where(off_log[:, None], start, log_now)
+        xy = np.where(off_log[..., None], start, log_now)
         xy[~present] = np.nan
-        step = Step(index, start, xy, present, off_log, np.zeros(len(present), bool), old.velocity_mps, old.stuck,
+        step = Step(index, start, xy, present, off_log, np.zeros(present.shape, bool), old.velocity_mps, old.stuck,
                     farthest, recent, detour, robot, weight, room)
-        clear = self._clear_of_robot(log_now, robot)
-        for agent in np.flatnonzero(logged & ~old.present):  # appears where the robot or one off its log stands?
-            taken = start[off_log & present]
-            if clear[agent] and \
-                    not (np.linalg.norm(taken - log_now[agent], axis=1) < 2 * BODY_RADIUS_M - PAIR_GIVE_M).any():
-                continue
-            offset[agent] = self._clear_offset(agent, index, robot, taken)
-            xy[agent] = start[agent] = self._place(np.array([agent]), np.array([float(index)]), offset[[agent]],
-                                                   index)[0]
-            off_log[agent] = step.chosen[agent] = True
-        order = np.flatnonzero(off_log & ~step.chosen)
-        order = order[np.argsort(self.body.gap_m(start[order] - robot.from_m, robot.heading_rad), kind="stable")]
-        for agent in order:  # the nearest to the robot first, each seeing the choices made before it
-            tau[agent], offset[agent], xy[agent] = self._choose(agent, tau[agent], offset[agent], step)
-            step.chosen[agent] = True
+        clear = self.clear_of_robot(log_now, robot.from_m[:, None], robot.to_m[:, None], robot.heading_rad[:, None])
+        self._place_newcomers(step, logged & ~old.present, clear, offset)
+        self._choose_all(step, tau, offset)
         # back on the log: caught up, beside it, and nothing in the way; out of the scene: where the log ended
         ahead = ReactiveState(xy, velocity(xy, old.xy_m, old.present & present), present, off_log, tau, offset,
                               old.linger, old.stuck, farthest, recent, detour, noticed, unseen, weight)
-        after = Robot(robot.to_m, 2 * robot.to_m - robot.from_m, robot.heading_rad)
-        rejoin = (off_log & logged & (np.linalg.norm(np.nan_to_num(xy - log_now, nan=np.inf), axis=1) <= REJOIN_M)
-                  & ~self._robot_in_the_way(index + 1, after, weight, room) & ~self._others_in_the_way(index + 1, ahead)
-                  & clear)
+        rejoin = (off_log & logged & (length_m(np.nan_to_num(xy - log_now, nan=np.inf)) <= REJOIN_M)
+                  & ~self._robot_in_the_way(index + 1, robot.after(), weight, room)
+                  & ~self._others_in_the_way(index + 1, ahead) & clear)
         xy[rejoin] = log_now[rejoin]
         off_log &= ~rejoin
-        cols = np.arange(len(tau))
+        cols = np.arange(present.shape[1])
         log_end = self.log_xy_m[self.run_last[np.clip(np.floor(tau), 0, None).astype(int), cols], cols]
-        to_end = np.linalg.norm(np.nan_to_num(xy - log_end, nan=np.inf), axis=1)
-        blocked = np.linalg.norm(np.nan_to_num(xy - start), axis=1) < STILL_M  # the robot or others stand there
+        to_end = length_m(np.nan_to_num(xy - log_end, nan=np.inf))
+        blocked = length_m(np.nan_to_num(xy - start)) < STILL_M  # the robot or others stand there
         present &= ~(lingering & ((to_end <= REJOIN_M) | (blocked & (to_end <= LEAVE_BLOCKED_M))))
         off_log &= present
         xy[~present] = np.nan
-        headway, farther, behind = np.ones(len(tau), bool), np.ones(len(tau), bool), np.full(len(tau), np.inf)
-        for agent in np.flatnonzero(off_log):
-            gain, away = self._headway(agent, tau[[agent]], offset[[agent]], farthest[agent], index)
-            farther[agent] = gain[0] >= HEADWAY_M
-            headway[agent] = farther[agent] or away[0] <= recent[agent].min() - HEADWAY_M
-            behind[agent] = away[0]
+        headway, farther = np.ones(present.shape, bool), np.ones(present.shape, bool)
+        behind = np.full(tau.shape, np.inf)
+        rows, agents = np.nonzero(off_log)
+        gain, away = self.headway(agents, tau[rows, agents], offset[rows, agents], farthest[rows, agents],
+                                  index[rows])
+        farther[rows, agents] = gain >= HEADWAY_M
+        headway[rows, agents] = farther[rows, agents] | (away <= recent[rows, agents].min(axis=-1) - HEADWAY_M)
+        behind[rows, agents] = away
         stuck = np.where(off_log & ~headway, old.stuck + 1, 0)
         detour &= off_log & ~farther
         detour |= stuck >= DETOUR_AFTER_STEPS
-        self.state = ReactiveState(xy, velocity(xy, old.xy_m, old.present & present), present, off_log,
-                                   np.where(off_log, tau, float(index)), np.where(off_log, offset, 0.0),
-                                   np.where(present & lingering, old.linger + 1, 0),
-                                   stuck,
-                                   np.where(off_log, np.maximum(farthest, tau), float(index)),
-                                   np.c_[recent[:, 1:], behind], detour,
-                                   np.where(present, noticed, 0.0), np.where(present, unseen, 0.0), weight)
-        return xy
+        return ReactiveState(xy, velocity(xy, old.xy_m, old.present & present), present, off_log,
+                             np.where(off_log, tau, frame), np.where(off_log, offset, 0.0),
+                             np.where(present & lingering, old.linger + 1, 0), stuck,
+                             np.where(off_log, np.maximum(farthest, tau), frame),
+                             np.concatenate([recent[..., 1:], behind[..., None]], axis=-1), detour,
+                             np.where(present, noticed, 0.0), np.where(present, unseen, 0.0), weight)
 
     # ------------------------------------------------------------------------------------------------ noticing
     def _walking(self, state: ReactiveState) -> np.ndarray:
-        """(A, 2) unit walking directions: the velocity of those faster than ``MOVING_MPS``, else the route's
+        """(N, A, 2) unit walking directions: the velocity of those faster than ``MOVING_MPS``, else the route's
         direction where they are on it."""
-        speed = np.linalg.norm(state.velocity_mps, axis=1, keepdims=True)
+        speed = length_m(state.velocity_mps)[..., None]
         frame = np.clip(np.floor(state.tau), 0, len(self.present) - 1).astype(int)
-        route = self.tangent[frame, np.arange(len(frame))]
+        route = self.tangent[frame, np.arange(frame.shape[-1])]
         return np.where(speed > MOVING_MPS, state.velocity_mps / np.maximum(speed, 1e-12), route)
 
     def _notices(self, state: ReactiveState, robot: Robot, walking: np.ndarray) -> np.ndarray:
-        """(A,) bool: the pedestrians present that notice the robot at the start of the step (``reaction.notices``)."""
-        offset = state.xy_m - robot.from_m
-        toward = robot.from_m + self.body.nearest_point_m(offset, robot.heading_rad) - state.xy_m
-        bearing = np.arctan2(walking[:, 0] * toward[:, 1] - walking[:, 1] * toward[:, 0], (walking * toward).sum(1))
-        gap = np.nan_to_num(self.body.gap_m(offset, robot.heading_rad), nan=np.inf)
+        """(N, A) bool: the pedestrians present that notice their robot at the start of the step
+        (``reaction.notices``)."""
+        offset = state.xy_m - robot.from_m[:, None]
+        heading = robot.heading_rad[:, None]
+        toward = robot.from_m[:, None] + self.body.nearest_point_m(offset, heading) - state.xy_m
+        bearing = np.arctan2(walking[..., 0] * toward[..., 1] - walking[..., 1] * toward[..., 0],
+                             (walking * toward).sum(-1))
+        gap = np.nan_to_num(self.body.gap_m(offset, heading), nan=np.inf)
         return state.present & notices(self.reaction, gap, np.nan_to_num(bearing, nan=np.pi))
 
-    def _clear_of_robot(self, xy_m: np.ndarray, robot: Robot) -> np.ndarray:
-        """(A,) bool: points (A, 2) at least ``robot_reach_m`` from the robot's body where it stands and where it is
-        expected at the end of the step (NaN points are clear)."""
-        gaps = [self.body.gap_m(xy_m - where, robot.heading_rad) for where in (robot.from_m, robot.to_m)]
+    def clear_of_robot(self, xy_m: np.ndarray, from_m: np.ndarray, to_m: np.ndarray,
+                       heading_rad: np.ndarray) -> np.ndarray:
+        """(...) bool: points (..., 2) at least ``robot_reach_m`` from the robot's body where it stands (``from_m``)
+        and where it is expected at the end of the step (``to_m``), both (..., 2) and ``heading_rad`` (...)
+        broadcast against the points (NaN points are clear)."""
+        gaps = [self.body.gap_m(xy_m - where, heading_rad) for where in (from_m, to_m)]
         return np.nan_to_num(np.minimum(*gaps), nan=np.inf) >= self.robot_reach_m
 
+    def _robot_in_the_way(self, index: np.ndarray, robot: Robot, weight: np.ndarray, room_m: np.ndarray) -> np.ndarray:
+        """(N, A) bool: agents whose log's step into frame ``index`` (N,) would take them within ``robot_reach_m`` of
+        their robot's body (where it stands, for those that do not react; on its expected course, for those that
+        do), or, for those that react, whose log from frame ``index`` on comes within their room (N, A) [m] of the
+        robot's expected course over ``anticipation_s``. Only agents whose log is present then are looked at."""
+        frames = len(self.present)
+        ahead = np.arange(-1, self.reaction.anticipation_steps)  # frames from index on, from where it stands now
+        seen = index[:, None] + ahead  # (N, H + 1)
+        valid = (seen >= 0) & (seen < frames)
+        clipped = np.clip(seen, 0, frames - 1)
+        cols, real = leading(self.present[clipped].any(axis=1) & (index < frames)[:, None])  # (N, K) logs present
+        rows = np.arange(len(index))[:, None]
+        log = self.log_xy_m[clipped[:, :, None], cols[:, None, :]]  # (N, H + 1, K, 2)
+        heading = robot.heading_rad[:, None]
+        reacting = weight[rows, cols] > 0
+        robot_to = np.where(reacting[..., None], robot.to_m[:, None], robot.from_m[:, None])
+        gap = self.body.swept_gap_m(log[:, 0] - robot.from_m[:, None], log[:, 1] - robot_to, heading)
+        hit = (index > 0)[:, None] & (np.nan_to_num(gap, nan=np.inf) < self.robot_reach_m)
+        course = robot.to_m[:, None] + (ahead * STEP_S)[None, :, None] * robot.velocity_mps[:, None]  # (N, H + 1, 2)
+        offset = log - course[:, :, None]  # (N, H + 1, K, 2)
+        swept = self.body.swept_gap_m(offset[:, :-1], offset[:, 1:], heading[:, None])  # (N, H, K)
+        swept = np.where((valid[:, :-1] & valid[:, 1:])[..., None], np.nan_to_num(swept, nan=np.inf), np.inf)
+        alone = np.nan_to_num(self.body.gap_m(offset[:, 1], heading), nan=np.inf)  # the one frame of a 1-frame look
+        least = np.where((valid.sum(axis=1) > 1)[:, None], swept.min(axis=1), alone)
+        found = np.zeros(weight.shape, bool)
+        found[rows, cols] = real & (hit | (reacting & (least < self.robot_reach_m + room_m[rows, cols])))
+        return found
+
+    def _others_in_the_way(self, index: np.ndarray, state: ReactiveState) -> np.ndarray:
+        """(N, A) bool: agents whose log from frame ``index`` (N,) on comes within ``PAIR_CLEARANCE_M`` of a
+        pedestrian of their crowd off its log (going on at its velocity) within ``PAIR_LOOK_AHEAD_STEPS``, where it
+        comes closer than their own logs would. Only agents whose log is present then are looked at."""
+        frames = len(self.present)
+        found = np.zeros(state.present.shape, bool)
+        who, real = leading(state.off_log & state.present)  # (N, O) the crowd's others, ascending
+        if not who.shape[1] or (index >= frames).all():
+            return found
+        ahead = np.arange(PAIR_LOOK_AHEAD_STEPS)
+        seen = index[:, None] + ahead  # (N, H)
+        clipped = np.minimum(seen, frames - 1)
+        cols, logged = leading(self.present[clipped].any(axis=1))  # (N, K) logs present then
+        log = self.log_xy_m[clipped[:, :, None], cols[:, None, :]]  # (N, H, K, 2), NaN where absent
+        rows = np.arange(len(index))[:, None]
+        where = (state.xy_m[rows, who][:, None]
+                 + (ahead * STEP_S)[None, :, None, None] * state.velocity_mps[rows, who][:, None])  # (N, H, O, 2)
+        gap = length_m(log[:, :, :, None] - where[:, :, None])  # (N, H, K, O)
+        their_log = self.log_xy_m[clipped[:, :, None], who[:, None, :]]  # (N, H, O, 2)
+        logged_gap = length_m(log[:, :, :, None] - their_log[:, :, None])
+        bound = np.minimum(2 * BODY_RADIUS_M + PAIR_CLEARANCE_M, np.nan_to_num(logged_gap, nan=np.inf) - PAIR_GIVE_M)
+        apart = (real[:, None, None, :] & (seen < frames)[:, :, None, None]
+                 & (who[:, None, None, :] != cols[:, None, :, None]))  # nobody is in their own way
+        found[rows, cols] = logged & (apart & (np.nan_to_num(gap, nan=np.inf) < bound)).any(axis=(1, 3))
+        return found
+
     # ------------------------------------------------------------------------------------------------ choosing
-    def _route(self, agents: np.ndarray, tau: np.ndarray, run_frame: int) -> tuple[np.ndarray, np.ndarray]:
+    def _place_newcomers(self, step: Step, appearing: np.ndarray, clear: np.ndarray, offset: np.ndarray) -> None:
+        """Start each pedestrian appearing (N, A) where its robot (not ``clear``) or one off its log stands beside its
+        log instead, just clear of them (``_clear_offset``): ``step`` and ``offset`` (N, A) are updated in place."""
+        body_m = 2 * BODY_RADIUS_M - PAIR_GIVE_M
+        for row in np.flatnonzero(appearing.any(axis=1)):
+            for agent in np.flatnonzero(appearing[row]):  # in order: each sees those placed before it
+                taken = step.start[row][step.off_log[row] & step.present[row]]
+                log_now = self.log_xy_m[step.index[row], agent]
+                if clear[row, agent] and not (np.linalg.norm(taken - log_now, axis=1) < body_m).any():
+                    continue
+                offset[row, agent] = self._clear_offset(agent, int(step.index[row]), step.robot, row, taken)
+                step.xy[row, agent] = step.start[row, agent] = self.place(
+                    np.array([agent]), np.array([float(step.index[row])]), offset[row, [agent]], step.index[row])[0]
+                step.off_log[row, agent] = step.chosen[row, agent] = True
+
+    def _clear_offset(self, agent: int, index: int, robot: Robot, row: int, others_m: np.ndarray) -> float:
+        """The smallest side offset [m] at frame ``index`` that clears robot ``row`` (where it stands and where it is
+        expected) and the pedestrians at ``others_m`` (K, 2), and stays as walkable as the log (0 if none does)."""
+        offsets = OFFSETS_M[np.argsort(np.abs(OFFSETS_M), kind="stable")]
+        places = self.place(np.full(len(offsets), agent), np.full(len(offsets), float(index)), offsets, index)
+        apart = np.linalg.norm(places[:, None] - others_m[None], axis=-1).min(axis=1, initial=np.inf)
+        fine = (self.clear_of_robot(places, robot.from_m[row], robot.to_m[row], robot.heading_rad[row])
+                & (apart >= 2 * BODY_RADIUS_M - PAIR_GIVE_M) & (self.too_deep_m(agent, index, places, index) == 0))
+        return float(offsets[np.argmax(fine)]) if fine.any() else 0.0
+
+    def _choose_all(self, step: Step, tau: np.ndarray, offset: np.ndarray) -> None:
+        """Every pedestrian off its log and not placed yet takes the cheapest of its candidates that keeps every
+        bound (see the module docstring), or the one that breaks them the least; ``step.xy``, ``tau`` and ``offset``
+        (N, A) are updated in place.
+
+        In each crowd they choose one after another, the nearest to the robot first, each seeing the choices made
+        before it. Here every candidate is scored in one pass, then the terms between pedestrians in rounds: the
+        first round scores every chooser against the others where they stand, and each further round only those
+        that see a pedestrian of their crowd before them whose choice changed in the last round. When no choice
+        changes, each is the one it makes seeing the choices before it: the walks are those of one after another.
+        """
+        rows, agents = np.nonzero(step.off_log & ~step.chosen)
+        if not len(agents):
+            return
+        gap = self.body.gap_m(step.start[rows, agents] - step.robot.from_m[rows], step.robot.heading_rad[rows])
+        order = np.lexsort((gap, rows))  # by crowd, then the nearest to the robot first (stable: by agent on ties)
+        rows, agents = rows[order], agents[order]
+        c = self._candidates(step, rows, agents, tau[rows, agents], offset[rows, agents])
+        turn = np.full(step.present.shape, len(agents))  # (N, A) each chooser's turn; the others' come last
+        turn[rows, agents] = np.arange(len(agents))
+        near = self._near_pairs(step, rows, agents, c)
+        seen = step.xy.copy()  # (N, A, 2) the choices as they stand, for those whose turn comes later
+        best = np.full(len(agents), -1)
+        pending = np.arange(len(agents))
+        while pending.size:
+            choice = self._best(step, rows, agents, c, pending, near, seen, turn)
+            moved = pending[(best[pending] < 0) | (c.xy_m[choice] != c.xy_m[best[pending]]).any(axis=-1)]
+            best[pending] = choice
+            seen[rows[moved], agents[moved]] = c.xy_m[best[moved]]
+            changed = np.zeros(step.present.shape, bool)
+            changed[rows[moved], agents[moved]] = True
+            chooser, other = near
+            again = changed[rows[chooser], other] & (turn[rows[chooser], other] < chooser)
+            pending = np.unique(chooser[again])
+        tau[rows, agents], offset[rows, agents] = c.tau[best], c.offset_m[best]
+        step.xy[rows, agents] = c.xy_m[best]
+        step.chosen[rows, agents] = True
+
+    def _near_pairs(self, step: Step, rows: np.ndarray, agents: np.ndarray, c: Candidates
+                    ) -> tuple[np.ndarray, np.ndarray]:
+        """(chooser (P,), agent (P,)): the pairs of a chooser (of ``rows``, ``agents`` (J,)) and a pedestrian present
+        in its crowd whose terms can be other than 0: the box where the other may be during the step (where it
+        stands and goes, any of its candidates for a chooser, walking on for one off its log) comes within
+        ``PAIR_REACH_M`` of the chooser's (``Candidates.box_m``)."""
+        low, high = np.fmin(step.start, step.xy), np.fmax(step.start, step.xy)  # (N, A, 2)
+        low[rows, agents] = np.minimum(low[rows, agents], np.minimum.reduceat(c.xy_m, c.first[:-1]))
+        high[rows, agents] = np.maximum(high[rows, agents], np.maximum.reduceat(c.xy_m, c.first[:-1]))
+        drift = step.velocity_mps[..., None, :] * (np.arange(1, ANTICIPATION_STEPS + 1) * STEP_S)[:, None]
+        walks = step.off_log[..., None]
+        low = np.where(walks, np.minimum(low, low + drift.min(axis=-2)), low)
+        high = np.where(walks, np.maximum(high, high + drift.max(axis=-2)), high)
+        apart = np.maximum(np.maximum(low[rows] - c.box_m[:, None, 2:], c.box_m[:, None, :2] - high[rows]), 0.0)
+        near = ((length_m(apart) < PAIR_REACH_M + NEAR_SLACK_M) & step.present[rows]
+                & (np.arange(step.present.shape[1]) != agents[:, None]))
+        return np.nonzero(near)
+
+    def _best(self, step: Step, rows: np.ndarray, agents: np.ndarray, c: Candidates, pending: np.ndarray,
+              near: tuple[np.ndarray, np.ndarray], seen: np.ndarray, turn: np.ndarray) -> np.ndarray:
+        """(T,) the candidate each of the choosers ``pending`` (T,) takes, seeing the choices ``seen`` (N, A, 2) of
+        those whose ``turn`` (N, A) comes before theirs, the others where they stand (``step.xy``).
+
+        A candidate's cost is at least its ``least_cost``, and one that breaks ``too_fast`` or ``into_robot`` breaks
+        a bound: each chooser scores its candidates in full in the order of ``Candidates.order``, first
+        ``FIRST_LOOK`` of them, until every hopeful one it has not scored costs at least more than the cheapest
+        within every bound it has (all of them if none is). What it leaves unscored could not have been chosen."""
+        count, hopeful = c.first[pending + 1] - c.first[pending], c.hopeful[pending]
+        take = np.where(hopeful > 0, np.minimum(hopeful, FIRST_LOOK), count)
+        while True:
+            local = np.repeat(np.arange(len(pending)), take)
+            scored = c.order[spans(c.first[pending], take)]  # (R,) rows of c, each chooser's in a run
+            violation, cost = self._score(step, rows, agents, c, pending, scored, local, near, seen, turn)
+            starts = np.r_[0, np.cumsum(take)[:-1]]
+            fine = np.logical_or.reduceat(violation == 0, starts)
+            cheapest = np.minimum.reduceat(np.where(violation > 0, np.inf, cost), starts)  # (T,)
+            runs = spans(c.first[pending], hopeful)  # every hopeful row of the pending choosers
+            owner = np.repeat(np.arange(len(pending)), hopeful)
+            needed = np.bincount(owner, c.least_cost[c.order[runs]] <= cheapest[owner], minlength=len(pending))
+            wider = np.where(fine, np.maximum(take, needed.astype(int)),
+                             np.where(take < hopeful, np.minimum(2 * take, hopeful), count))
+            if (wider == take).all():
+                break
+            take = wider
+        key = np.where(fine[local], np.where(violation > 0, np.inf, cost), violation)  # as np.argmin over all rows
+        key = np.where(np.isnan(key), -np.inf, key)  # (np.argmin takes the first NaN)
+        least = np.minimum.reduceat(key, starts)
+        return np.minimum.reduceat(np.where(key == least[local], scored, len(c.owner)), starts)
+
+    def _score(self, step: Step, rows: np.ndarray, agents: np.ndarray, c: Candidates, pending: np.ndarray,
+               scored: np.ndarray, local: np.ndarray, near: tuple[np.ndarray, np.ndarray], seen: np.ndarray,
+               turn: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(violation, cost), (R,) each, of the candidate rows ``scored`` (R,) of the choosers ``pending`` (T,)
+        (``local`` (R,): which of them a row is of), seeing the choices ``seen`` of those before them: ``violation``
+        0 where it keeps every bound (a metre into a wall weighs ``WALL_WEIGHT``, into the robot's margin
+        ``ROBOT_WEIGHT``), ``cost`` [-]."""
+        self._settle(step, rows, agents, c, scored)
+        mine = np.full(len(agents), -1)
+        mine[pending] = np.arange(len(pending))
+        chooser, other = near
+        pair = np.flatnonzero(mine[chooser] >= 0)
+        too_close, pair_risk = self._pair_terms(step, rows[pending], agents[pending], c, scored, local,
+                                                mine[chooser[pair]], other[pair],
+                                                turn[rows[chooser[pair]], other[pair]] < chooser[pair], seen)
+        violation = (c.too_fast[scored] + too_close + WALL_WEIGHT * c.too_deep[scored]
+                     + ROBOT_WEIGHT * c.into_robot[scored])
+        cost = (c.fixed_cost[scored] + RISK_COST * (c.risk[scored] + pair_risk) + c.stuck_cost[scored]
+                + c.way_cost[scored])
+        return violation, cost
+
+    def _settle(self, step: Step, rows: np.ndarray, agents: np.ndarray, c: Candidates, scored: np.ndarray) -> None:
+        """Score ``too_deep``, ``later_m`` and ``risk`` (round the robot) of the rows ``scored`` of ``c`` not scored
+        yet, in place."""
+        new = scored[np.isnan(c.too_deep[scored])]
+        if not new.size:
+            return
+        j = c.owner[new]
+        crowd, agent, tau = rows[j], agents[j], c.tau_now[j]
+        run_frame = tau.astype(int)
+        start = step.start[crowd, agent]
+        path = start[:, None] + np.array(PATH_SAMPLES)[:, None] * (c.xy_m[new] - start)[:, None]  # along the way
+        c.too_deep[new] = self.too_deep_m(agent[:, None], tau[:, None], path, run_frame[:, None]).max(axis=1)
+        c.later_m[new] = self.place(agent[:, None], c.tau[new][:, None] + np.arange(1, c.later_m.shape[1] + 1),
+                                    c.offset_m[new][:, None], run_frame[:, None])  # along its route at its log's pace
+        c.risk[new] = self._robot_risk(step, crowd, agent, np.concatenate([c.xy_m[new][:, None], c.later_m[new]],
+                                                                          axis=1))
+
+    def _pair_terms(self, step: Step, rows: np.ndarray, agents: np.ndarray, c: Candidates, scored: np.ndarray,
+                    local: np.ndarray, chooser: np.ndarray, other: np.ndarray, earlier: np.ndarray,
+                    seen: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(too_close, pair_risk), (R,) each, of the candidate rows ``scored`` (R,) of the choosers ``rows``,
+        ``agents`` (T,) (``local`` (R,): whose row, each chooser's rows in a run), scored against the pedestrians
+        ``other`` (P,) of the pairs near enough to count (``chooser`` (P,) in 0..T-1; ``earlier`` (P,) bool: the
+        other chose before, and ``seen`` (N, A, 2) has its choice):
+
+        - too_close [m]: along the whole step it keeps ``2 BODY_RADIUS_M - PAIR_GIVE_M`` from everybody else (or at
+          least the gap it already had, and that much again by the end of the step where their logs are that far
+          apart);
+        - pair_risk [m^2]: the squared intrusions into the comfort gap round the others off their logs going on at
+          their velocities over ``ANTICIPATION_STEPS``.
+
+        The sums over the others come out as over all of them, those out of reach adding 0 (``exact_row_sums``)."""
+        body_m = 2 * BODY_RADIUS_M - PAIR_GIVE_M
+        present, walks = step.present[rows], step.present[rows] & step.off_log[rows]  # (T, A)
+        width, walk_width = present.sum(axis=1) - 1, walks.sum(axis=1) - 1  # (T,) others, those off their logs
+        column = (np.cumsum(present, axis=1) - present)[chooser, other] - (agents[chooser] < other)  # sums' order
+        walk_column = (np.cumsum(walks, axis=1) - walks)[chooser, other] - (agents[chooser] < other)
+        # where each other is during the step: from, to, and walking on
+        their_row = rows[chooser]
+        their_from = step.start[their_row, other]
+        their_to = np.where(earlier[:, None], seen[their_row, other], step.xy[their_row, other])  # (P, 2)
+        ahead = np.arange(1, ANTICIPATION_STEPS + 1) * STEP_S
+        future = their_to[:, None] + ahead[:, None] * step.velocity_mps[their_row, other][:, None]  # (P, H, 2)
+        # the pairs whose other comes within reach of the box of the chooser's scored rows (steps and walks on)
+        later = c.later_m[scored, :ANTICIPATION_STEPS]  # (R, H, 2)
+        place, starts = c.xy_m[scored], np.r_[0, np.cumsum(np.bincount(local, minlength=len(rows)))[:-1]]
+        low = np.minimum(place, np.minimum.reduce([later[:, k] for k in range(ANTICIPATION_STEPS)]))
+        high = np.maximum(place, np.maximum.reduce([later[:, k] for k in range(ANTICIPATION_STEPS)]))
+        start = step.start[rows, agents]  # (T, 2)
+        box = np.c_[np.minimum(np.minimum.reduceat(low, starts), start), np.maximum(np.maximum.reduceat(high, starts),
+                                                                                    start)]
+        their = np.c_[np.minimum(np.minimum(their_from, their_to), future.min(axis=1)),
+                      np.maximum(np.maximum(their_from, their_to), future.max(axis=1))]  # walking on or not
+        counted = within(box[chooser], their, PAIR_REACH_M)
+        # every scored row of the pair's chooser
+        per_chooser = np.bincount(local, minlength=len(rows))
+        sizes = np.where(counted, per_chooser[chooser], 0)
+        pair = np.repeat(np.arange(len(chooser)), sizes)
+        row = spans(starts[chooser], sizes)  # (E,) rows of ``scored``
+        here = start[chooser]  # (P, 2)
+        n_rows = len(scored)
+        # along the step
+        allowed = np.minimum(body_m, length_m(their_from - here) - 1e-6)[pair]
+        index = step.index[their_row]
+        logged = length_m(self.log_xy_m[index, agents[chooser]] - self.log_xy_m[index, other])
+        together = np.minimum(body_m, np.nan_to_num(logged, nan=np.inf))[pair]  # closer now: part as the logs do
+        to = their_to[pair]
+        pair_gap, _ = closest_approach(here[pair] - their_from[pair], place[row] - to)
+        too_close = (exact_row_sums(row, column[pair], np.maximum(allowed - pair_gap, 0.0), width[local], n_rows)
+                     + exact_row_sums(row, column[pair], np.maximum(together - length_m(place[row] - to), 0.0),
+                                      width[local], n_rows))
+        # walking on, against those off their logs (those on their logs keep to them: the hard bounds cover them)
+        walk = np.flatnonzero(walks[chooser, other][pair])
+        gap = length_m(later[row[walk]] - future[pair[walk]])  # (Q, H)
+        cols = (np.arange(ANTICIPATION_STEPS) * walk_width[chooser[pair[walk]]][:, None]
+                + walk_column[pair[walk]][:, None])
+        pair_risk = exact_row_sums(np.repeat(row[walk], ANTICIPATION_STEPS), cols.ravel(),
+                                   (np.maximum(PAIR_REACH_M - gap, 0.0) ** 2).ravel(),
+                                   ANTICIPATION_STEPS * walk_width[local], n_rows)
+        return too_close, pair_risk
+
+    def _candidates(self, step: Step, rows: np.ndarray, agents: np.ndarray, tau: np.ndarray,
+                    offset: np.ndarray) -> Candidates:
+        """Every place the choosers ``rows``, ``agents`` (J,), now at route points ``tau`` and sides ``offset`` (J,),
+        may choose, with the bounds and costs that do not need its depth, its risk or the others, in one pass."""
+        index, run_frame = step.index[rows], tau.astype(int)
+        here = step.start[rows, agents]  # (J, 2)
+        first, last = self.run_first[run_frame, agents], self.run_last[run_frame, agents]
+        cap = np.maximum(tau, np.minimum(index, last).astype(np.float64))  # never ahead of the log
+        reach_m = np.maximum(CATCH_UP_MPS, CATCH_UP_FACTOR * self.log_speed_mps[run_frame, agents]) * STEP_S
+        taus = self.tau_ahead(agents, tau, reach_m[:, None] * PROGRESS_SHARES, run_frame)
+        taus = np.sort(np.clip(np.c_[taus, cap], first[:, None], cap[:, None]), axis=1)
+        sides = np.sort(np.c_[np.broadcast_to(OFFSETS_M, (len(agents), len(OFFSETS_M))), offset], axis=1)
+        grid = distinct(taus)[:, :, None] & distinct(sides)[:, None, :]  # (J, T, O): the tau-major grid of each
+        owner, t_col, o_col = np.nonzero(grid)
+        c_tau, c_off = taus[owner, t_col], sides[owner, o_col]
+        a, rf, start = agents[owner], run_frame[owner], here[owner]
+        places = self.place(a, c_tau, c_off, rf)  # (M, 2)
+        too_fast = np.maximum(length_m(places - start) - reach_m[owner], 0.0)
+        robot, heading = step.robot, step.robot.heading_rad[rows][owner]
+        reacts = step.weight[rows, agents] > 0
+        robot_to = np.where(reacts[:, None], robot.to_m[rows], robot.from_m[rows])[owner]  # noticed, or its body
+        robot_gap = self.body.swept_gap_m(start - robot.from_m[rows][owner], places - robot_to, heading)
+        into_robot = np.maximum(self.robot_reach_m - robot_gap, 0.0)
+        gain, away = self.headway(a, c_tau, c_off, step.farthest[rows, agents][owner], index[owner])
+        recent = step.recent_m[rows, agents].min(axis=1)[owner]
+        staying = (gain < HEADWAY_M) & (away > recent - HEADWAY_M)  # stuck: try another way
+        delay = np.minimum(index[owner] - c_tau, (away - np.abs(c_off)) / (STEP_S * LAG_PACE_MPS))  # [frame]
+        fixed_cost = LAG_COST * delay + OFFSET_COST * np.abs(c_off) + SWAY_COST * np.abs(c_off - offset[owner])
+        stuck_cost = STUCK_COST * step.stuck[rows, agents][owner] * staying
+        firsts = np.r_[0, np.cumsum(grid.sum(axis=(1, 2)))]
+        way_cost = np.zeros(len(owner))
+        detour = np.flatnonzero(step.detour[rows, agents])
+        if detour.size:
+            way = self._way_round_m(step, rows[detour], agents[detour], tau[detour], run_frame[detour],
+                                    [places[firsts[j]:firsts[j + 1]] for j in detour])
+            for j, way_m in zip(detour, way, strict=True):
+                way_cost[firsts[j]:firsts[j + 1]] = DETOUR_COST * way_m
+        horizon = max(self.reaction.anticipation_steps, ANTICIPATION_STEPS)
+        # where each may walk on to: its route's points over those frames (the log between them), moved aside
+        ahead = np.clip(np.c_[np.minimum.reduceat(c_tau, firsts[:-1]) + 1, np.maximum.reduceat(c_tau, firsts[:-1])
+                              + horizon], first[:, None], last[:, None])
+        window, inside = self._frames_of(agents, np.floor(ahead[:, 0]).astype(int),
+                                         np.minimum(np.floor(ahead[:, 1]).astype(int) + 1, last))
+        route = self.log_xy_m[window]  # (J, W, 2)
+        aside = np.maximum.reduceat(np.abs(c_off), firsts[:-1])[:, None] + NEAR_SLACK_M
+        box = np.c_[np.minimum(np.minimum(np.minimum.reduceat(places, firsts[:-1]), here),
+                               np.where(inside[..., None], route, np.inf).min(axis=1) - aside),
+                    np.maximum(np.maximum(np.maximum.reduceat(places, firsts[:-1]), here),
+                               np.where(inside[..., None], route, -np.inf).max(axis=1) + aside)]
+        least_cost = fixed_cost + stuck_cost + way_cost  # the cost with no risk: no more than any cost
+        hopeful = ~(too_fast + ROBOT_WEIGHT * into_robot > 0)  # no more than any violation
+        order = np.lexsort((np.where(hopeful, least_cost, 0.0), ~hopeful, owner))
+        return Candidates(owner, firsts, tau, c_tau, c_off, places, too_fast, into_robot, np.full(len(owner), np.nan),
+                          fixed_cost, stuck_cost, way_cost, np.full(len(owner), np.nan),
+                          np.full((len(owner), horizon, 2), np.nan), box, least_cost,
+                          order, np.bincount(owner, hopeful, minlength=len(agents)).astype(int))
+
+    def _robot_risk(self, step: Step, rows: np.ndarray, agents: np.ndarray, walk: np.ndarray) -> np.ndarray:
+        """(K,) squared intrusions [m^2], if ``agents`` in crowds ``rows`` (K,) walk on along their routes at their
+        logs' pace through ``walk`` (K, H + 1, 2) [m] (from the candidate on, ``Candidates.later_m``): into their
+        room round the robot going on at its velocity over ``anticipation_s`` (as far as they react), or into
+        ``COMFORT_M`` round the robot's body standing where it is over ``ANTICIPATION_STEPS`` (as far as they do not:
+        a body in the way)."""
+        weight, robot, heading = step.weight[rows, agents], step.robot, step.robot.heading_rad[rows]
+        robot_steps = self.reaction.anticipation_steps
+        risk = np.zeros(len(rows))  # as far as it does not react (0 for those that react fully: 0 times a finite sum)
+        body = np.flatnonzero(weight < 1.0)
+        standing = walk[body, :ANTICIPATION_STEPS + 1] - robot.from_m[rows[body]][:, None]  # from the body standing
+        gap = self.body.swept_gap_m(standing[:, :-1], standing[:, 1:], heading[body][:, None])  # (B, H_s)
+        risk[body] = (1.0 - weight[body]) * (np.maximum(self.robot_reach_m + COMFORT_M - gap, 0.0) ** 2).sum(axis=1)
+        react = np.flatnonzero(weight > 0)
+        if react.size:
+            ahead = np.arange(robot_steps + 1, dtype=np.float64)
+            course = robot.to_m[rows[react]][:, None] + (ahead[:, None] * STEP_S)[None] \
+                * robot.velocity_mps[rows[react]][:, None]  # (R, H_r + 1, 2)
+            moving = walk[react, :robot_steps + 1] - course  # from the body on its course
+            gap = self.body.swept_gap_m(moving[:, :-1], moving[:, 1:], heading[react][:, None])  # (R, H_r)
+            room = self.robot_reach_m + step.room_m[rows[react], agents[react]]
+            risk[react] = risk[react] + weight[react] * (np.maximum(room[:, None] - gap, 0.0) ** 2).sum(axis=1)
+        return risk
+
+    def _way_round_m(self, step: Step, rows: np.ndarray, agents: np.ndarray, tau: np.ndarray, run_frame: np.ndarray,
+                     places: list[np.ndarray]) -> list[np.ndarray]:
+        """For each of the choosers ``rows``, ``agents`` (D,) at route points ``tau`` (D,): (C,) how far [m] it would
+        have to walk from each of its ``places`` (C, 2) to a point of its route ahead (``DETOUR_AHEAD_M``) round the
+        robot's body (where it stands and where it is expected), over ground no deeper in the non-walkable area than
+        its log there (its route from ``DETOUR_BACK_FRAMES`` behind route point ``tau`` to that point); counted from
+        the nearest, and those cut off from that point 1 m beyond the farthest (0 for all when no such point is
+        known). The shortest walks of all of them are found in one search."""
+        robot = step.robot
+        ends = (robot.from_m[rows], robot.to_m[rows], robot.heading_rad[rows])  # (D, 2), (D, 2), (D,)
+        ahead = self.tau_ahead(agents, step.farthest[rows, agents], np.broadcast_to(DETOUR_AHEAD_M, (len(rows), 5)),
+                               run_frame)  # (D, 5) to its run's end
+        goals = self.place(agents[:, None], ahead, np.zeros(ahead.shape), run_frame[:, None])  # (D, 5, 2)
+        clear = self.clear_of_robot(goals, *(end[:, None] for end in ends))
+        pick = np.argmax(clear, axis=1)
+        goal_tau, goal = ahead[np.arange(len(rows)), pick], goals[np.arange(len(rows)), pick]
+        back = np.maximum(self.run_first[run_frame, agents].astype(np.float64), tau - DETOUR_BACK_FRAMES)
+        planned = np.flatnonzero(clear.any(axis=1))
+        way = [np.zeros(len(p)) for p in places]
+        if not planned.size:
+            return way
+        grids, clear_cells = [], []
+        for j in planned:
+            route = self.log_xy_m[int(back[j]):int(np.ceil(goal_tau[j])) + 1, agents[j]]
+            around = np.vstack([places[j], route, goal[j][None], step.start[rows[j], agents[j]][None]])
+            grids.append(grid_cells(around.min(axis=0) - DETOUR_MARGIN_M, around.max(axis=0) + DETOUR_MARGIN_M))
+            clear_cells.append(self.clear_of_robot(grids[-1].reshape(-1, 2), *(end[j] for end in ends)))
+        cells = np.concatenate([grid.reshape(-1, 2) for grid in grids])
+        whose = planned[np.repeat(np.arange(len(grids)), [grid.shape[0] * grid.shape[1] for grid in grids])]
+        free = np.concatenate(clear_cells)
+        free[free] = self.too_deep_m(agents[whose][free], back[whose][free], cells[free], run_frame[whose][free],
+                                     through=goal_tau[whose][free]) == 0
+        cuts = np.cumsum([grid.shape[0] * grid.shape[1] for grid in grids])[:-1]
+        walks = walking_distances_m(grids, [f.reshape(g.shape[:2]) for f, g in zip(np.split(free, cuts), grids,
+                                                                                      strict=True)],
+                                    goal[planned], [places[j] for j in planned])
+        for j, walk_m in zip(planned, walks, strict=True):
+            known = np.isfinite(walk_m)
+            if known.any():
+                nearest, farthest = walk_m[known].min(), walk_m[known].max()
+                way[j] = np.where(known, walk_m - nearest, farthest - nearest + 1.0)
+        return way
+
+    # ------------------------------------------------------------------------------------------------ the routes
+    def route(self, agents: np.ndarray, tau: np.ndarray, run_frame: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Point of each agent's logged route at fractional frame ``tau`` and the left normal there; (..., 2) each
-        for ``agents``/``tau`` of the same shape (...). ``tau`` is held within the run of the log that holds frame
-        ``run_frame`` (where the agents are on their routes now)."""
+        for ``agents``/``tau``/``run_frame`` broadcast to one shape (...). ``tau`` is held within the run of the log
+        that holds frame ``run_frame`` (where the agents are on their routes now)."""
         first, last = self.run_first[run_frame, agents], self.run_last[run_frame, agents]
         tau = np.clip(tau, first, last)
         frame = np.floor(tau).astype(int)
@@ -413,229 +905,177 @@ class ReactiveCrowd:
         share = (tau - frame)[..., None]
         point = (1 - share) * self.log_xy_m[frame, agents] + share * self.log_xy_m[after, agents]
         tangent = (1 - share) * self.tangent[frame, agents] + share * self.tangent[after, agents]
-        tangent /= np.maximum(np.linalg.norm(tangent, axis=-1, keepdims=True), 1e-9)
+        tangent /= np.maximum(length_m(tangent)[..., None], 1e-9)
         return point, np.stack([-tangent[..., 1], tangent[..., 0]], axis=-1)
 
-    def _tau_ahead(self, agent: int, tau: float, ahead_m: np.ndarray, run_frame: int) -> np.ndarray:
-        """(K,) the latest fractional frames whose route points lie ``ahead_m`` (K,) metres further along the agent's
-        logged route than ``tau`` (through any stretch where the log stood still), within the run of ``run_frame``."""
-        first, last = self.run_first[run_frame, agent], self.run_last[run_frame, agent]
-        arc = self.arc_m[first:last + 1, agent]
-        target = self._arc(agent, np.array([tau]), run_frame)[0] + ahead_m
-        k = np.clip(np.searchsorted(arc, target, side="right") - 1, 0, len(arc) - 1)
-        step = np.diff(arc, append=arc[-1])[k]
-        share = np.where(step > 0, np.clip((target - arc[k]) / np.where(step > 0, step, 1.0), 0.0, 1.0), 0.0)
-        return first + k + share
-
-    def _arc(self, agent: int, tau: np.ndarray, run_frame: int) -> np.ndarray:
-        """(K,) metres along the agent's logged route at fractional frames ``tau`` (K,), within the run of
-        ``run_frame``."""
-        first, last = self.run_first[run_frame, agent], self.run_last[run_frame, agent]
-        tau = np.clip(tau, first, last)
-        frame = np.floor(tau).astype(int)
-        arc = self.arc_m[:, agent]
-        return arc[frame] + (tau - frame) * (arc[np.minimum(frame + 1, last)] - arc[frame])
-
-    def _headway(self, agent: int, tau: np.ndarray, offset_m: np.ndarray, farthest: float,
-                 index: int) -> tuple[np.ndarray, np.ndarray]:
-        """For places at route points ``tau`` (K,) moved ``offset_m`` (K,) aside: how much farther along the route than
-        ``farthest`` they are [m], and how far from the log at frame ``index`` (metres behind it along the route plus
-        metres aside) [m]."""
-        run_frame = int(farthest)
-        now = min(float(index), float(self.run_last[run_frame, agent]))  # where its log is now, or where it ended
-        arc = self._arc(agent, np.r_[tau, farthest, now], run_frame)
-        return arc[:-2] - arc[-2], np.maximum(arc[-1] - arc[:-2], 0.0) + np.abs(offset_m)
-
-    def _place(self, agents: np.ndarray, tau: np.ndarray, offset_m: np.ndarray, run_frame: int) -> np.ndarray:
+    def place(self, agents: np.ndarray, tau: np.ndarray, offset_m: np.ndarray, run_frame: np.ndarray) -> np.ndarray:
         """(..., 2) positions at route points ``tau`` (within the run holding ``run_frame``) moved ``offset_m`` to the
-        side."""
-        point, normal = self._route(agents, tau, run_frame)
+        side, all broadcast to one shape (...)."""
+        point, normal = self.route(agents, tau, run_frame)
         return point + offset_m[..., None] * normal
 
-    def _clear_offset(self, agent: int, index: int, robot: Robot, others_m: np.ndarray) -> float:
-        """The smallest side offset [m] at frame ``index`` that clears the robot (where it stands and where it is
-        expected) and the pedestrians at ``others_m`` (K, 2), and stays as walkable as the log (0 if none does)."""
-        offsets = OFFSETS_M[np.argsort(np.abs(OFFSETS_M), kind="stable")]
-        who, taus = np.full(len(offsets), agent), np.full(len(offsets), float(index))
-        places = self._place(who, taus, offsets, index)
-        apart = np.linalg.norm(places[:, None] - others_m[None], axis=-1).min(axis=1, initial=np.inf)
-        fine = (self._clear_of_robot(places, robot) & (apart >= 2 * BODY_RADIUS_M - PAIR_GIVE_M)
-                & (self._too_deep_m(agent, index, places, index) == 0))
-        return float(offsets[np.argmax(fine)]) if fine.any() else 0.0
+    def arc(self, agents: np.ndarray, tau: np.ndarray, run_frame: np.ndarray) -> np.ndarray:
+        """(...) metres along the agents' logged routes at fractional frames ``tau``, within the run of ``run_frame``,
+        all broadcast to one shape (...)."""
+        first, last = self.run_first[run_frame, agents], self.run_last[run_frame, agents]
+        tau = np.clip(tau, first, last)
+        frame = np.floor(tau).astype(int)
+        return self.arc_m[frame, agents] + (tau - frame) * (self.arc_m[np.minimum(frame + 1, last), agents]
+                                                            - self.arc_m[frame, agents])
 
-    def _too_deep_m(self, agent: int, tau: float, places: np.ndarray, run_frame: int,
-                    through: float | None = None) -> np.ndarray:
-        """(...) how much deeper in the non-walkable area each place (..., 2) is than the agent's log: than the point
+    def tau_ahead(self, agents: np.ndarray, tau: np.ndarray, ahead_m: np.ndarray, run_frame: np.ndarray) -> np.ndarray:
+        """(J, K) the latest fractional frames whose route points lie ``ahead_m`` (J, K) metres further along the
+        logged routes of ``agents`` (J,) than ``tau`` (J,) (through any stretch where the log stood still), within the
+        run of ``run_frame`` (J,)."""
+        first, last = self.run_first[run_frame, agents][:, None], self.run_last[run_frame, agents][:, None]
+        target = self.arc(agents, tau, run_frame)[:, None] + ahead_m
+        who = agents[:, None]
+        low, high = np.broadcast_to(first - 1, target.shape), np.broadcast_to(last, target.shape)
+        while (low < high).any():  # the last frame of the run at most ``target`` along (``first - 1``: none)
+            middle = (low + high + 1) // 2
+            below = (low < high) & (self.arc_m[np.maximum(middle, first), who] <= target)
+            low, high = np.where(below, middle, low), np.where(below | (low >= high), high, middle - 1)
+        k = np.maximum(low, first)
+        step = self.arc_m[np.minimum(k + 1, last), who] - self.arc_m[k, who]
+        share = np.where(step > 0, np.clip((target - self.arc_m[k, who]) / np.where(step > 0, step, 1.0), 0.0, 1.0),
+                         0.0)
+        return k + share
+
+    def headway(self, agents: np.ndarray, tau: np.ndarray, offset_m: np.ndarray, farthest: np.ndarray,
+                index: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """For places at route points ``tau`` moved ``offset_m`` aside (all arguments (K,)): how much farther along the
+        route than ``farthest`` they are [m], and how far from the log at frame ``index`` (metres behind it along the
+        route plus metres aside) [m]."""
+        run_frame = farthest.astype(int)
+        now = np.minimum(index, self.run_last[run_frame, agents]).astype(np.float64)  # where its log is, or ended
+        arc = self.arc(agents, tau, run_frame)
+        return arc - self.arc(agents, farthest, run_frame), \
+            np.maximum(self.arc(agents, now, run_frame) - arc, 0.0) + np.abs(offset_m)
+
+    def too_deep_m(self, agents: np.ndarray | int, tau: np.ndarray | float, places: np.ndarray,
+                   run_frame: np.ndarray | int, through: np.ndarray | None = None) -> np.ndarray:
+        """(...) how much deeper in the non-walkable area each place (..., 2) is than its agent's log: than the point
         of its log nearest to it within ``DEPTH_WINDOW`` frames of route point ``tau``, or the log's deepest point
         within ``CROSSING_WINDOW`` frames of it (a crossing of a thin wall, beside it) [m]; with ``through``, than the
         point of its log nearest to it on the route from ``tau`` through ``through`` (and ``DEPTH_WINDOW`` frames
-        beyond) alone; 0 where that point is off the image, 1000 for a place off the image beside a log on it."""
+        beyond) alone, and only whether it is (inf) or not (0); 0 where that point is off the image, 1000 for a place
+        off the image beside a log on it. ``agents``, ``tau``, ``run_frame`` (and ``through``) broadcast to the
+        places' shape (...)."""
         depth = self.depth.at(places)
         excess = np.zeros(depth.shape)
         deep = depth > 0  # a place on walkable ground is never deeper than the log: compare only the others
         if not deep.any():
             return excess
-        first, last = self.run_first[run_frame, agent], self.run_last[run_frame, agent]
-        frame = int(np.floor(tau))
-        start = frame - DEPTH_WINDOW if through is None else frame
-        end = frame if through is None else max(frame, int(np.floor(through)))
-        window = slice(max(first, start), min(last, end + DEPTH_WINDOW) + 1)
-        trace = self.trace_m[window, agent].reshape(-1, 2)
-        trace_depth = self.trace_depth_m[window, agent].reshape(-1)
-        nearest = np.argmin(np.linalg.norm(places[deep][:, None, :] - trace, axis=-1), axis=-1)
-        log_depth = trace_depth[nearest]
+        agents, tau, run_frame = (np.broadcast_to(value, depth.shape)[deep] for value in (agents, tau, run_frame))
+        first, last = self.run_first[run_frame, agents], self.run_last[run_frame, agents]
+        frame = np.floor(tau).astype(int)
         if through is None:
-            close = slice(max(first, frame - CROSSING_WINDOW), min(last, frame + CROSSING_WINDOW) + 1)
-            log_depth = np.maximum(log_depth, self.trace_depth_m[close, agent].max())
-        over = np.minimum(np.maximum(depth[deep] - log_depth - DEPTH_TOLERANCE_M, 0.0), 1e3)
-        excess[deep] = np.where(np.isinf(log_depth), 0.0, over)
+            low, high = np.maximum(first, frame - DEPTH_WINDOW), np.minimum(last, frame + DEPTH_WINDOW)
+            crossing = self._window_depths(agents, np.maximum(first, frame - CROSSING_WINDOW),
+                                           np.minimum(last, frame + CROSSING_WINDOW))[1]
+        else:
+            end = np.maximum(frame, np.floor(np.broadcast_to(through, depth.shape)[deep]).astype(int))
+            low, high = np.maximum(first, frame), np.minimum(last, end + DEPTH_WINDOW)
+            crossing = np.full(len(agents), -np.inf)
+        # the nearest point of the window is looked for only where its depth matters: not where the place lies no
+        # deeper than the window's shallowest point, nor where every point of the window lies as deep
+        least, most = self._window_depths(agents, low, high)
+        here = depth[deep]
+        log_depth = np.maximum(least, crossing)  # exact where the window's points all lie equally deep
+        search = (here > log_depth) & (least < most)
+        if through is not None:  # whether, not how much: deeper than the window's deepest point is deeper
+            search &= here <= np.maximum(most, crossing)
+            log_depth = np.where((here > np.maximum(most, crossing)) & (least < most), most, log_depth)
+        log_depth[search] = np.maximum(self._nearest_trace_depth(agents[search], low[search], high[search],
+                                                                 places[deep][search]), crossing[search])
+        over = np.minimum(np.maximum(here - log_depth - DEPTH_TOLERANCE_M, 0.0), 1e3)
+        excess[deep] = np.where(np.isinf(log_depth), 0.0, over if through is None else np.where(over > 0, np.inf, 0.0))
         return excess
 
-    def _choose(self, agent: int, tau: float, offset: float, step: Step) -> tuple[float, float, np.ndarray]:
-        """(tau, offset [m], position (2,)) of ``agent`` at frame ``step.index``: the cheapest candidate that keeps
-        every bound (see the module docstring), or the one that breaks them the least."""
-        c = self._candidates(agent, tau, offset, step)
-        best = int(np.argmin(np.where(c.violation > 0, np.inf, c.cost))) if (c.violation == 0).any() else \
-            int(np.argmin(c.violation))
-        return float(c.tau[best]), float(c.offset_m[best]), c.xy_m[best]
+    def _window_depths(self, agents: np.ndarray, low: np.ndarray, high: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(least, most) (P,) each: the depths [m] of the shallowest and the deepest point of each agent's log trace
+        (``trace_depth_m``) between frames ``low`` and ``high`` (P,), found once per distinct window."""
+        frames = len(self.present)
+        windows, which = np.unique((agents.astype(np.int64) * frames + low) * frames + high, return_inverse=True)
+        index, inside = self._frames_of(windows // (frames * frames), windows // frames % frames,
+                                           windows % frames)
+        depths = self.trace_depth_m[index]  # (U, W, K)
+        least = np.where(inside[..., None], depths, np.inf).min(axis=(1, 2))
+        most = np.where(inside[..., None], depths, -np.inf).max(axis=(1, 2))
+        return least[which], most[which]
 
-    def _candidates(self, agent: int, tau: float, offset: float, step: Step) -> Candidates:
-        """Every place ``agent`` may choose at frame ``step.index``, how far each breaks the bounds, and its cost."""
-        run_frame = int(tau)
-        cap = max(tau, min(float(step.index), float(self.run_last[run_frame, agent])))  # never ahead of the log
-        reach_m = max(CATCH_UP_MPS, CATCH_UP_FACTOR * self.log_speed_mps[run_frame, agent]) * STEP_S
-        first = float(self.run_first[run_frame, agent])
-        taus = np.unique(np.r_[self._tau_ahead(agent, tau, reach_m * PROGRESS_SHARES, run_frame), cap].clip(first, cap))
-        offsets = np.unique(np.r_[OFFSETS_M, offset])
-        c_tau, c_off = np.repeat(taus, len(offsets)), np.tile(offsets, len(taus))
-        who = np.full(len(c_tau), agent)
-        places = self._place(who, c_tau, c_off, run_frame)  # (C, 2)
-        here = step.start[agent]
-        too_fast = np.maximum(np.linalg.norm(places - here, axis=1) - reach_m, 0.0)
-        too_deep = np.max([self._too_deep_m(agent, tau, here + share * (places - here), run_frame)
-                           for share in PATH_SAMPLES], axis=0)  # along the way: no jumping over a thin wall
-        robot_to = step.robot.to_m if step.weight[agent] > 0 else step.robot.from_m  # noticed, or only its body
-        robot_gap = self.body.swept_gap_m(here - step.robot.from_m, places - robot_to, step.robot.heading_rad)
-        into_robot = np.maximum(self.robot_reach_m - robot_gap, 0.0)
-        too_close = np.zeros(len(places))  # into the others
-        others = np.flatnonzero(step.present & (np.arange(len(step.present)) != agent))
-        if others.size:
-            their_from, their_to = step.start[others], step.xy[others]  # the log now, a choice, or where they stand
-            body_m = 2 * BODY_RADIUS_M - PAIR_GIVE_M
-            allowed = np.minimum(body_m, np.linalg.norm(their_from - here, axis=1) - 1e-6)
-            pair_gap, _ = closest_approach(here - their_from, places[:, None] - their_to[None])  # (C, O)
-            too_close = too_close + np.maximum(allowed - pair_gap, 0.0).sum(axis=1)
-            logged = np.linalg.norm(self.log_xy_m[step.index, agent] - self.log_xy_m[step.index, others], axis=1)
-            apart = np.minimum(body_m, np.nan_to_num(logged, nan=np.inf))  # closer than that now: part as the logs do
-            end_gap = np.linalg.norm(places[:, None] - their_to[None], axis=-1)  # (C, O)
-            too_close = too_close + np.maximum(apart - end_gap, 0.0).sum(axis=1)
-        gain, away = self._headway(agent, c_tau, c_off, step.farthest[agent], step.index)
-        staying = (gain < HEADWAY_M) & (away > step.recent_m[agent].min() - HEADWAY_M)  # stuck: try another way
-        delay = np.minimum(step.index - c_tau, (away - np.abs(c_off)) / (STEP_S * LAG_PACE_MPS))  # [frame]
-        cost = (LAG_COST * delay + OFFSET_COST * np.abs(c_off) + SWAY_COST * np.abs(c_off - offset)
-                + RISK_COST * self._risk(agent, c_tau, c_off, others, step, run_frame)
-                + STUCK_COST * step.stuck[agent] * staying)
-        if step.detour[agent]:
-            cost = cost + DETOUR_COST * self._way_round_m(agent, tau, step, places, run_frame)
-        violation = too_fast + too_close + WALL_WEIGHT * too_deep + ROBOT_WEIGHT * into_robot
-        return Candidates(c_tau, c_off, places, violation, cost)
+    def _frames_of(self, agents: np.ndarray, low: np.ndarray, high: np.ndarray
+                  ) -> tuple[tuple[np.ndarray, np.ndarray], np.ndarray]:
+        """The (frame, agent) index (P, W) of frames ``low`` through ``high`` (P,) of each agent's log, padded to the
+        longest window W with its last frame, and (P, W) bool, the frame is within the window."""
+        span = np.arange(int((high - low).max(initial=0)) + 1)
+        frames = low[:, None] + span
+        return (np.minimum(frames, high[:, None]), agents[:, None]), frames <= high[:, None]
 
-    def _way_round_m(self, agent: int, tau: float, step: Step, places: np.ndarray, run_frame: int) -> np.ndarray:
-        """(C,) how far [m] the agent would have to walk from each of ``places`` (C, 2) to a point of its route ahead
-        (``DETOUR_AHEAD_M``) round the robot's body (where it stands and where it is expected), over ground no deeper
-        in the non-walkable area than its log there (its route from ``DETOUR_BACK_FRAMES`` behind route point ``tau``
-        to that point); counted from the nearest, and those cut off from that point 1 m beyond the farthest (0 for all
-        when no such point is known)."""
-        ahead = self._tau_ahead(agent, step.farthest[agent], np.array(DETOUR_AHEAD_M), run_frame)  # to its run's end
-        goals = self._place(np.full(len(ahead), agent), ahead, np.zeros(len(ahead)), run_frame)
-        clear = self._clear_of_robot(goals, step.robot)
-        if not clear.any():
-            return np.zeros(len(places))
-        goal_tau, goal = ahead[np.argmax(clear)], goals[np.argmax(clear)]
-        back = max(float(self.run_first[run_frame, agent]), tau - DETOUR_BACK_FRAMES)
-        route = self.log_xy_m[int(back):int(np.ceil(goal_tau)) + 1, agent]
-        around = np.vstack([places, route, goal[None], step.start[[agent]]])
-        cells = grid_cells(around.min(axis=0) - DETOUR_MARGIN_M, around.max(axis=0) + DETOUR_MARGIN_M)  # (H, W, 2)
-        flat = cells.reshape(-1, 2)
-        free = self._clear_of_robot(flat, step.robot)
-        free[free] = self._too_deep_m(agent, back, flat[free], run_frame, through=goal_tau) == 0
-        walk_m = walking_distance_m(cells, free.reshape(cells.shape[:2]), goal, places)
-        known = np.isfinite(walk_m)
-        if not known.any():
-            return np.zeros(len(places))
-        nearest, farthest = walk_m[known].min(), walk_m[known].max()
-        return np.where(known, walk_m - nearest, farthest - nearest + 1.0)
+    def _nearest_trace_depth(self, agents: np.ndarray, low: np.ndarray, high: np.ndarray,
+                             places: np.ndarray) -> np.ndarray:
+        """(P,) depth [m] of the point of each agent's log trace (``trace_m``) between frames ``low`` and ``high``
+        (P,) that is nearest to its place (P, 2) (the first of equals), in chunks of ``CHUNK_VALUES`` distances."""
+        found = np.empty(len(places))
+        width = (int((high - low).max(initial=0)) + 1) * len(TRACE_SHARES)
+        size = max(1, CHUNK_VALUES // width)
+        for at in range(0, len(places), size):
+            part = slice(at, at + size)
+            index, inside = self._frames_of(agents[part], low[part], high[part])
+            trace = self.trace_m[index].reshape(len(inside), -1, 2)  # (P, W K, 2), frame by frame
+            distance = length_m(places[part][:, None, :] - trace)
+            distance[~np.repeat(inside, len(TRACE_SHARES), axis=1)] = np.inf
+            nearest = np.argmin(distance, axis=-1)
+            found[part] = self.trace_depth_m[index].reshape(len(inside), -1)[np.arange(len(inside)), nearest]
+        return found
 
-    def _risk(self, agent: int, c_tau: np.ndarray, c_off: np.ndarray, others: np.ndarray, step: Step,
-              run_frame: int) -> np.ndarray:
-        """(C,) squared intrusions [m^2], if the agent walks on along its route at its log's pace from each candidate:
-        into its room round the robot going on at its velocity over ``anticipation_s`` (as far as it reacts), or into
-        ``COMFORT_M`` round the robot's body standing where it is over ``ANTICIPATION_STEPS`` (as far as it does not:
-        a body in the way); and into the comfort gap round the others off their logs going on at their velocities
-        over ``ANTICIPATION_STEPS``."""
-        weight = step.weight[agent]
-        robot_steps = self.reaction.anticipation_steps if weight > 0 else 0
-        ahead = np.arange(max(robot_steps, ANTICIPATION_STEPS) + 1, dtype=np.float64)  # (H + 1,) from now on
-        later = self._place(np.full((len(c_tau), len(ahead)), agent), c_tau[:, None] + ahead,
-                            np.repeat(c_off[:, None], len(ahead), 1), run_frame)  # (C, H + 1, 2)
-        heading = step.robot.heading_rad
-        standing = later[:, :ANTICIPATION_STEPS + 1] - step.robot.from_m  # (C, H_s + 1, 2) from the body standing
-        gap = self.body.swept_gap_m(standing[:, :-1], standing[:, 1:], heading)  # (C, H_s) along each step
-        risk = (1.0 - weight) * (np.maximum(self.robot_reach_m + COMFORT_M - gap, 0.0) ** 2).sum(axis=1)
-        if robot_steps:
-            robot = step.robot.to_m + ahead[:robot_steps + 1, None] * STEP_S * step.robot.velocity_mps  # (H_r + 1, 2)
-            moving = later[:, :robot_steps + 1] - robot  # (C, H_r + 1, 2) from the body on its course
-            gap = self.body.swept_gap_m(moving[:, :-1], moving[:, 1:], heading)  # (C, H_r)
-            room = self.robot_reach_m + step.room_m[agent]
-            risk += weight * (np.maximum(room - gap, 0.0) ** 2).sum(axis=1)
-        off_log = others[step.off_log[others]]  # those on their logs keep to them: the hard bounds cover them
-        if off_log.size:
-            pair_ahead = ahead[1:ANTICIPATION_STEPS + 1]
-            moving = step.xy[off_log][None] + pair_ahead[:, None, None] * STEP_S * step.velocity_mps[off_log][None]
-            pair = np.linalg.norm(later[:, 1:ANTICIPATION_STEPS + 1, None] - moving[None], axis=-1)  # (C, H, O)
-            risk += (np.maximum(2 * BODY_RADIUS_M + COMFORT_M / 2 - pair, 0.0) ** 2).sum(axis=(1, 2))
-        return risk
 
-    def _robot_in_the_way(self, index: int, robot: Robot, weight: np.ndarray, room_m: np.ndarray) -> np.ndarray:
-        """(A,) bool: agents whose log's step into frame ``index`` would take them within ``robot_reach_m`` of the
-        robot's body (where it stands, for those that do not react; on its expected course, for those that do), or,
-        for those that react, whose log from frame ``index`` on comes within their room (A,) [m] of the robot's
-        expected course over ``anticipation_s``."""
-        hit = np.zeros(len(weight), bool)
-        if index >= len(self.present):
-            return hit
-        reacting = weight > 0
-        robot_to = np.where(reacting[:, None], robot.to_m, robot.from_m)
-        if index > 0:
-            gap = self.body.swept_gap_m(self.log_xy_m[index - 1] - robot.from_m, self.log_xy_m[index] - robot_to,
-                                        robot.heading_rad)
-            hit |= np.nan_to_num(gap, nan=np.inf) < self.robot_reach_m
-        frames = min(self.reaction.anticipation_steps, len(self.present) - index)
-        first = max(index - 1, 0)  # along every step of the log ahead, from where it stands now
-        course = robot.to_m + np.arange(first - index, frames)[:, None] * STEP_S * robot.velocity_mps  # (H', 2)
-        offset = self.log_xy_m[first:index + frames] - course[:, None]  # (H', A, 2)
-        if len(offset) > 1:
-            gap = self.body.swept_gap_m(offset[:-1], offset[1:], robot.heading_rad)  # (H' - 1, A)
-        else:
-            gap = self.body.gap_m(offset, robot.heading_rad)
-        return hit | (reacting & (np.nan_to_num(gap, nan=np.inf).min(axis=0) < self.robot_reach_m + room_m))
+def leading(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(columns (N, K), real (N, K) bool): each row's True columns of ``mask`` (N, A) first, ascending, the rows cut
+    to the most True columns of any, K (padded with False columns, ``real`` False)."""
+    width = int(mask.sum(axis=1).max(initial=0))
+    columns = np.argsort(~mask, axis=1, kind="stable")[:, :width]
+    return columns, np.take_along_axis(mask, columns, axis=1)
 
-    def _others_in_the_way(self, index: int, state: ReactiveState) -> np.ndarray:
-        """(A,) bool: agents whose log from frame ``index`` on comes within ``PAIR_CLEARANCE_M`` of a pedestrian off
-        its log (going on at its velocity) within ``PAIR_LOOK_AHEAD_STEPS``, where it comes closer than their own
-        logs would."""
-        frames = min(PAIR_LOOK_AHEAD_STEPS, len(self.present) - index)
-        others = np.flatnonzero(state.off_log & state.present)
-        if frames <= 0 or not others.size:
-            return np.zeros(len(state.off_log), bool)
-        ahead = np.arange(frames)[:, None] * STEP_S  # (H, 1) seconds
-        log = self.log_xy_m[index:index + frames]  # (H, A, 2), NaN where absent
-        where = state.xy_m[others] + ahead[:, :, None] * state.velocity_mps[others]  # (H, O, 2)
-        gap = np.linalg.norm(log[:, :, None] - where[:, None], axis=-1)  # (H, A, O)
-        logged_gap = np.linalg.norm(log[:, :, None] - log[:, others][:, None], axis=-1)
-        bound = np.minimum(2 * BODY_RADIUS_M + PAIR_CLEARANCE_M, np.nan_to_num(logged_gap, nan=np.inf) - PAIR_GIVE_M)
-        gap[:, others, np.arange(others.size)] = np.inf  # nobody is in their own way
-        return (np.nan_to_num(gap, nan=np.inf) < bound).any(axis=(0, 2))
+
+def distinct(values: np.ndarray) -> np.ndarray:
+    """(J, K) bool: the first of each run of equal values in the sorted rows ``values`` (J, K) (``np.unique``'s)."""
+    return np.c_[np.ones(len(values), bool), values[:, 1:] != values[:, :-1]]
+
+
+def within(box_m: np.ndarray, other_m: np.ndarray, reach_m: float) -> np.ndarray:
+    """(K,) bool: the boxes ``box_m`` (K, 4) (x low, y low, x high, y high) [m] come within ``reach_m`` [m] (plus
+    ``NEAR_SLACK_M``) of the boxes ``other_m`` (K, 4)."""
+    apart = np.maximum(np.maximum(other_m[:, :2] - box_m[:, 2:], box_m[:, :2] - other_m[:, 2:]), 0.0)
+    return length_m(apart) < reach_m + NEAR_SLACK_M
+
+
+def spans(starts: np.ndarray, counts: np.ndarray) -> np.ndarray:
+    """(sum of counts,) the runs ``starts[i], ..., starts[i] + counts[i] - 1`` (K,) each, one after another."""
+    return np.repeat(starts - np.r_[0, np.cumsum(counts)[:-1]], counts) + np.arange(counts.sum())
+
+
+def exact_row_sums(row: np.ndarray, column: np.ndarray, value: np.ndarray, width: np.ndarray,
+                   n_rows: int) -> np.ndarray:
+    """(n_rows,) the row sums of a sparse matrix, each row as numpy sums it dense (zeros and the values at
+    ``column`` of row ``row``, (E,) each, a row ``width[row]`` (n_rows,) long): a row with at most two non-zero
+    values is their sum in any order; one with more is summed dense, so that the rounding is numpy's."""
+    keep = value != 0
+    row, column, value = row[keep], column[keep], value[keep]
+    total = np.bincount(row, value, minlength=n_rows)
+    many = np.flatnonzero(np.bincount(row, minlength=n_rows) > 2)
+    for size in np.unique(width[many]):
+        which = many[width[many] == size]
+        mine = np.isin(row, which)
+        dense = np.zeros((len(which), size))
+        dense[np.searchsorted(which, row[mine]), column[mine]] = value[mine]
+        total[which] = dense.sum(axis=1)
+    return total
+
+
+def length_m(vector_m: np.ndarray) -> np.ndarray:
+    """(...) lengths [m] of vectors (..., 2) [m], rounded as ``np.linalg.norm(vector_m, axis=-1)`` rounds them."""
+    return np.sqrt(vector_m[..., 0] * vector_m[..., 0] + vector_m[..., 1] * vector_m[..., 1])
 
 
 def heading_of(from_m: np.ndarray, to_m: np.ndarray, heading_rad: float | None = None) -> float:
@@ -647,8 +1087,8 @@ def heading_of(from_m: np.ndarray, to_m: np.ndarray, heading_rad: float | None =
 
 
 def velocity(xy: np.ndarray, old_xy: np.ndarray, stays: np.ndarray) -> np.ndarray:
-    """(A, 2) velocity over the step [m/s] of the agents present before and after it (0 for the others)."""
-    return np.where(stays[:, None], np.nan_to_num(xy - old_xy) / STEP_S, 0.0)
+    """(..., 2) velocity over the step [m/s] of the agents present before and after it (0 for the others)."""
+    return np.where(stays[..., None], np.nan_to_num(xy - old_xy) / STEP_S, 0.0)
 
 
 def run_bounds(present: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
