@@ -12,6 +12,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv
 
 import envs  # noqa: F401  (registers the ids)
 from envs.common.config import EnvConfig
+from envs.common.errors import EnvInputError
 from envs.shards import ProcessShard
 from st_sim.apps.navigation.features import FeatureConfig, NavFeatures, drop_predictions, encode
 from st_sim.apps.navigation.predictors import env_predictor
@@ -128,3 +129,35 @@ def test_features_leave_out_pedestrians_beyond_the_sensor_range() -> None:
 ])
 def test_sub_env_info_keeps_what_the_sub_env_set(batched: dict, i: int, expected: dict) -> None:
     assert sub_env_info(batched, i) == expected
+
+
+@settings(max_examples=2, deadline=None)
+@given(seed=st.integers(0, 10_000), shards=st.sampled_from([1, 2]))
+def test_several_training_envs_share_the_sub_envs_and_step_as_each_alone(seed: int, shards: int) -> None:
+    """Two reactive replay sub-envs then a simulated one, in one or two worker shards: the same transitions as a
+    FeatureVecEnv of each training env alone, seeded as those sub-envs are."""
+    features = FeatureConfig(use_predictions=False)
+    mixed = FeatureVecEnv(["STCrowd-Hotel-v0:reactive", "STCrowd-SimCorridor-v1"], 3, features, shards=shards)
+    alone = [FeatureVecEnv("STCrowd-Hotel-v0:reactive", 2, features), FeatureVecEnv("STCrowd-SimCorridor-v1", 1,
+                                                                                     features)]
+    mixed.seed(seed), alone[0].seed(seed), alone[1].seed(seed + 2)
+    np.testing.assert_array_equal(mixed.reset(), np.concatenate([vec.reset() for vec in alone]))
+    rng = np.random.default_rng(seed)
+    for t in range(30):
+        actions = rng.uniform(-1.0, 1.0, (3, 2)).astype(np.float32)
+        mixed.step_async(actions)
+        alone[0].step_async(actions[:2]), alone[1].step_async(actions[2:])
+        ours, theirs = mixed.step_wait(), [vec.step_wait() for vec in alone]
+        for k in range(3):
+            np.testing.assert_array_equal(ours[k], np.concatenate([part[k] for part in theirs]), err_msg=f"step {t}")
+    assert mixed.get_attr("pedestrians", [0, 1]) == ["reactive", "reactive"]
+    mixed.close(), alone[0].close(), alone[1].close()
+
+
+def test_a_training_env_that_is_not_an_id_or_mode_is_refused() -> None:
+    with pytest.raises(EnvInputError, match="not a pedestrian mode"):
+        FeatureVecEnv("STCrowd-Eth-v0:frozen", 2, FeatureConfig(False))
+    with pytest.raises(EnvInputError, match="not a registered gym id"):
+        FeatureVecEnv(["STCrowd-Eth-v0", "Nowhere-v0"], 2, FeatureConfig(False))
+    with pytest.raises(EnvInputError, match="give each at least one"):
+        FeatureVecEnv(["STCrowd-Eth-v0", "STCrowd-Hotel-v0"], 1, FeatureConfig(False))

@@ -56,7 +56,7 @@ from st_sim.apps.navigation.ppo import EXTRACTORS, PRETRAINED_DIR, build_policy,
 
 CURVE_WINDOW = 100  # training episodes averaged per learning-curve point [-]
 DAGGER_SEED_STRIDE = 10_000  # episode seeds between two DAgger rounds (a worker's share is far fewer episodes) [-]
-RESUMABLE = ("use_predictions", "env_id", "num_envs", "sensor_range_m", "reward", "seed", "n_steps", "batch_size",
+RESUMABLE = ("use_predictions", "env_ids", "num_envs", "sensor_range_m", "reward", "seed", "n_steps", "batch_size",
              "n_epochs", "learning_rate", "gamma", "net_arch", "log_std_init", "initial_forward", "init_policy",
              "demo_steps", "demos", "bc_epochs", "dagger_rounds", "dagger_steps", "extractor", "closest_approach",
              "clip_range", "target_kl", "critic_rollouts")
@@ -69,8 +69,9 @@ class TrainConfig:
 
     use_predictions: bool = True
     """features hold the predicted futures (the env runs SingularTrajectory); False: positions only"""
-    env_id: str = "STCrowd-SimCrossing-v1"
-    """training env"""
+    env_ids: tuple[str, ...] = ("STCrowd-SimCrossing-v1",)
+    """training envs, ``ID`` or ``ID:MODE`` for a replay's pedestrians (log, reactive); several share the sub-envs
+    evenly (``FeatureVecEnv``)"""
     timesteps: int = 1_000_000
     """env steps over all envs (the training budget)"""
     num_envs: int = 64
@@ -249,14 +250,14 @@ def clone_teacher(policy: Any, cfg: TrainConfig, net_arch: list[int]) -> dict[st
     reused by a run restarted with the same settings), and fits the clone again on every label so far.
     """
     reward = asdict(cfg.reward)  # the critic is cloned to the teacher's returns under the training reward
-    demos = load_or_collect(DemoSpec(cfg.env_id, cfg.demo_steps, closest_approach=cfg.closest_approach,
+    demos = load_or_collect(DemoSpec(cfg.env_ids[0], cfg.demo_steps, closest_approach=cfg.closest_approach,
                                      reward=reward), cfg.demos, cfg.progress)
     record: dict[str, Any] = {"demo_collection_s": demos.wall_time_s, "rounds": []}
     for round_ in range(cfg.dagger_rounds + 1):
         if round_ > 0:
             student = Path(cfg.out) / f"dagger-{round_}.pt"
             save_policy(policy, cfg.features, net_arch, student, cfg.extractor)
-            spec = DemoSpec(cfg.env_id, cfg.dagger_steps, seed=DemoSpec().seed + round_ * DAGGER_SEED_STRIDE,
+            spec = DemoSpec(cfg.env_ids[0], cfg.dagger_steps, seed=DemoSpec().seed + round_ * DAGGER_SEED_STRIDE,
                             closest_approach=cfg.closest_approach, student=str(student), reward=reward)
             demos = concatenate([demos, load_or_collect(spec, student.with_suffix(".npz"), cfg.progress)])
         fit = behaviour_clone(policy, demos, cfg.use_predictions, cfg.gamma, cfg.bc_epochs, seed=cfg.seed + round_)
@@ -324,13 +325,14 @@ def main(cfg: TrainConfig) -> Path:
     torch.set_num_threads(1)
     torch.manual_seed(cfg.seed)
     out = Path(cfg.out)
-    run_name = f"{cfg.env_id}__ppo-{'predictions' if cfg.use_predictions else 'no-predictions'}__seed{cfg.seed}"
+    variant = "predictions" if cfg.use_predictions else "no-predictions"
+    run_name = f"{'+'.join(cfg.env_ids)}__ppo-{variant}__seed{cfg.seed}"
     print(f"{run_name}: {json.dumps(asdict(cfg), default=str)}")
 
     # envs: num_envs sub-envs as native vector envs in cfg.shards processes (one batched forecast per step in each),
     # seen through the features
     device = resolve_device(cfg.device)
-    vec = VecMonitor(FeatureVecEnv(cfg.env_id, cfg.num_envs, cfg.features, EnvConfig(reward=cfg.reward), cfg.shards,
+    vec = VecMonitor(FeatureVecEnv(cfg.env_ids, cfg.num_envs, cfg.features, EnvConfig(reward=cfg.reward), cfg.shards,
                                    str(device)))
     vec.seed(cfg.seed)
 
@@ -415,7 +417,7 @@ def ship(policy_path: Path, name: str, record: dict) -> Path:
     manifest_path = folder / "manifest.json"
     manifest = json.loads(manifest_path.read_text()) if manifest_path.exists() else {"policies": {}}
     manifest["policies"][name] = {"file": target.name, "sha256": record["sha256"], "command": record["command"],
-                                  "env_id": record["config"]["env_id"], "timesteps": record["config"]["timesteps"],
+                                  "env_ids": record["config"]["env_ids"], "timesteps": record["config"]["timesteps"],
                                   "wall_time_s": round(record["wall_time_s"], 1), "final_training": record["final"],
                                   "cloning": record["cloning"]}
     write_text_atomic(manifest_path, json.dumps(manifest, indent=1, sort_keys=True) + "\n")
@@ -451,7 +453,10 @@ def parse_args(argv: list[str] | None = None) -> TrainConfig:
     parser = argparse.ArgumentParser(prog="python -m st_sim.apps.navigation.train_ppo", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--no-predictions", action="store_true", help="train without the predicted futures")
-    parser.add_argument("--env-id", default=d.env_id, help=f"training env (default: {d.env_id})")
+    parser.add_argument("--env-ids", "--env-id", nargs="+", default=list(d.env_ids), metavar="ID[:MODE]",
+                        help="training envs, MODE a replay's pedestrians (log or reactive), e.g. "
+                             "STCrowd-Eth-v0:reactive; several share the sub-envs evenly (default: "
+                             f"{' '.join(d.env_ids)})")
     for name, _, what in COUNTS:
         parser.add_argument(f"--{name.replace('_', '-')}", type=int, default=getattr(d, name),
                             help=f"{what} (default: {getattr(d, name)})")
@@ -501,6 +506,9 @@ def parse_args(argv: list[str] | None = None) -> TrainConfig:
         parser.error("--dagger-rounds: DAgger refines a clone; add --demo-steps N")
     if not np.isfinite(args.log_std_init):
         parser.error(f"--log-std-init={args.log_std_init}: expected a finite number")
+    if args.demo_steps > 0 and len(args.env_ids) > 1:
+        parser.error("--demo-steps: the teacher's demonstrations come from one env; give one --env-ids (or start from "
+                     "a policy trained there with --init-policy)")
     if args.demo_steps > 0 and args.sensor_range != float("inf"):
         parser.error("--demo-steps: the teacher's demonstrations see every pedestrian; add --sensor-range inf")
     if args.tensorboard is not None and util.find_spec("tensorboard") is None:
@@ -511,7 +519,8 @@ def parse_args(argv: list[str] | None = None) -> TrainConfig:
         parser.error(f"--device: {err}")
     if not np.isfinite(args.prediction_reward):
         parser.error(f"--prediction-reward={args.prediction_reward}: expected a finite weight")
-    return TrainConfig(use_predictions=not args.no_predictions, env_id=args.env_id, sensor_range_m=args.sensor_range,
+    return TrainConfig(use_predictions=not args.no_predictions, env_ids=tuple(args.env_ids),
+                       sensor_range_m=args.sensor_range,
                        seed=args.seed, reward=replace(d.reward, prediction=args.prediction_reward),
                        extractor=args.extractor, closest_approach=args.closest_approach, tensorboard=args.tensorboard,
                        demos=args.demos, minutes=args.minutes, log_std_init=args.log_std_init, device=args.device,

@@ -1,7 +1,8 @@
-"""The PPO trainer's envs: an STCrowd native vector env seen through the navigation features, as a
-stable-baselines3 ``VecEnv``.
+"""The PPO trainer's envs: STCrowd native vector envs seen through the navigation features, as a stable-baselines3
+``VecEnv``.
 
     vec = FeatureVecEnv("STCrowd-SimCrossing-v1", num_envs=64, features=FeatureConfig(True), shards=2)
+    vec = FeatureVecEnv(["STCrowd-Eth-v0:reactive", "STCrowd-Hotel-v0:reactive"], 16, FeatureConfig(True))
     features = vec.reset()                       # (64, features.size) float32
     vec.step_async(actions); features, rewards, dones, infos = vec.step_wait()
 
@@ -11,8 +12,10 @@ convention: an ended episode's sub-env is reset in the same step, its last featu
 ``info["terminal_observation"]`` and ``info["TimeLimit.truncated"]`` says whether the time limit ended it.
 Actions (num_envs, 2) in [-1, 1] are path-frame velocities in speed limits (``features.to_velocities``). Only the
 ``NEAREST`` pedestrians the features read are forecast (``EnvConfig.forecast_nearest``; every sensed one still
-conditions their forecast). With ``shards`` > 1 the sub-envs are split into worker processes (``FeatureShard`` in
-each, through ``envs.shards``), which step at once and send back features, not observations.
+conditions their forecast). Several training envs (``ID`` or ``ID:MODE``, a replay's pedestrians "log" or
+"reactive") share the sub-envs evenly, in the order given, one native vector env each. With ``shards`` > 1 the
+sub-envs are split into worker processes (``FeatureShards`` in each, through ``envs.shards``), which step at once and
+send back features, not observations.
 """
 
 from __future__ import annotations
@@ -29,6 +32,7 @@ from stable_baselines3.common.vec_env import VecEnv
 
 from envs.common.config import EnvConfig
 from envs.common.errors import EnvInputError
+from envs.replay_env import PEDESTRIAN_MODES
 from envs.shards import ProcessShard, one_thread
 from st_sim.apps.navigation.features import NEAREST, FeatureConfig, encode_batch, path_frames, to_velocities
 from st_sim.apps.navigation.predictors import env_predictor
@@ -44,18 +48,33 @@ def sub_env_info(batched: dict[str, Any], i: int) -> dict[str, Any]:
             for key, value in batched.items() if not key.startswith("_") and batched[f"_{key}"][i]}
 
 
+def training_env(spec: str) -> tuple[str, dict[str, Any]]:
+    """(env id, ``gym.make`` keywords) of a training env ``ID`` or ``ID:MODE`` (a replay's pedestrians, log or
+    reactive); ``EnvInputError`` for an unknown id or mode."""
+    env_id, _, mode = spec.partition(":")
+    if env_id not in gym.registry:
+        raise EnvInputError(f"training env {spec!r}: {env_id!r} is not a registered gym id")
+    if not mode:
+        return env_id, {}
+    if mode not in PEDESTRIAN_MODES:
+        raise EnvInputError(f"training env {spec!r}: {mode!r} is not a pedestrian mode ({', '.join(PEDESTRIAN_MODES)})")
+    return env_id, {"pedestrians": mode}
+
+
 class FeatureShard:
-    """``num_envs`` sub-envs of ``env_id`` in this process: one native vector env and its features (what
-    ``FeatureVecEnv`` runs, here or in each worker process; arguments as ``FeatureVecEnv``)."""
+    """``num_envs`` sub-envs of one training env (``ID`` or ``ID:MODE``) in this process: one native vector env and
+    its features (arguments as ``FeatureVecEnv``)."""
 
     def __init__(self, env_id: str, num_envs: int, features: FeatureConfig, config: EnvConfig | None = None,
                  device: str = "auto", worker: bool = False):
         if worker:
             one_thread()
         config = replace(config or EnvConfig(), sensor_range_m=features.sensor_range_m, forecast_nearest=NEAREST)
+        env_id, kwargs = training_env(env_id)
         self.vector = gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point",
                                    autoreset_mode=AutoresetMode.SAME_STEP, config=config, device=device,
-                                   predictor=env_predictor("singular" if features.use_predictions else "none"))
+                                   predictor=env_predictor("singular" if features.use_predictions else "none"),
+                                   **kwargs)
         self.features = features
         self.world = world_of(self.vector.envs[0])  # every sub-env of an id has the same world (scene, limits, map)
         self._frames = np.zeros((num_envs, 2, 2))  # path_frames of the sub-envs' observations, for their next action
@@ -100,12 +119,63 @@ class FeatureShard:
         return encode_batch(obs, self.world, self.features, self._frames)
 
 
-class FeatureVecEnv(VecEnv):
-    """``num_envs`` sub-envs of ``env_id`` stepped as native vector envs, observed through ``encode_batch``.
+class FeatureShards:
+    """The sub-envs of one or more training envs in this process, a ``FeatureShard`` each, stepped as one (what
+    ``FeatureVecEnv`` runs, here or in each worker process).
 
     Args:
-        env_id: an STCrowd id with an ego.
-        num_envs: sub-envs, >= 1.
+        parts: (training env, sub-envs) pairs, in sub-env order.  Others as ``FeatureShard``.
+    """
+
+    def __init__(self, parts: Sequence[tuple[str, int]], features: FeatureConfig, config: EnvConfig | None = None,
+                 device: str = "auto", worker: bool = False):
+        if worker:
+            one_thread()
+        self.shards = [FeatureShard(env_id, size, features, config, device) for env_id, size in parts]
+        self._cuts = np.cumsum([size for _, size in parts])[:-1]
+
+    def reset(self, seeds: list[int | None] | None) -> np.ndarray:
+        """(num_envs, size) features of new episodes, sub-env i seeded with ``seeds[i]`` (None: fresh ones)."""
+        parts = [None] * len(self.shards) if seeds is None else np.split(np.array(seeds, object), self._cuts)
+        return np.concatenate([shard.reset(None if part is None else list(part))
+                               for shard, part in zip(self.shards, parts, strict=True)])
+
+    def step(self, actions: np.ndarray) -> StepResult:
+        """One step of every sub-env with path-frame actions (num_envs, 2) in [-1, 1]."""
+        parts = [shard.step(part) for shard, part in zip(self.shards, np.split(actions, self._cuts), strict=True)]
+        return (np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts]),
+                np.concatenate([p[2] for p in parts]), [info for p in parts for info in p[3]])
+
+    def get_attr(self, attr_name: str, indices: Sequence[int]) -> list[Any]:
+        return [value for shard, local in self._holders(indices) for value in shard.get_attr(attr_name, local)]
+
+    def set_attr(self, attr_name: str, value: Any, indices: Sequence[int]) -> None:
+        for shard, local in self._holders(indices):
+            shard.set_attr(attr_name, value, local)
+
+    def env_method(self, method_name: str, method_args: tuple, method_kwargs: dict, indices: Sequence[int]) -> list:
+        return [result for shard, local in self._holders(indices)
+                for result in shard.env_method(method_name, method_args, method_kwargs, local)]
+
+    def close(self) -> None:
+        for shard in self.shards:
+            shard.close()
+
+    def _holders(self, indices: Sequence[int]) -> list[tuple[FeatureShard, list[int]]]:
+        """(shard, [its local index]) for each of ``indices``, in their order."""
+        starts = np.r_[0, self._cuts]
+        holder = np.searchsorted(starts, indices, side="right") - 1
+        return [(self.shards[k], [int(i - starts[k])]) for i, k in zip(indices, holder.tolist(), strict=True)]
+
+
+class FeatureVecEnv(VecEnv):
+    """``num_envs`` sub-envs of one or more training envs stepped as native vector envs, observed through
+    ``encode_batch``.
+
+    Args:
+        env_id: an STCrowd id with an ego, ``ID:MODE`` for a replay's pedestrians (log, reactive), or several of them:
+            they share the sub-envs evenly, in the order given (the first ones get one more where they do not divide).
+        num_envs: sub-envs, >= 1 (and >= the number of training envs).
         features: what the policy sees; with ``use_predictions`` the env runs SingularTrajectory, without it no
             predictor. Its ``sensor_range_m`` is also the env's, so only sensed pedestrians are forecast.
         config: the env's settings (its ``sensor_range_m`` is replaced by the features'); None: defaults.
@@ -114,16 +184,23 @@ class FeatureVecEnv(VecEnv):
         device: where the forecasts run (``predictor.devices``; "auto": a GPU when torch sees one).
     """
 
-    def __init__(self, env_id: str, num_envs: int, features: FeatureConfig, config: EnvConfig | None = None,
-                 shards: int = 1, device: str = "auto"):
+    def __init__(self, env_id: str | Sequence[str], num_envs: int, features: FeatureConfig,
+                 config: EnvConfig | None = None, shards: int = 1, device: str = "auto"):
         if isinstance(shards, bool) or not isinstance(shards, int | np.integer) or not 1 <= shards <= num_envs:
             raise EnvInputError(f"shards={shards!r}: expected an int between 1 and num_envs={num_envs}")
-        self.sizes = [len(part) for part in np.array_split(np.arange(num_envs), shards)]
+        env_ids = [env_id] if isinstance(env_id, str) else list(env_id)
+        if not 1 <= len(env_ids) <= num_envs:
+            raise EnvInputError(f"{len(env_ids)} training envs for num_envs={num_envs}: give each at least one")
+        for spec in env_ids:
+            training_env(spec)
+        which = np.repeat(np.arange(len(env_ids)), [len(p) for p in np.array_split(np.arange(num_envs), len(env_ids))])
+        blocks = np.array_split(which, shards)  # the training env of each sub-env, shard by shard
+        parts = [[(env_ids[k], int(np.sum(block == k))) for k in dict.fromkeys(block.tolist())] for block in blocks]
+        self.sizes = [len(block) for block in blocks]
         self._cuts = np.cumsum(self.sizes)[:-1]
-        self._local = FeatureShard(env_id, num_envs, features, config, device) if shards == 1 else None
+        self._local = FeatureShards(parts[0], features, config, device) if shards == 1 else None
         self._workers = [] if shards == 1 else [
-            ProcessShard(f"{__name__}:FeatureShard", env_id, size, features, config, device, True)
-            for size in self.sizes]
+            ProcessShard(f"{__name__}:FeatureShards", part, features, config, device, True) for part in parts]
         super().__init__(num_envs, spaces.Box(-np.inf, np.inf, (features.size,), np.float32),
                          spaces.Box(-1.0, 1.0, (2,), np.float32))
         self._actions = np.zeros((num_envs, 2), np.float32)
