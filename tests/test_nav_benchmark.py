@@ -250,3 +250,19 @@ def test_an_sb3_model_runs_where_it_fits_and_is_refused_before_any_episode_where
     err = capsys.readouterr().err
     assert "does not fit scenario 'zara1-log'" in err and "(20, 8, 2)" in err and "(40, 8, 2)" in err
     assert not (tmp_path / "misfit" / "parts").exists(), "refused before any episode"
+
+
+def test_the_example_sb3_policy_trains_in_a_few_lines_and_runs_where_the_raw_model_could_not(tmp_path: Path) -> None:
+    model = tmp_path / "nearest.zip"
+    trained = subprocess.run([sys.executable, "-m", "examples.my_policy.train_sb3", "--steps", "512", "--out",
+                              str(model)], cwd=REPO, env={**os.environ, "OMP_NUM_THREADS": "1"}, capture_output=True,
+                             text=True, timeout=900)
+    assert trained.returncode == 0, trained.stderr
+    done = subprocess.run([sys.executable, "-m", "st_sim", "benchmark", "--policy",
+                           "examples.my_policy.nearest:Sb3Nearest", "--predictor", "none", "--suite", "val",
+                           "--episodes", "1", "--scenarios", "frontal-approach", "univ-reactive", "--workers", "1",
+                           "--quiet", "--out", str(tmp_path / "bench")], cwd=REPO,
+                          env={**os.environ, "OMP_NUM_THREADS": "1", "MY_POLICY_MODEL": str(model)},
+                          capture_output=True, text=True, timeout=900)
+    assert done.returncode == 0, done.stderr
+    assert len((tmp_path / "bench" / "episodes.jsonl").read_text().splitlines()) == 2
