@@ -134,7 +134,7 @@ def test_the_local_executor_never_imports_ray(tmp_path):
 def test_the_navigation_benchmark_gives_the_same_episodes_on_ray(tmp_path, local_ray):
     from st_sim.apps.navigation.benchmark import BenchmarkRun, run_benchmark
 
-    for executor, workers in (("local", 1), ("ray", None)):
+    for executor, workers in (("local", 2), ("ray", None)):  # worker processes both: --perturb patches this one
         run_benchmark(BenchmarkRun("straight", str(tmp_path / executor), predictor="none", split="val", episodes=3,
                                    scenarios=("frontal-approach", "hotel-reactive")),
                       executor=executor, workers=workers, progress=False)
