@@ -31,7 +31,7 @@ from st_sim.apps.navigation.world import world_of
 
 REPO = Path(__file__).resolve().parents[1]
 KEEP_CLEAR = "examples.my_policy.keep_clear:KeepClear"
-SHIPPED = load_suite()
+SUITE = load_suite()
 
 
 def run_cli(*args: str, **popen) -> subprocess.CompletedProcess:
@@ -42,15 +42,15 @@ def run_cli(*args: str, **popen) -> subprocess.CompletedProcess:
 
 
 def test_the_shipped_suite_has_disjoint_seed_lists_and_every_scenario_makes() -> None:
-    val, test = (set(SHIPPED.seeds[split]) for split in SPLITS)
+    val, test = (set(SUITE.seeds[split]) for split in SPLITS)
     assert not val & test, "tuning seeds must never be test seeds"
-    assert len(val) == len(SHIPPED.seeds["val"]) and len(test) == len(SHIPPED.seeds["test"]), "no repeats"
-    assert min(len(val), len(test)) >= SHIPPED.episodes
-    names = [scenario.name for scenario in SHIPPED.scenarios]
+    assert len(val) == len(SUITE.seeds["val"]) and len(test) == len(SUITE.seeds["test"]), "no repeats"
+    assert min(len(val), len(test)) >= SUITE.episodes
+    names = [scenario.name for scenario in SUITE.scenarios]
     assert len(set(names)) == len(names) and {"univ-reactive", "sim-crossing", "frontal-approach"} <= set(names)
-    for scenario in SHIPPED.scenarios:
+    for scenario in SUITE.scenarios:
         env = gym.make(scenario.env, **env_kwargs_of(scenario, "none"))
-        assert env.reset(seed=SHIPPED.seeds["val"][0])[0]["ego"].shape == (6,), scenario.name
+        assert env.reset(seed=SUITE.seeds["val"][0])[0]["ego"].shape == (6,), scenario.name
         env.close()
 
 
@@ -74,7 +74,7 @@ CORRUPTIONS = {
 @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(names=st.lists(st.sampled_from(sorted(CORRUPTIONS)), min_size=1, max_size=3, unique=True))
 def test_a_corrupt_suite_file_is_refused_naming_the_file(tmp_path: Path, names: list[str]) -> None:
-    raw = json.loads(SHIPPED.path.read_text())
+    raw = json.loads(SUITE.path.read_text())
     for name in names:
         corrupted = copy.deepcopy(raw)
         CORRUPTIONS[name](corrupted)
@@ -86,16 +86,16 @@ def test_a_corrupt_suite_file_is_refused_naming_the_file(tmp_path: Path, names: 
 
 def test_unknown_scenarios_splits_and_too_many_episodes_are_refused() -> None:
     with pytest.raises(SuiteError, match="no scenario 'nowhere'"):
-        SHIPPED.select(["sim-crossing", "nowhere"])
+        SUITE.select(["sim-crossing", "nowhere"])
     with pytest.raises(SuiteError, match="no seed list 'train'"):
-        SHIPPED.seeds_of("train")
+        SUITE.seeds_of("train")
     with pytest.raises(SuiteError, match="ask 1 to"):
-        SHIPPED.seeds_of("test", len(SHIPPED.seeds["test"]) + 1)
+        SUITE.seeds_of("test", len(SUITE.seeds["test"]) + 1)
 
 
 def plain_loop(scenario_name: str, predictor: str, seeds: list[int], policy_spec: str) -> list[dict]:
     """The records of a plain ``gym.make`` loop over the scenario's env, keywords and seeds, as a user writes it."""
-    (scenario,) = SHIPPED.select([scenario_name])
+    (scenario,) = SUITE.select([scenario_name])
     env = gym.make(scenario.env, **env_kwargs_of(scenario, predictor))
     world = world_of(env)
     policy = load_policy(policy_spec, world, predictor)
@@ -139,13 +139,13 @@ def test_a_policy_from_outside_the_project_runs_every_scenario_with_a_plain_loop
                    "--out", str(out), "--workers", "2", "--quiet")
     assert done.returncode == 0, done.stderr
     summary = json.loads((out / "summary.json").read_text())
-    assert [s["name"] for s in summary["scenarios"]] == [s.name for s in SHIPPED.scenarios]
-    assert (summary["suite"], summary["suite_version"], summary["split"]) == (SHIPPED.name, SHIPPED.version, "val")
+    assert [s["name"] for s in summary["scenarios"]] == [s.name for s in SUITE.scenarios]
+    assert (summary["suite"], summary["suite_version"], summary["split"]) == (SUITE.name, SUITE.version, "val")
     lines = [json.loads(line) for line in (out / "episodes.jsonl").read_text().splitlines()]
-    assert len(lines) == 2 * len(SHIPPED.scenarios)
+    assert len(lines) == 2 * len(SUITE.scenarios)
     for scenario in summary["scenarios"]:
         assert scenario["env_kwargs"]["predictor"] == "cvm"
-        assert [e["seed"] for e in scenario["episodes"]] == list(SHIPPED.seeds["val"][:2])
+        assert [e["seed"] for e in scenario["episodes"]] == list(SUITE.seeds["val"][:2])
         for episode in scenario["episodes"]:
             assert {"success", "collision", "at_fault", "time_to_goal_s", "path_length_m", "min_distance_m"} \
                 <= set(episode)
@@ -156,7 +156,7 @@ def test_a_policy_from_outside_the_project_runs_every_scenario_with_a_plain_loop
                                       scenarios=names), workers=1, progress=False)
     by_scenario = {s["name"]: s["episodes"] for s in here["scenarios"]}
     for name in names:
-        expected = plain_loop(name, "cvm", list(SHIPPED.seeds["val"][:2]), KEEP_CLEAR)
+        expected = plain_loop(name, "cvm", list(SUITE.seeds["val"][:2]), KEEP_CLEAR)
         assert by_scenario[name] == [{k: v for k, v in e.items() if k != "scenario"} for e in expected], name
     assert main(["leaderboard", str(out), "--no-baselines", "--out", str(tmp_path / "board.md"),
                  "--chart", str(tmp_path / "board.png")]) == 0
