@@ -270,3 +270,15 @@ def test_the_example_sb3_policy_trains_in_a_few_lines_and_runs_where_the_raw_mod
                           capture_output=True, text=True, timeout=900)
     assert done.returncode == 0, done.stderr
     assert len((tmp_path / "bench" / "episodes.jsonl").read_text().splitlines()) == 2
+
+
+def test_the_committed_baselines_load_and_join_a_run_of_the_same_episodes() -> None:
+    from st_sim.apps.navigation.leaderboard import BASELINES_DIR, baseline_results
+
+    committed = [load_result(folder) for folder in sorted(BASELINES_DIR.iterdir()) if folder.is_dir()]
+    assert len(committed) >= 6 and all(r["split"] == "test" and r["episodes_per_scenario"] == 100 for r in committed)
+    assert {s["name"] for s in committed[0]["scenarios"]} == {s.name for s in SUITE.scenarios}
+    assert len(baseline_results(committed[0])) == len(committed)
+    assert baseline_results({**committed[0], "split": "val"}) == [], "other episodes never join"
+    table = markdown(committed)
+    assert all(f"| {name} |" in table for name in ("straight", "orca", "mpc + singular", "ppo + singular"))

@@ -10,6 +10,7 @@ are refused, since their figures do not compare.
 
 from __future__ import annotations
 
+import gzip
 import json
 import os
 from pathlib import Path
@@ -20,7 +21,8 @@ from st_sim.apps.navigation.metrics import GROUPS, METRICS
 from st_sim.apps.navigation.report import metric_label
 
 BASELINES_DIR = Path(__file__).resolve().parents[3] / "results" / "benchmark"
-"""the shipped planners' committed results, one folder each (present in a clone of the repository)"""
+"""the shipped planners' committed results, one folder each holding ``summary.json.gz`` (a clone of the repository
+has them)"""
 SAME_EPISODES = ("suite", "suite_version", "split", "episodes_per_scenario")
 GROUP_TITLES = {"safety": "Safety", "efficiency": "Efficiency", "comfort": "Comfort and social"}
 
@@ -30,14 +32,18 @@ class LeaderboardError(ValueError):
 
 
 def load_result(folder: str | os.PathLike) -> dict[str, Any]:
-    """The ``summary.json`` of a benchmark output folder, checked to be one (``LeaderboardError`` otherwise)."""
+    """The ``summary.json`` (or gzipped ``summary.json.gz``, as the committed results are kept) of a benchmark output
+    folder, checked to be one (``LeaderboardError`` otherwise)."""
     path = Path(folder) / "summary.json"
+    if not path.is_file() and path.with_suffix(".json.gz").is_file():
+        path = path.with_suffix(".json.gz")
     try:
-        result = json.loads(path.read_text())
+        text = gzip.decompress(path.read_bytes()).decode() if path.suffix == ".gz" else path.read_text()
+        result = json.loads(text)
     except FileNotFoundError:
         raise LeaderboardError(f"{folder}: no summary.json (run `python -m st_sim benchmark --out {folder}` "
                                "first; an interrupted run writes it when resumed to the end)") from None
-    except (OSError, json.JSONDecodeError) as err:
+    except (OSError, EOFError, UnicodeDecodeError, json.JSONDecodeError) as err:
         raise LeaderboardError(f"{path}: not a readable benchmark summary ({err})") from err
     if not isinstance(result, dict) or result.get("format") != RESULT_FORMAT:
         raise LeaderboardError(f"{path}: not a benchmark summary (expected format {RESULT_FORMAT})")
@@ -48,7 +54,7 @@ def baseline_results(like: dict[str, Any], folder: Path = BASELINES_DIR) -> list
     """The committed results in ``folder`` measured on the same episodes as ``like`` (none without the folder)."""
     if not folder.is_dir():
         return []
-    found = [load_result(path.parent) for path in sorted(folder.glob("*/summary.json"))]
+    found = [load_result(path) for path in sorted(folder.iterdir()) if path.is_dir()]
     return [result for result in found if all(result[key] == like[key] for key in SAME_EPISODES)]
 
 
