@@ -63,11 +63,13 @@ def test_straight_planner_walks_into_the_crosser(open_world: NavWorld) -> None:
     assert closest < open_world.contact_m, f"the scenario should make the straight planner collide ({closest:.2f} m)"
 
 
-AVOIDERS = [("orca", "none"), ("mpc", "cvm"), ("mpc", "singular"), ("ppo", "singular"), ("ppo", "none")]
+AVOIDERS = [("orca", "none"), ("mpc", "cvm"), ("mpc", "singular"), ("ppo", "singular"), ("ppo", "none"),
+            ("ppo-reactive", "singular"), ("ppo-reactive", "none")]
 
 
 @pytest.mark.parametrize(("planner", "predictor"), AVOIDERS,
-                         ids=["orca-none", "mpc-cvm", "mpc-singular", "ppo-singular", "ppo-none"])
+                         ids=["orca-none", "mpc-cvm", "mpc-singular", "ppo-singular", "ppo-none",
+                              "ppo-reactive-singular", "ppo-reactive-none"])
 def test_planner_avoids_the_crosser_and_moves_on(open_world: NavWorld, planner: str, predictor: str) -> None:
     if planner == "orca":
         pytest.importorskip("pyrvo", reason='ORCA needs the optional extra: pip install -e ".[orca]"')
@@ -77,7 +79,7 @@ def test_planner_avoids_the_crosser_and_moves_on(open_world: NavWorld, planner: 
 
 
 def test_every_planner_is_registered_and_unknown_names_fail(open_world: NavWorld) -> None:
-    assert set(PLANNERS) == {"straight", "orca", "mpc", "ppo"}
+    assert set(PLANNERS) == {"straight", "orca", "mpc", "ppo", "ppo-reactive"}
     with pytest.raises(ValueError, match="planner='teleport'"):
         make_planner("teleport", open_world, "none")
     with pytest.raises(ValueError, match="predictor='oracle'"):

@@ -1,14 +1,19 @@
 """Crowd navigation on the STCrowd envs: planners that use the predicted futures, and a benchmark to score them.
 
     python -m st_sim navigate --env STCrowd-SimCrossing-v1 --policy mpc --predictor singular --episodes 100
+    python -m st_sim benchmark --policy mypkg.policy:MyPolicy --out runs/bench/mine
 
 Modules, one concept each:
-- ``planners``: the registry (straight, orca, mpc, ppo) and the ``Planner`` interface (``reset``, ``act``);
+- ``planners``: the registry (straight, orca, mpc, ppo, ppo-reactive) and the ``Planner`` interface (``reset``,
+  ``act``); ``policies``: any policy by spec (a shipped name, package.module:name, sb3:PATH.zip);
   ``straight``, ``orca``, ``mpc``, ``ppo``: one planner class each;
 - ``predictors``: the predictor names (none, cvm, cvm-s, singular) and "none" (nobody moves);
 - ``world``, ``terrain``, ``pedestrians``: what a planner knows (limits, radii, map grid, cost-to-go) and sees;
 - ``features``, ``train_ppo``: the learned policy's inputs and its stable-baselines3 training script;
-- ``episodes``, ``metrics``, ``report``, ``cli``: seeded episodes, their figures with 95 % intervals, the command.
+- ``episodes``, ``metrics``, ``social_metrics``, ``report``, ``cli``: seeded episodes, their figures in three groups
+  with 95 % intervals, the command;
+- ``suite``, ``benchmark``, ``leaderboard``, ``benchmark_cli``: the versioned suite, any policy through it, results
+  side by side.
 
 Application layer: it imports envs, predictor, replays and st_sim; nothing below imports it.
 """

@@ -40,7 +40,7 @@ class NavRun:
     env_id: str = "STCrowd-SimCrossing-v1"
     """gym id of an STCrowd env with an ego"""
     policy: str = "mpc"
-    """a policy spec (``policies``): a shipped planner (straight, orca, mpc, ppo), package.module:name or
+    """a policy spec (``policies``): a shipped planner (straight, orca, mpc, ppo, ppo-reactive), package.module:name or
     sb3:PATH.zip"""
     predictor: str = "singular"
     """none, cvm, cvm-s or singular"""
@@ -181,7 +181,7 @@ def planner_options(run: NavRun) -> dict[str, Any]:
     """
     if run.mpc is not None and run.policy != "mpc":
         raise ValueError(f"MPC settings given for the {run.policy} planner; they are the mpc planner's")
-    if run.policy_file is not None and run.policy != "ppo":
+    if run.policy_file is not None and run.policy not in ("ppo", "ppo-reactive"):
         raise ValueError(f"a policy file ({run.policy_file}) given for the {run.policy} planner; only ppo reads one")
     return {"cfg": run.mpc} if run.mpc is not None else {"policy": run.policy_file} if run.policy_file else {}
 

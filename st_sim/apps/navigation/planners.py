@@ -26,9 +26,10 @@ PLANNERS: dict[str, str] = {
     "orca": "st_sim.apps.navigation.orca:OrcaPlanner",
     "mpc": "st_sim.apps.navigation.mpc:MpcPlanner",
     "ppo": "st_sim.apps.navigation.ppo:PpoPlanner",
+    "ppo-reactive": "st_sim.apps.navigation.ppo:ReactivePpoPlanner",
 }
 """planner name -> "module:class"; every class is built as ``cls(world, use_predictions, **options)``"""
-USES_PREDICTIONS: dict[str, bool] = {"straight": False, "orca": False, "mpc": True, "ppo": True}
+USES_PREDICTIONS: dict[str, bool] = {"straight": False, "orca": False, "mpc": True, "ppo": True, "ppo-reactive": True}
 """planners whose actions depend on the predicted futures (the others give the same episodes for any predictor)"""
 
 

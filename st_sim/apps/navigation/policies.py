@@ -5,7 +5,7 @@
     action = policy.act(obs)             # (2,) velocity command [m/s], world frame, checked
 
 A spec is one of:
-- a shipped planner name (``planners.PLANNERS``: straight, orca, mpc, ppo);
+- a shipped planner name (``planners.PLANNERS``: straight, orca, mpc, ppo, ppo-reactive);
 - ``package.module:name``: a class or factory following the planner protocol (``act(obs) -> (2,)`` velocity,
   optionally ``reset()``), built as ``name(world, use_predictions)`` like the shipped planners when its signature
   takes two arguments, else as ``name()``;
@@ -41,8 +41,8 @@ SB3_ALGORITHMS: dict[str, tuple[str, ...]] = {
 }
 """module of a saved model's policy class -> the algorithms that load it (the first is used; any of them predicts
 the same)"""
-SPEC_HELP = ("a shipped planner (straight, orca, mpc, ppo), package.module:name (a class or factory with "
-             "act(obs) -> (2,) velocity), or sb3:PATH.zip (a stable-baselines3 model)")
+SPEC_HELP = ("a shipped planner (straight, orca, mpc, ppo, ppo-reactive), package.module:name (a class or factory "
+             "with act(obs) -> (2,) velocity), or sb3:PATH.zip (a stable-baselines3 model)")
 
 
 class PolicyError(ValueError):

@@ -25,7 +25,9 @@ from st_sim.apps.navigation.world import NavWorld
 FORMAT = "stcrowd-nav-ppo/1"
 PRETRAINED_DIR = "pretrained"
 SHIPPED: dict[bool, str] = {True: "ppo-predictions", False: "ppo-no-predictions"}
-"""shipped policy name by whether it sees the predictions"""
+"""shipped policy name by whether it sees the predictions (trained on the simulated crossing)"""
+SHIPPED_REACTIVE: dict[bool, str] = {True: "ppo-reactive-predictions", False: "ppo-reactive-no-predictions"}
+"""the same, fine-tuned in the reactive replays of ETH, HOTEL and ZARA2 (ZARA1 and UNIV held out)"""
 
 
 class PolicyFileError(ValueError):
@@ -118,9 +120,12 @@ class PpoPlanner:
         policy: a shipped name or file to use instead.
     """
 
+    shipped: dict[bool, str] = SHIPPED
+    """the shipped policy by ``use_predictions``"""
+
     def __init__(self, world: NavWorld, use_predictions: bool = True, policy: str | Path | None = None):
         self.world = world
-        self.policy, self.features = load_policy(policy or SHIPPED[use_predictions])
+        self.policy, self.features = load_policy(policy or self.shipped[use_predictions])
 
     def reset(self) -> None:
         """Nothing to forget: the policy is a function of the current observation."""
@@ -130,3 +135,9 @@ class PpoPlanner:
         frame = path_frame(obs, self.world)
         action, _ = self.policy.predict(encode(obs, self.world, self.features, frame), deterministic=True)
         return to_velocity(action, obs, self.world, frame)
+
+
+class ReactivePpoPlanner(PpoPlanner):
+    """``PpoPlanner`` with the policies fine-tuned in reactive replays (``SHIPPED_REACTIVE``): "ppo-reactive"."""
+
+    shipped = SHIPPED_REACTIVE
