@@ -5,7 +5,7 @@ reactive replays against one reactive env, all in one run.
     python benchmarks/bench_reactive.py --episodes 20 --rounds 3 --num-envs 16 --vector-steps 40
 
 Every env is ``STCrowd-Univ-v0`` (``--env``) driven by the straight planner (full speed to the goal, avoiding nobody)
-with no predictor in the observation (``StaticPredictor``: the forecast costs nothing), so that the time is the
+with no predictor in the observation (``predictor="none"``: the forecast costs nothing), so that the time is the
 env's. Both parts alternate their two sides within each round, so that a busy machine slows both alike, and report
 the ratios of each round and their median:
 
@@ -38,7 +38,6 @@ import gymnasium as gym
 import numpy as np
 
 import envs  # noqa: F401  (registers the ids)
-from st_sim.apps.navigation.predictors import StaticPredictor
 from st_sim.apps.navigation.straight import StraightPlanner
 from st_sim.apps.navigation.world import world_of
 
@@ -46,7 +45,7 @@ from st_sim.apps.navigation.world import world_of
 def single_rate(env_id: str, pedestrians: str, seeds: list[int], max_steps: int | None = None) -> float:
     """Env steps per second of one env over the episodes of ``seeds`` (resets included; stops after ``max_steps``
     steps if given, starting the next episode while there are steps left)."""
-    env = gym.make(env_id, predictor=StaticPredictor(), pedestrians=pedestrians)
+    env = gym.make(env_id, predictor="none", pedestrians=pedestrians)
     planner = StraightPlanner(world_of(env))
     steps, k = 0, 0
     start = time.perf_counter()
@@ -66,7 +65,7 @@ def vector_rate(env_id: str, num_envs: int, seed: int, vector_steps: int) -> flo
     """Env steps per second of the native vector env of ``num_envs`` reactive replays (a vector step counts
     ``num_envs``; autoresets included)."""
     vec = gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point",
-                       predictor=StaticPredictor(), pedestrians="reactive")
+                       predictor="none", pedestrians="reactive")
     planner = StraightPlanner(world_of(vec.envs[0]))
     start = time.perf_counter()
     obs, _ = vec.reset(seed=seed)
@@ -81,7 +80,7 @@ def vector_rate(env_id: str, num_envs: int, seed: int, vector_steps: int) -> flo
 def digest_lines(env_id: str, seeds: list[int]) -> list[str]:
     """One line per episode of ``env_id`` with reactive pedestrians and the straight planner: the seed, the steps and
     a SHA-256 over the crowd's state after every step and every reward."""
-    env = gym.make(env_id, predictor=StaticPredictor(), pedestrians="reactive")
+    env = gym.make(env_id, predictor="none", pedestrians="reactive")
     planner = StraightPlanner(world_of(env))
     lines = []
     for seed in seeds:
@@ -116,7 +115,7 @@ def main(argv: list[str] | None = None) -> int:
         args.digest.write_text("\n".join(lines) + "\n")
         print(f"wrote {len(lines)} episode digests to {args.digest}")
         return 0
-    gym.make(args.env, predictor=StaticPredictor(), pedestrians="reactive").close()  # load the data once, untimed
+    gym.make(args.env, predictor="none", pedestrians="reactive").close()  # load the data once, untimed
 
     print(f"{args.env}, straight planner, no predictor; env steps per second")
     ratios = []
