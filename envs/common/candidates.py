@@ -12,10 +12,17 @@ that loses the least time and strays the least while
 - once it reacts, it keeps its room from where the robot will be over the reaction's anticipation; before, it keeps
   ``COMFORT_M`` from the robot's body where it stands (a body in its way, not a robot it expects to move) (costs, so
   that it steps aside early rather than at the last moment); one that has made no headway for a while
-  (``HEADWAY_M``) pays ``STUCK_COST`` per such step for making none again, so that it tries another way round; one
-  that plans a way round (``ReactiveState.detour``) also pays ``DETOUR_COST`` per metre it would have to walk from the
-  place to its route a few metres ahead, round the robot's body and the walls (``detour.walking_distances_m``): from a
-  pocket between the robot and a wall it walks back out and round.
+  (``HEADWAY_M``) pays ``STUCK_COST`` per such step for making none again, so that it tries another way round.
+
+**The way round.** One that plans a way round (``ReactiveState.detour``) also pays ``DETOUR_COST`` per metre it would
+have to walk from the place to its route a few metres ahead (``DETOUR_AHEAD_M``, but no farther than where its log
+will be ``DETOUR_LEAD_STEPS`` on: it does not walk ahead to wait for its log), round the robot's body, the walls and
+the others standing there (``detour.walking_distances_m``; where that point of its route is within the robot's reach,
+to the nearest place clear of it). It follows that way off its route's grid too: it may step anywhere within its
+reach (every ``FREE_STEP_M``; each such place counted at the point of its route nearest to it), and round the robot
+it risks only where it stands, not along its route at its side. From a pocket between the robot and a wall, or
+between the robot and where its log began, turned back or stood, it walks back out and round. One that stands off
+its grid so may also stay where it is.
 
 ``place_candidates`` lays out every candidate of every pedestrian off its log, in every crowd, in one pass, with the
 bounds and costs that need neither its depth, its risk nor the others (``Candidates``); ``score_alone`` adds its
@@ -30,9 +37,10 @@ from typing import Final
 
 import numpy as np
 
-from envs.common.detour import grid_cells, walking_distances_m
-from envs.common.footprint import COMFORT_M, Robot, length_m
+from envs.common.detour import grid_cells, nearest_free_m, walking_distances_m
+from envs.common.footprint import BODY_RADIUS_M, COMFORT_M, Robot, length_m
 from envs.common.ragged import distinct
+from envs.common.reaction import MOVING_MPS
 from envs.common.routes import Routes
 from replays.constants import STEP_S
 
@@ -57,10 +65,12 @@ ROBOT_WEIGHT: Final[float] = 1e4  # with no place within every bound: a metre in
 """the others and its pace (it stands still rather than step in) [-]"""
 DETOUR_AHEAD_M: Final[tuple[float, ...]] = (3.0, 3.5, 4.0, 4.5, 5.0)  # one that plans a way round plans it to the
 """first of these points of its route beyond the farthest it has reached that is clear of the robot (or to where its
-log ends, if nearer) [m] ..."""
+log ends, if nearer; with none clear, to the last, or the free place nearest to it) [m] ..."""
+DETOUR_LEAD_STEPS: Final[int] = 5  # ... nor beyond where its log will be this many 0.4 s steps on [-] ...
 DETOUR_MARGIN_M: Final[float] = 1.5  # ... on a grid reaching this far round it, the goal and its candidates [m]
 DETOUR_BACK_FRAMES: Final[int] = 16  # ... and round its route from this many frames behind its route point [-]
 DETOUR_COST: Final[float] = 10.0  # ... and pays this per metre it would then have to walk to that point [1/m]
+FREE_STEP_M: Final[float] = 0.2  # ... and may also step off its route's grid, anywhere within reach on a grid this fine
 NEAR_SLACK_M: Final[float] = 1e-6  # boxes are apart only beyond a reach plus this [m]
 
 
@@ -97,7 +107,8 @@ class Step:
 @dataclass(frozen=True, eq=False)
 class Candidates:
     """The places every chooser (a pedestrian off its log, J of them in all crowds) may choose in one step, its C
-    candidates in a row (M = sum of C in all, in the order of its own grid: progress, then side).
+    candidates in a row (M = sum of C in all, in the order of its own grid: progress, then side; then where it
+    stands, if off its grid, and its free steps, if it takes its way round).
 
     Attributes:
         owner: (M,) chooser.  first: (J + 1,) where each chooser's rows start.  tau_now: (J,) the route point
@@ -145,29 +156,32 @@ def place_candidates(routes: Routes, step: Step, rows: np.ndarray, agents: np.nd
     first, last = routes.run_first[run_frame, agents], routes.run_last[run_frame, agents]
     cap = np.maximum(tau, np.minimum(index, last).astype(np.float64))  # never ahead of the log
     reach_m = np.maximum(CATCH_UP_MPS, CATCH_UP_FACTOR * routes.log_speed_mps[run_frame, agents]) * STEP_S
-    taus = routes.tau_ahead(agents, tau, reach_m[:, None] * PROGRESS_SHARES, run_frame)
-    taus = np.sort(np.clip(np.c_[taus, cap], first[:, None], cap[:, None]), axis=1)
-    sides = np.sort(np.c_[np.broadcast_to(OFFSETS_M, (len(agents), len(OFFSETS_M))), offset], axis=1)
-    grid = distinct(taus)[:, :, None] & distinct(sides)[:, None, :]  # (J, T, O): the tau-major grid of each
-    owner, t_col, o_col = np.nonzero(grid)
-    c_tau, c_off = taus[owner, t_col], sides[owner, o_col]
-    a, rf, start = agents[owner], run_frame[owner], here[owner]
-    places = routes.place(a, c_tau, c_off, rf)  # (M, 2)
+    owner, c_tau, c_off = _route_grid(routes, agents, tau, offset, run_frame, first, cap, reach_m)
+    places = routes.place(agents[owner], c_tau, c_off, run_frame[owner])  # (M, 2)
+    # after the grid's: where it stands, if off its grid (a free step took it there), and the free steps of those
+    # taking their way round
+    stays = np.flatnonzero(length_m(routes.place(agents, tau, offset, run_frame) - here) > 0.0)
+    detour = np.flatnonzero(step.detour[rows, agents])
+    extra = [(stays, tau[stays], offset[stays], here[stays])]
+    if detour.size:
+        extra.append(_free_steps(routes, detour, agents, here, tau, run_frame, first, cap, reach_m))
+    parts = [(owner, c_tau, c_off, places), *extra]
+    keep = np.argsort(np.concatenate([part[0] for part in parts]), kind="stable")
+    owner, c_tau, c_off, places = (np.concatenate(column)[keep] for column in zip(*parts, strict=True))
+    a, start = agents[owner], here[owner]
     too_fast = np.maximum(length_m(places - start) - reach_m[owner], 0.0)
     robot, heading = step.robot, step.robot.heading_rad[rows][owner]
     reacts = step.weight[rows, agents] > 0
     robot_to = np.where(reacts[:, None], robot.to_m[rows], robot.from_m[rows])[owner]  # noticed, or its body
     robot_gap = routes.body.swept_gap_m(start - robot.from_m[rows][owner], places - robot_to, heading)
     into_robot = np.maximum(routes.robot_reach_m - robot_gap, 0.0)
-    gain, away = routes.headway(a, c_tau, c_off, step.farthest[rows, agents][owner], index[owner])
-    recent = step.recent_m[rows, agents].min(axis=1)[owner]
-    staying = (gain < HEADWAY_M) & (away > recent - HEADWAY_M)  # stuck: try another way
-    delay = np.minimum(index[owner] - c_tau, (away - np.abs(c_off)) / (STEP_S * LAG_PACE_MPS))  # [frame]
+    gain, behind = routes.progress(a, c_tau, step.farthest[rows, agents][owner], index[owner])
+    staying = no_headway(gain, behind + np.abs(c_off), step.recent_m[rows, agents].min(axis=1)[owner])
+    delay = np.minimum(index[owner] - c_tau, behind / (STEP_S * LAG_PACE_MPS))  # [frame]
     fixed_cost = LAG_COST * delay + OFFSET_COST * np.abs(c_off) + SWAY_COST * np.abs(c_off - offset[owner])
     stuck_cost = STUCK_COST * step.stuck[rows, agents][owner] * staying
-    firsts = np.r_[0, np.cumsum(grid.sum(axis=(1, 2)))]
+    firsts = np.r_[0, np.cumsum(np.bincount(owner, minlength=len(agents)))]
     way_cost = np.zeros(len(owner))
-    detour = np.flatnonzero(step.detour[rows, agents])
     if detour.size:
         way = _way_round_m(routes, step, rows[detour], agents[detour], tau[detour], run_frame[detour],
                            [places[firsts[j]:firsts[j + 1]] for j in detour])
@@ -194,6 +208,43 @@ def place_candidates(routes: Routes, step: Step, rows: np.ndarray, agents: np.nd
                       order, np.bincount(owner, hopeful, minlength=len(agents)).astype(int))
 
 
+def _route_grid(routes: Routes, agents: np.ndarray, tau: np.ndarray, offset: np.ndarray, run_frame: np.ndarray,
+                first: np.ndarray, cap: np.ndarray, reach_m: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(owner (M,), tau (M,), offset_m (M,)): each chooser's grid of route points (``PROGRESS_SHARES`` of its reach
+    ``reach_m`` from ``tau``, and ``cap``, within ``first``..``cap``) and side offsets (``OFFSETS_M`` and its own
+    ``offset``), progress first, without repeats; the arguments (J,)."""
+    taus = routes.tau_ahead(agents, tau, reach_m[:, None] * PROGRESS_SHARES, run_frame)
+    taus = np.sort(np.clip(np.c_[taus, cap], first[:, None], cap[:, None]), axis=1)
+    sides = np.sort(np.c_[np.broadcast_to(OFFSETS_M, (len(agents), len(OFFSETS_M))), offset], axis=1)
+    grid = distinct(taus)[:, :, None] & distinct(sides)[:, None, :]  # (J, T, O): the tau-major grid of each
+    owner, t_col, o_col = np.nonzero(grid)
+    return owner, taus[owner, t_col], sides[owner, o_col]
+
+
+def _free_steps(routes: Routes, detour: np.ndarray, agents: np.ndarray, here: np.ndarray, tau: np.ndarray,
+                run_frame: np.ndarray, first: np.ndarray, cap: np.ndarray, reach_m: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(owner (F,), tau (F,), offset_m (F,), xy_m (F, 2)): the places off their route's grid that the choosers
+    ``detour`` (D,) taking their way round may step to, every ``FREE_STEP_M`` within their reach of where they are
+    (``here`` (J, 2) [m]), each with the point of its route nearest to it (from ``DETOUR_BACK_FRAMES`` behind ``tau``
+    to ``cap``) and its side of it; the other arguments (J,)."""
+    span = np.arange(-np.ceil(reach_m[detour].max() / FREE_STEP_M), np.ceil(reach_m[detour].max() / FREE_STEP_M) + 1)
+    pattern = FREE_STEP_M * np.stack(np.meshgrid(span, span, indexing="ij"), axis=-1).reshape(-1, 2)  # (S, 2)
+    j, k = np.nonzero(length_m(pattern)[None] <= reach_m[detour][:, None])
+    owner = detour[j]
+    xy = here[owner] + pattern[k]
+    low = np.maximum(first[owner], np.floor(tau[owner]).astype(int) - DETOUR_BACK_FRAMES)
+    c_tau, c_off = routes.nearest_on_route(agents[owner], xy, low, np.floor(cap[owner]).astype(int), run_frame[owner])
+    return owner, c_tau, c_off, xy
+
+
+def no_headway(gain_m: np.ndarray, away_m: np.ndarray, recent_m: np.ndarray) -> np.ndarray:
+    """(K,) bool: places that make no headway: less than ``HEADWAY_M`` farther along the route than the pedestrian has
+    been (``gain_m``) and no nearer to its log (``away_m``: metres behind it along the route plus metres aside) than
+    in its last ``RECENT_STEPS`` steps (``recent_m``, the nearest of them), all (K,) [m]."""
+    return (gain_m < HEADWAY_M) & (away_m > recent_m - HEADWAY_M)
+
+
 def score_alone(routes: Routes, step: Step, rows: np.ndarray, agents: np.ndarray, c: Candidates,
                 scored: np.ndarray) -> None:
     """Score ``too_deep``, ``later_m`` and ``risk`` (round the robot) of the rows ``scored`` of ``c`` not scored
@@ -209,8 +260,9 @@ def score_alone(routes: Routes, step: Step, rows: np.ndarray, agents: np.ndarray
     c.too_deep[new] = routes.too_deep_m(agent[:, None], tau[:, None], path, run_frame[:, None]).max(axis=1)
     c.later_m[new] = routes.place(agent[:, None], c.tau[new][:, None] + np.arange(1, c.later_m.shape[1] + 1),
                                   c.offset_m[new][:, None], run_frame[:, None])  # along its route at its log's pace
-    c.risk[new] = _robot_risk(routes, step, crowd, agent,
-                              np.concatenate([c.xy_m[new][:, None], c.later_m[new]], axis=1))
+    # one that plans a way round takes it, not its route at its side: round the robot it risks only where it stands
+    walk_on = np.where(step.detour[crowd, agent][:, None, None], c.xy_m[new][:, None], c.later_m[new])
+    c.risk[new] = _robot_risk(routes, step, crowd, agent, np.concatenate([c.xy_m[new][:, None], walk_on], axis=1))
 
 
 def _robot_risk(routes: Routes, step: Step, rows: np.ndarray, agents: np.ndarray, walk: np.ndarray) -> np.ndarray:
@@ -241,40 +293,45 @@ def _robot_risk(routes: Routes, step: Step, rows: np.ndarray, agents: np.ndarray
 def _way_round_m(routes: Routes, step: Step, rows: np.ndarray, agents: np.ndarray, tau: np.ndarray,
                  run_frame: np.ndarray, places: list[np.ndarray]) -> list[np.ndarray]:
     """For each of the choosers ``rows``, ``agents`` (D,) at route points ``tau`` (D,): (C,) how far [m] it would
-    have to walk from each of its ``places`` (C, 2) to a point of its route ahead (``DETOUR_AHEAD_M``) round the
-    robot's body (where it stands and where it is expected), over ground no deeper in the non-walkable area than
-    its log there (its route from ``DETOUR_BACK_FRAMES`` behind route point ``tau`` to that point); counted from
-    the nearest, and those cut off from that point 1 m beyond the farthest (0 for all when no such point is
-    known). The shortest walks of all of them are found in one search."""
+    have to walk from each of its ``places`` (C, 2) to a point of its route ahead (``DETOUR_AHEAD_M``; where that
+    point is within the robot's reach, the nearest place clear of it) round the robot's body (where it stands and
+    where it is expected) and the others standing there (slower than ``MOVING_MPS``, ``BODY_RADIUS_M`` round their
+    centres), over ground no deeper in the non-walkable area than its log there (its route from
+    ``DETOUR_BACK_FRAMES`` behind route point ``tau`` to that point); counted from the nearest, and those cut off
+    from that point 1 m beyond the farthest (0 for all when none can reach it). The shortest walks of all of them
+    are found in one search."""
     robot = step.robot
     ends = (robot.from_m[rows], robot.to_m[rows], robot.heading_rad[rows])  # (D, 2), (D, 2), (D,)
     ahead = routes.tau_ahead(agents, step.farthest[rows, agents], np.broadcast_to(DETOUR_AHEAD_M, (len(rows), 5)),
                              run_frame)  # (D, 5) to its run's end
+    ahead = np.minimum(ahead, (step.index[rows] + DETOUR_LEAD_STEPS)[:, None])  # not where its log is much later
     goals = routes.place(agents[:, None], ahead, np.zeros(ahead.shape), run_frame[:, None])  # (D, 5, 2)
     clear = routes.clear_of_robot(goals, *(end[:, None] for end in ends))
-    pick = np.argmax(clear, axis=1)
+    pick = np.where(clear.any(axis=1), np.argmax(clear, axis=1), len(DETOUR_AHEAD_M) - 1)  # else the farthest
     goal_tau, goal = ahead[np.arange(len(rows)), pick], goals[np.arange(len(rows)), pick]
     back = np.maximum(routes.run_first[run_frame, agents].astype(np.float64), tau - DETOUR_BACK_FRAMES)
-    planned = np.flatnonzero(clear.any(axis=1))
     way = [np.zeros(len(p)) for p in places]
-    if not planned.size:
-        return way
     grids, clear_cells = [], []
-    for j in planned:
+    for j in range(len(rows)):
         route = routes.log_xy_m[int(back[j]):int(np.ceil(goal_tau[j])) + 1, agents[j]]
         around = np.vstack([places[j], route, goal[j][None], step.start[rows[j], agents[j]][None]])
         grids.append(grid_cells(around.min(axis=0) - DETOUR_MARGIN_M, around.max(axis=0) + DETOUR_MARGIN_M))
-        clear_cells.append(routes.clear_of_robot(grids[-1].reshape(-1, 2), *(end[j] for end in ends)))
+        centres = grids[-1].reshape(-1, 2)
+        standing = step.present[rows[j]] & (length_m(step.velocity_mps[rows[j]]) < MOVING_MPS)
+        standing[agents[j]] = False
+        others = step.start[rows[j]][standing]  # (K, 2) those standing round it block its way too
+        apart = length_m(centres[:, None] - others[None]).min(axis=1, initial=np.inf)
+        clear_cells.append(routes.clear_of_robot(centres, *(end[j] for end in ends)) & (apart >= BODY_RADIUS_M))
     cells = np.concatenate([grid.reshape(-1, 2) for grid in grids])
-    whose = planned[np.repeat(np.arange(len(grids)), [grid.shape[0] * grid.shape[1] for grid in grids])]
+    whose = np.repeat(np.arange(len(grids)), [grid.shape[0] * grid.shape[1] for grid in grids])
     free = np.concatenate(clear_cells)
     free[free] = routes.too_deep_m(agents[whose][free], back[whose][free], cells[free], run_frame[whose][free],
                                    through=goal_tau[whose][free]) == 0
     cuts = np.cumsum([grid.shape[0] * grid.shape[1] for grid in grids])[:-1]
-    walks = walking_distances_m(grids, [f.reshape(g.shape[:2]) for f, g in zip(np.split(free, cuts), grids,
-                                                                                  strict=True)],
-                                goal[planned], [places[j] for j in planned])
-    for j, walk_m in zip(planned, walks, strict=True):
+    free_cells = [f.reshape(g.shape[:2]) for f, g in zip(np.split(free, cuts), grids, strict=True)]
+    reachable = np.array([nearest_free_m(*grid) for grid in zip(grids, free_cells, goal, strict=True)])
+    walks = walking_distances_m(grids, free_cells, reachable, places)
+    for j, walk_m in enumerate(walks):
         known = np.isfinite(walk_m)
         if known.any():
             nearest, farthest = walk_m[known].min(), walk_m[known].max()

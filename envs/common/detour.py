@@ -72,6 +72,16 @@ def walking_distances_m(cells_m: Sequence[np.ndarray], free: Sequence[np.ndarray
     return [np.where(found, distance[nodes], np.inf) for nodes, found in where]
 
 
+def nearest_free_m(cells_m: np.ndarray, free: np.ndarray, point_m: np.ndarray) -> np.ndarray:
+    """(2,) ``point_m`` (2,) [m] if its cell of the grid ``cells_m`` (H, W, 2) [m] is ``free`` (H, W) bool, else the
+    centre of the free cell nearest to it (the point itself where no cell is free): a goal a walk can reach."""
+    row, col = _cell(cells_m[0, 0], point_m)
+    if (0 <= row[0] < free.shape[0] and 0 <= col[0] < free.shape[1] and free[row[0], col[0]]) or not free.any():
+        return np.asarray(point_m, np.float64)
+    centres = cells_m[free]
+    return centres[np.argmin(np.linalg.norm(centres - point_m, axis=-1))]
+
+
 def _cell(origin_m: np.ndarray, xy_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(row, column) (P,) each of the cells holding points ``xy_m`` (P, 2) or (2,) [m] of a grid whose first cell's
     centre is ``origin_m`` (2,) [m]."""

@@ -39,7 +39,7 @@ from typing import Final
 
 import numpy as np
 
-from envs.common.candidates import HEADWAY_M, OFFSETS_M, RECENT_STEPS, Step
+from envs.common.candidates import HEADWAY_M, OFFSETS_M, RECENT_STEPS, Step, no_headway
 from envs.common.choosing import choose_all
 from envs.common.footprint import BODY_RADIUS_M, PAIR_GIVE_M, Body, Robot, heading_of, length_m
 from envs.common.ragged import leading
@@ -244,9 +244,10 @@ def advance(routes: Routes, old: ReactiveState, index: np.ndarray, robot: Robot)
     headway, farther = np.ones(present.shape, bool), np.ones(present.shape, bool)
     behind = np.full(tau.shape, np.inf)
     rows, agents = np.nonzero(off_log)
-    gain, away = routes.headway(agents, tau[rows, agents], offset[rows, agents], farthest[rows, agents], index[rows])
+    gain, lag = routes.progress(agents, tau[rows, agents], farthest[rows, agents], index[rows])
+    away = lag + np.abs(offset[rows, agents])
     farther[rows, agents] = gain >= HEADWAY_M
-    headway[rows, agents] = farther[rows, agents] | (away <= recent[rows, agents].min(axis=-1) - HEADWAY_M)
+    headway[rows, agents] = ~no_headway(gain, away, recent[rows, agents].min(axis=-1))
     behind[rows, agents] = away
     stuck = np.where(off_log & ~headway, old.stuck + 1, 0)
     detour &= off_log & ~farther
@@ -339,7 +340,8 @@ def _others_in_the_way(routes: Routes, index: np.ndarray, state: ReactiveState) 
 
 def _place_newcomers(routes: Routes, step: Step, appearing: np.ndarray, clear: np.ndarray, offset: np.ndarray) -> None:
     """Start each pedestrian appearing (N, A) where its robot (not ``clear``) or one off its log stands beside its
-    log instead, just clear of them (``_clear_offset``): ``step`` and ``offset`` (N, A) are updated in place."""
+    log instead, just clear of them and of everybody else (``_clear_offset``): ``step`` and ``offset`` (N, A) are
+    updated in place."""
     body_m = 2 * BODY_RADIUS_M - PAIR_GIVE_M
     for row in np.flatnonzero(appearing.any(axis=1)):
         for agent in np.flatnonzero(appearing[row]):  # in order: each sees those placed before it
@@ -347,7 +349,9 @@ def _place_newcomers(routes: Routes, step: Step, appearing: np.ndarray, clear: n
             log_now = routes.log_xy_m[step.index[row], agent]
             if clear[row, agent] and not (np.linalg.norm(taken - log_now, axis=1) < body_m).any():
                 continue
-            offset[row, agent] = _clear_offset(routes, agent, int(step.index[row]), step.robot, row, taken)
+            others = step.present[row] & (np.arange(len(step.present[row])) != agent)
+            offset[row, agent] = _clear_offset(routes, agent, int(step.index[row]), step.robot, row,
+                                               step.xy[row][others])
             step.xy[row, agent] = step.start[row, agent] = routes.place(
                 np.array([agent]), np.array([float(step.index[row])]), offset[row, [agent]], step.index[row])[0]
             step.off_log[row, agent] = step.chosen[row, agent] = True

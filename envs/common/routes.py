@@ -111,6 +111,23 @@ class Routes:
         point, normal = self.route(agents, tau, run_frame)
         return point + offset_m[..., None] * normal
 
+    def nearest_on_route(self, agents: np.ndarray, xy_m: np.ndarray, low: np.ndarray, high: np.ndarray,
+                         run_frame: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(tau (P,), offset_m (P,)): the point of each agent's log between frames ``low`` and ``high`` (P,) nearest to
+        ``xy_m`` (P, 2) [m] (the first of equals), as a fractional frame, and how far left of the route's direction
+        there ``xy_m`` lies [m] (within the run of ``run_frame`` (P,))."""
+        (frame, who), inside = self.frames_of(agents, low, high)  # (P, W)
+        point = self.log_xy_m[frame, who]
+        step = self.log_xy_m[np.minimum(frame + 1, high[:, None]), who] - point
+        length2 = (step * step).sum(axis=-1)
+        share = np.clip(((xy_m[:, None] - point) * step).sum(axis=-1) / np.where(length2 > 0, length2, 1.0), 0.0, 1.0)
+        distance = length_m(xy_m[:, None] - point - share[..., None] * step)
+        nearest = np.argmin(np.where(inside, distance, np.inf), axis=1)
+        pick = np.arange(len(agents))
+        tau = frame[pick, nearest] + share[pick, nearest]
+        on_route, normal = self.route(agents, tau, run_frame)
+        return tau, ((xy_m - on_route) * normal).sum(axis=-1)
+
     def arc(self, agents: np.ndarray, tau: np.ndarray, run_frame: np.ndarray) -> np.ndarray:
         """(...) metres along the agents' logged routes at fractional frames ``tau``, within the run of ``run_frame``,
         all broadcast to one shape (...)."""
@@ -138,16 +155,14 @@ class Routes:
                          0.0)
         return k + share
 
-    def headway(self, agents: np.ndarray, tau: np.ndarray, offset_m: np.ndarray, farthest: np.ndarray,
-                index: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """For places at route points ``tau`` moved ``offset_m`` aside (all arguments (K,)): how much farther along the
-        route than ``farthest`` they are [m], and how far from the log at frame ``index`` (metres behind it along the
-        route plus metres aside) [m]."""
+    def progress(self, agents: np.ndarray, tau: np.ndarray, farthest: np.ndarray,
+                 index: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """For route points ``tau`` (all arguments (K,)): how much farther along the route than ``farthest`` they are
+        [m], and how far behind the log at frame ``index`` (or where it ended) along the route (0 for none) [m]."""
         run_frame = farthest.astype(int)
         now = np.minimum(index, self.run_last[run_frame, agents]).astype(np.float64)  # where its log is, or ended
         arc = self.arc(agents, tau, run_frame)
-        return arc - self.arc(agents, farthest, run_frame), \
-            np.maximum(self.arc(agents, now, run_frame) - arc, 0.0) + np.abs(offset_m)
+        return arc - self.arc(agents, farthest, run_frame), np.maximum(self.arc(agents, now, run_frame) - arc, 0.0)
 
     def too_deep_m(self, agents: np.ndarray | int, tau: np.ndarray | float, places: np.ndarray,
                    run_frame: np.ndarray | int, through: np.ndarray | None = None) -> np.ndarray:
