@@ -37,7 +37,7 @@ from typing import Final
 
 import numpy as np
 
-from envs.common.detour import grid_cells, nearest_free_m, walking_distances_m
+from envs.common.detour import cells_near, grid_cells, nearest_free_m, walking_distances_m
 from envs.common.footprint import BODY_RADIUS_M, COMFORT_M, Robot, length_m
 from envs.common.ragged import distinct
 from envs.common.reaction import MOVING_MPS
@@ -316,12 +316,10 @@ def _way_round_m(routes: Routes, step: Step, rows: np.ndarray, agents: np.ndarra
         route = routes.log_xy_m[int(back[j]):int(np.ceil(goal_tau[j])) + 1, agents[j]]
         around = np.vstack([places[j], route, goal[j][None], step.start[rows[j], agents[j]][None]])
         grids.append(grid_cells(around.min(axis=0) - DETOUR_MARGIN_M, around.max(axis=0) + DETOUR_MARGIN_M))
-        centres = grids[-1].reshape(-1, 2)
         standing = step.present[rows[j]] & (length_m(step.velocity_mps[rows[j]]) < MOVING_MPS)
-        standing[agents[j]] = False
-        others = step.start[rows[j]][standing]  # (K, 2) those standing round it block its way too
-        apart = length_m(centres[:, None] - others[None]).min(axis=1, initial=np.inf)
-        clear_cells.append(routes.clear_of_robot(centres, *(end[j] for end in ends)) & (apart >= BODY_RADIUS_M))
+        standing[agents[j]] = False  # those standing round it block its way too
+        clear_cells.append(routes.clear_of_robot(grids[-1].reshape(-1, 2), *(end[j] for end in ends))
+                           & ~cells_near(grids[-1], step.start[rows[j]][standing], BODY_RADIUS_M).ravel())
     cells = np.concatenate([grid.reshape(-1, 2) for grid in grids])
     whose = np.repeat(np.arange(len(grids)), [grid.shape[0] * grid.shape[1] for grid in grids])
     free = np.concatenate(clear_cells)
