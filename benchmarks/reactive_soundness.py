@@ -31,7 +31,7 @@ import numpy as np
 from tqdm import tqdm
 
 import envs  # noqa: F401  (registers the ids)
-from envs.common.reactive import run_bounds
+from envs.common.routes import run_bounds
 from st_sim.sim.map_depth import MapDepth
 
 STEPS = 200

@@ -17,7 +17,8 @@ from envs.common.ego import move_within, spawn_start_goal, walkable_points
 from envs.common.errors import EnvInputError, ResetOptionsError
 from envs.common.footprint import Body
 from envs.common.predictors import shipped_checkpoint
-from envs.common.reactive import ReactiveCrowd, Routes
+from envs.common.reactive import ReactiveCrowd
+from envs.common.routes import Routes
 from envs.common.tracks import Frame
 from replays.constants import COORD_DECIMALS, MIN_AGENTS_PER_WINDOW, STEP_S, T_PRED
 from replays.data_root import data_root

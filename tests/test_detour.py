@@ -6,7 +6,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from envs.common.detour import CELL_M, grid_cells, walking_distance_m
+from envs.common.detour import CELL_M, cells_near, grid_cells, nearest_free_m, walking_distance_m
 
 CELLS = grid_cells(np.array([-3.0, -2.0]), np.array([3.0, 2.0]))  # (H, W, 2)
 point = st.tuples(st.floats(-2.9, 2.9), st.floats(-1.9, 1.9)).map(np.array)
@@ -57,3 +57,29 @@ def test_no_walk_to_a_goal_in_a_wall_nor_from_a_point_off_the_grid() -> None:
     walk = walking_distance_m(CELLS, np.ones(CELLS.shape[:2], bool), np.zeros(2),
                               np.array([[10.0, 0.0], [0.0, -5.0], [0.5, 0.0]]))
     assert np.isinf(walk[:2]).all() and np.isclose(walk[2], 0.5)
+
+
+@DRAWS
+@given(goal=point, seed=st.integers(0, 2**31), fill=st.floats(0.0, 1.0))
+def test_a_goal_in_a_wall_moves_to_the_nearest_free_cell_and_a_free_one_stays(goal: np.ndarray, seed: int,
+                                                                                fill: float) -> None:
+    free = np.random.default_rng(seed).random(CELLS.shape[:2]) >= fill
+    reachable = nearest_free_m(CELLS, free, goal)
+    if not free.any():
+        assert np.array_equal(reachable, goal), "with no free cell the goal stays"
+        return
+    if np.isfinite(walking_distance_m(CELLS, free, goal, goal[None])[0]):  # its own cell is free
+        assert np.array_equal(reachable, goal)
+        return
+    nearest = np.linalg.norm(CELLS[free] - goal, axis=-1).min()
+    assert np.isclose(np.linalg.norm(reachable - goal), nearest), "a free cell nearer than the one chosen"
+    assert np.isfinite(walking_distance_m(CELLS, free, reachable, reachable[None])[0]), "the goal is not free"
+
+
+@DRAWS
+@given(seed=st.integers(0, 2**31), count=st.integers(0, 12), reach=st.floats(0.05, 0.6))
+def test_the_cells_near_some_points_are_those_every_distance_finds(seed: int, count: int, reach: float) -> None:
+    points = np.random.default_rng(seed).uniform([-3.5, -2.5], [3.5, 2.5], (count, 2))  # some off the grid
+    offset = CELLS.reshape(-1, 2)[:, None] - points[None]
+    every = (np.sqrt(offset[..., 0] * offset[..., 0] + offset[..., 1] * offset[..., 1]) < reach).any(axis=1)
+    assert np.array_equal(cells_near(CELLS, points, reach).ravel(), every)

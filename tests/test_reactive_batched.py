@@ -1,6 +1,6 @@
-"""The batched reactive step (``envs.common.reactive``): crowds stepped together walk as each alone, its shortcuts
-(bounded scoring, only the pairs within reach) change no walk, its sums round as numpy's, and a native vector env of
-reactive replays is N single envs."""
+"""The batched reactive step (``envs.common.reactive``, ``envs.common.choosing``): crowds stepped together walk as
+each alone, its shortcuts (bounded scoring, only the pairs within reach) change no walk, its sums round as numpy's
+(``envs.common.ragged``), and a native vector env of reactive replays is N single envs."""
 
 from __future__ import annotations
 
@@ -11,10 +11,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import envs  # noqa: F401  (registers the ids)
-from envs.common import reactive
+from envs.common import choosing
 from envs.common.detour import grid_cells, walking_distance_m, walking_distances_m
 from envs.common.footprint import Body
-from envs.common.reactive import ReactiveCrowd, Routes, exact_row_sums
+from envs.common.ragged import exact_row_sums
+from envs.common.reactive import ReactiveCrowd
+from envs.common.routes import Routes
 from replays.scenes import Scene
 from st_sim.sim.map_depth import MapDepth
 
@@ -92,13 +94,13 @@ def test_scoring_every_candidate_against_everybody_changes_no_walk(seed: int, wa
     robots = _robot_paths(seed, 1)
     shortcut = _walk([ReactiveCrowd(log, present, _scene_depth(), ROBOT, 0.25)], robots, [0], together=True)
 
-    def everybody(self, step, rows, agents, c):
+    def everybody(step, rows, agents, c):
         near = step.present[rows] & (np.arange(step.present.shape[1]) != agents[:, None])
         return np.nonzero(near)
 
     with pytest.MonkeyPatch.context() as patch:
-        patch.setattr(reactive, "FIRST_LOOK", 10**9)
-        patch.setattr(Routes, "_near_pairs", everybody)
+        patch.setattr(choosing, "FIRST_LOOK", 10**9)
+        patch.setattr(choosing, "_near_pairs", everybody)
         full = _walk([ReactiveCrowd(log, present, _scene_depth(), ROBOT, 0.25)], robots, [0], together=True)
     assert np.array_equal(shortcut, full, equal_nan=True), \
         f"first difference at (frame, agent) {np.argwhere(~((shortcut == full) | np.isnan(full)))[0][1:3]}"

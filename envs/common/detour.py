@@ -72,6 +72,32 @@ def walking_distances_m(cells_m: Sequence[np.ndarray], free: Sequence[np.ndarray
     return [np.where(found, distance[nodes], np.inf) for nodes, found in where]
 
 
+def cells_near(cells_m: np.ndarray, points_m: np.ndarray, reach_m: float) -> np.ndarray:
+    """(H, W) bool: the cells of the grid ``cells_m`` (H, W, 2) [m] whose centres lie closer than ``reach_m`` [m] to
+    any of ``points_m`` (K, 2) [m] (each looked for only in the cells round it)."""
+    near = np.zeros(cells_m.shape[:2], bool)
+    span = np.arange(-int(np.ceil(reach_m / CELL_M)) - 1, int(np.ceil(reach_m / CELL_M)) + 2)
+    d_row, d_col = (d.ravel() for d in np.meshgrid(span, span, indexing="ij"))
+    row, col = _cell(cells_m[0, 0], points_m)
+    rows, cols = row[:, None] + d_row, col[:, None] + d_col  # (K, S) the cells round each point
+    inside = (rows >= 0) & (rows < near.shape[0]) & (cols >= 0) & (cols < near.shape[1])
+    rows, cols, which = rows[inside], cols[inside], np.nonzero(inside)[0]
+    offset = cells_m[rows, cols] - points_m[which]
+    close = np.sqrt(offset[:, 0] * offset[:, 0] + offset[:, 1] * offset[:, 1]) < reach_m
+    near[rows[close], cols[close]] = True
+    return near
+
+
+def nearest_free_m(cells_m: np.ndarray, free: np.ndarray, point_m: np.ndarray) -> np.ndarray:
+    """(2,) ``point_m`` (2,) [m] if its cell of the grid ``cells_m`` (H, W, 2) [m] is ``free`` (H, W) bool, else the
+    centre of the free cell nearest to it (the point itself where no cell is free): a goal a walk can reach."""
+    row, col = _cell(cells_m[0, 0], point_m)
+    if (0 <= row[0] < free.shape[0] and 0 <= col[0] < free.shape[1] and free[row[0], col[0]]) or not free.any():
+        return np.asarray(point_m, np.float64)
+    centres = cells_m[free]
+    return centres[np.argmin(np.linalg.norm(centres - point_m, axis=-1))]
+
+
 def _cell(origin_m: np.ndarray, xy_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(row, column) (P,) each of the cells holding points ``xy_m`` (P, 2) or (2,) [m] of a grid whose first cell's
     centre is ``origin_m`` (2,) [m]."""

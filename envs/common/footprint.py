@@ -1,18 +1,29 @@
-"""The robot's body as reactive pedestrians keep clear of it: a rectangle grown by a radius, moving in a straight line.
+"""The bodies in a reactive replay: the robot's footprint and its move over a step, a pedestrian's body and the gaps
+reactive pedestrians keep from both.
 
 A disc robot (STCrowd's, radius 0.3 m) is a rectangle of zero length and width grown by its radius; a vehicle (CITR's
 golf cart) is a ``length x width`` rectangle along its heading. Over one 0.4 s step the body moves in a straight line
-from one centre to another with its heading held, and a pedestrian too, so the pedestrian moves in a straight line
-in the body's frame: the least gap between them is the distance from a segment to a rectangle, less the radius. That
-distance is zero where the segment meets the rectangle and is otherwise reached at an end of the segment or at a
-corner of the rectangle (two convex shapes apart), which is what ``segment_box_distance`` computes, exactly.
+from one centre to another with its heading held (``Robot``: as the pedestrians expect it to move), and a pedestrian
+too, so the pedestrian moves in a straight line in the body's frame: the least gap between them is the distance from
+a segment to a rectangle, less the radius. That distance is zero where the segment meets the rectangle and is
+otherwise reached at an end of the segment or at a corner of the rectangle (two convex shapes apart), which is what
+``segment_box_distance`` computes, exactly.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Final
 
 import numpy as np
+
+from replays.constants import STEP_S
+
+BODY_RADIUS_M: Final[float] = 0.2  # radius of a reactive pedestrian's body [m]
+ROBOT_MARGIN_M: Final[float] = 0.05  # reactive pedestrians keep this much beyond touching the robot's body [m]
+PAIR_GIVE_M: Final[float] = 0.05  # two pedestrians may come this far inside body contact (shoulders turn) [m]
+COMFORT_M: Final[float] = 0.3  # room kept beyond contact from others off their logs, and from a robot's body not
+"""noticed (a body in the way) [m]"""
 
 
 @dataclass(frozen=True)
@@ -52,6 +63,30 @@ class Body:
         world offsets ``offset_m`` (..., 2) (the centre for a disc)."""
         local = np.clip(self.to_body_frame(offset_m, heading_rad), -self.half_m, self.half_m)
         return self.to_body_frame(local, -heading_rad)
+
+
+@dataclass(frozen=True)
+class Robot:
+    """The robots' moves over the step as the pedestrians expect them, one row per crowd: from ``from_m`` to ``to_m``
+    (N, 2) [m] in a straight line, each body turned to ``heading_rad`` (N,)."""
+
+    from_m: np.ndarray
+    to_m: np.ndarray
+    heading_rad: np.ndarray
+
+    @property
+    def velocity_mps(self) -> np.ndarray:
+        """(N, 2) [m/s]."""
+        return (self.to_m - self.from_m) / STEP_S
+
+    @property
+    def heading(self) -> np.ndarray:
+        """(N, 2) unit headings."""
+        return np.stack([np.cos(self.heading_rad), np.sin(self.heading_rad)], axis=-1)
+
+    def after(self) -> Robot:
+        """The same robots over the next step, holding their velocities."""
+        return Robot(self.to_m, 2 * self.to_m - self.from_m, self.heading_rad)
 
 
 def box_distance(p: np.ndarray, half: np.ndarray) -> np.ndarray:
@@ -96,3 +131,17 @@ def _meets(a: np.ndarray, d: np.ndarray, half: np.ndarray) -> np.ndarray:
         low = np.where(still, low, np.maximum(low, np.minimum(t1, t2)))
         high = np.where(still, high, np.minimum(high, np.maximum(t1, t2)))
     return inside & (low <= high)
+
+
+def length_m(vector_m: np.ndarray) -> np.ndarray:
+    """(...) lengths [m] of vectors (..., 2) [m], rounded as ``np.linalg.norm(vector_m, axis=-1)`` rounds them."""
+    return np.sqrt(vector_m[..., 0] * vector_m[..., 0] + vector_m[..., 1] * vector_m[..., 1])
+
+
+def heading_of(from_m: np.ndarray, to_m: np.ndarray, heading_rad: float | None = None) -> float:
+    """``heading_rad`` if given, else the direction of the move ``from_m`` -> ``to_m`` (2,) [rad] (0 for no move)."""
+    if heading_rad is not None:
+        return float(heading_rad)
+    move = np.asarray(to_m, np.float64) - np.asarray(from_m, np.float64)
+    return float(np.arctan2(move[1], move[0])) if np.hypot(*move) > 1e-9 else 0.0
+

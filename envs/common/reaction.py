@@ -13,7 +13,8 @@ the reactive pedestrians (``envs.common.reactive`` does the walking).
 
 The values are fitted on CITR's pedestrians reacting to a golf cart (``benchmarks/fit_reaction.py``, written to
 ``reaction_fit.json`` beside this module, which ``fitted_reaction`` reads); they are not a safety rule. The safety
-rules (nobody walks into the robot's body, noticed or not) are in ``envs.common.reactive``.
+rules (nobody walks into the robot's body, noticed or not) are in ``envs.common.reactive`` and
+``envs.common.candidates``.
 """
 
 from __future__ import annotations

@@ -32,9 +32,10 @@ from typing import TYPE_CHECKING, Any, Final
 import numpy as np
 from tqdm import tqdm
 
-from envs.common.footprint import Body
+from envs.common.footprint import BODY_RADIUS_M, Body
 from envs.common.reaction import Reaction, fitted_reaction
-from envs.common.reactive import BODY_RADIUS_M, OpenGround, ReactiveCrowd
+from envs.common.reactive import ReactiveCrowd
+from envs.common.routes import OpenGround
 from replays.atomic import write_text_atomic
 from replays.citr import CART_LENGTH_M, CART_WIDTH_M, CITR_FPS, Experiment, Grid, find_experiments, on_grid
 from replays.constants import STEP_S
