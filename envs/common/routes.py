@@ -200,8 +200,10 @@ class Routes:
             log_depth = np.where((here > np.maximum(most, crossing)) & (least < most), most, log_depth)
         log_depth[search] = np.maximum(self._nearest_trace_depth(agents[search], low[search], high[search],
                                                                  places[deep][search]), crossing[search])
-        over = np.minimum(np.maximum(here - log_depth - DEPTH_TOLERANCE_M, 0.0), 1e3)
-        excess[deep] = np.where(np.isinf(log_depth), 0.0, over if through is None else np.where(over > 0, np.inf, 0.0))
+        bounded = ~np.isinf(log_depth)  # an infinitely deep log bounds nothing (and inf - inf is no number)
+        over = np.zeros(len(here))
+        over[bounded] = np.minimum(np.maximum(here[bounded] - log_depth[bounded] - DEPTH_TOLERANCE_M, 0.0), 1e3)
+        excess[deep] = over if through is None else np.where(over > 0, np.inf, 0.0)
         return excess
 
     def _window_depths(self, agents: np.ndarray, low: np.ndarray, high: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
