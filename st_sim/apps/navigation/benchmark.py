@@ -35,7 +35,7 @@ from replays.atomic import write_text_atomic
 from st_sim.apps.grid import Job, run_jobs
 from st_sim.apps.navigation.episodes import run_episode
 from st_sim.apps.navigation.metrics import episode_metrics, summarize
-from st_sim.apps.navigation.policies import PolicyError, load_policy
+from st_sim.apps.navigation.policies import SB3_PREFIX, PolicyError, load_policy
 from st_sim.apps.navigation.suite import Scenario, Suite, load_suite
 from st_sim.apps.navigation.world import world_of
 
@@ -171,11 +171,20 @@ def plan(run: BenchmarkRun, suite: Suite) -> list[Job]:
             part = out / "parts" / scenario.name / f"{first:05d}.jsonl"
             kwargs = {"suite_file": None if run.suite_file is None else str(Path(run.suite_file).resolve()),
                       "scenario": scenario.name, "split": run.split, "first": first,
-                      "count": min(CHUNK_EPISODES, count - first), "policy": run.policy, "predictor": run.predictor,
+                      "count": min(CHUNK_EPISODES, count - first), "policy": _portable(run.policy),
+                      "predictor": run.predictor,
                       "part": str(part), "data_root": data_root}
             jobs.append(Job(f"{scenario.name}/{first}", "st_sim.apps.navigation.benchmark:run_chunk", kwargs,
                             str(part.with_suffix(".json"))))
     return jobs
+
+
+def _portable(policy: str) -> str:
+    """``policy`` as a worker elsewhere reads it: an ``sb3:`` model's path made absolute (the results keep the spec as
+    given)."""
+    if policy.startswith(SB3_PREFIX):
+        return SB3_PREFIX + str(Path(policy.removeprefix(SB3_PREFIX)).expanduser().resolve())
+    return policy
 
 
 def check_run(run: BenchmarkRun, suite: Suite) -> None:
