@@ -11,8 +11,9 @@ seed + N - 1 (the same episodes for every cell of an env) and one job of the gri
 written to ``OUT/<env>[__<mode>]__<planner>__<predictor>__<N>ep_seed<seed>.json``: a finished cell is reused, so
 an interrupted run resumes. Planners that ignore predictions (straight, ORCA) run once, with predictor "none".
 The script prints one markdown table per env and McNemar's paired tests of MPC with SingularTrajectory against
-MPC with CVM, CVM-S and no prediction (every collision, and the at-fault ones), and of PPO with predictions
-against PPO without (successes).
+MPC with CVM, CVM-S and no prediction (every collision, and the at-fault ones), of each learned policy (``ppo``,
+``ppo-reactive``) with predictions against without (successes), and of each with predictions against the MPC with
+SingularTrajectory (successes, at-fault collisions).
 """
 
 from __future__ import annotations
@@ -66,12 +67,20 @@ def paired_lines(rows: list[dict]) -> list[str]:
                 lines.append(f"- MPC singular vs MPC {other}, {kind}: {test['a_collisions']} vs {test['b_collisions']} "
                              f"of {test['n']}; only singular {test['only_a']}, only {other} {test['only_b']}; "
                              f"one-sided McNemar p = {test['p_value']:.4f}")
-    ppo = {r["predictor"]: r for r in rows if r["policy"] == "ppo"}
-    if {"singular", "none"} <= set(ppo):
-        test = paired_success_test(ppo["singular"]["episodes"], ppo["none"]["episodes"])
-        lines.append(f"- PPO with vs without predictions, successes: {test['a_successes']} vs {test['b_successes']} "
-                     f"of {test['n']}; only with {test['only_a']}, only without {test['only_b']}; "
-                     f"one-sided McNemar p = {test['p_value']:.4f}")
+    for learned in ("ppo", "ppo-reactive"):
+        ppo = {r["predictor"]: r for r in rows if r["policy"] == learned}
+        if {"singular", "none"} <= set(ppo):
+            test = paired_success_test(ppo["singular"]["episodes"], ppo["none"]["episodes"])
+            lines.append(f"- {learned} with vs without predictions, successes: {test['a_successes']} vs "
+                         f"{test['b_successes']} of {test['n']}; only with {test['only_a']}, only without "
+                         f"{test['only_b']}; one-sided McNemar p = {test['p_value']:.4f}")
+        if "singular" in ppo and "singular" in mpc:
+            mine, teacher = ppo["singular"]["episodes"], mpc["singular"]["episodes"]
+            test = paired_success_test(mine, teacher)
+            fault = paired_collision_test(mine, teacher, at_fault=True)
+            lines.append(f"- {learned} + singular vs MPC singular, successes: {test['a_successes']} vs "
+                         f"{test['b_successes']} of {test['n']} (p = {test['p_value']:.4f}); at-fault collisions "
+                         f"{fault['a_collisions']} vs {fault['b_collisions']} (fewer: p = {fault['p_value']:.4f})")
     return lines
 
 
