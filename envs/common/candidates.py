@@ -173,14 +173,15 @@ def place_candidates(routes: Routes, step: Step, rows: np.ndarray, agents: np.nd
     robot, heading = step.robot, step.robot.heading_rad[rows][owner]
     reacts = step.weight[rows, agents] > 0
     robot_to = np.where(reacts[:, None], robot.to_m[rows], robot.from_m[rows])[owner]  # noticed, or its body
-    robot_gap = routes.body.swept_gap_m(start - robot.from_m[rows][owner], places - robot_to, heading)
+    robot_gap = routes.body.swept_gap_within_m(start - robot.from_m[rows][owner], places - robot_to, heading,
+                                               routes.robot_reach_m)
     into_robot = np.maximum(routes.robot_reach_m - robot_gap, 0.0)
     gain, behind = routes.progress(a, c_tau, step.farthest[rows, agents][owner], index[owner])
     staying = no_headway(gain, behind + np.abs(c_off), step.recent_m[rows, agents].min(axis=1)[owner])
     delay = np.minimum(index[owner] - c_tau, behind / (STEP_S * LAG_PACE_MPS))  # [frame]
     fixed_cost = LAG_COST * delay + OFFSET_COST * np.abs(c_off) + SWAY_COST * np.abs(c_off - offset[owner])
     stuck_cost = STUCK_COST * step.stuck[rows, agents][owner] * staying
-    firsts = np.r_[0, np.cumsum(np.bincount(owner, minlength=len(agents)))]
+    firsts = np.concatenate([[0], np.cumsum(np.bincount(owner, minlength=len(agents)))])
     way_cost = np.zeros(len(owner))
     if detour.size:
         way = _way_round_m(routes, step, rows[detour], agents[detour], tau[detour], run_frame[detour],
@@ -214,8 +215,9 @@ def _route_grid(routes: Routes, agents: np.ndarray, tau: np.ndarray, offset: np.
     ``reach_m`` from ``tau``, and ``cap``, within ``first``..``cap``) and side offsets (``OFFSETS_M`` and its own
     ``offset``), progress first, without repeats; the arguments (J,)."""
     taus = routes.tau_ahead(agents, tau, reach_m[:, None] * PROGRESS_SHARES, run_frame)
-    taus = np.sort(np.clip(np.c_[taus, cap], first[:, None], cap[:, None]), axis=1)
-    sides = np.sort(np.c_[np.broadcast_to(OFFSETS_M, (len(agents), len(OFFSETS_M))), offset], axis=1)
+    taus = np.sort(np.clip(np.concatenate([taus, cap[:, None]], axis=1), first[:, None], cap[:, None]), axis=1)
+    sides = np.sort(np.concatenate([np.broadcast_to(OFFSETS_M, (len(agents), len(OFFSETS_M))), offset[:, None]],
+                                   axis=1), axis=1)
     grid = distinct(taus)[:, :, None] & distinct(sides)[:, None, :]  # (J, T, O): the tau-major grid of each
     owner, t_col, o_col = np.nonzero(grid)
     return owner, taus[owner, t_col], sides[owner, o_col]
@@ -276,7 +278,8 @@ def _robot_risk(routes: Routes, step: Step, rows: np.ndarray, agents: np.ndarray
     risk = np.zeros(len(rows))  # as far as it does not react (0 for those that react fully: 0 times a finite sum)
     body = np.flatnonzero(weight < 1.0)
     standing = walk[body, :ANTICIPATION_STEPS + 1] - robot.from_m[rows[body]][:, None]  # from the body standing
-    gap = routes.body.swept_gap_m(standing[:, :-1], standing[:, 1:], heading[body][:, None])  # (B, H_s)
+    gap = routes.body.swept_gap_within_m(standing[:, :-1], standing[:, 1:], heading[body][:, None],
+                                         routes.robot_reach_m + COMFORT_M)  # (B, H_s)
     risk[body] = (1.0 - weight[body]) * (np.maximum(routes.robot_reach_m + COMFORT_M - gap, 0.0) ** 2).sum(axis=1)
     react = np.flatnonzero(weight > 0)
     if react.size:
@@ -284,8 +287,9 @@ def _robot_risk(routes: Routes, step: Step, rows: np.ndarray, agents: np.ndarray
         course = robot.to_m[rows[react]][:, None] + (ahead[:, None] * STEP_S)[None] \
             * robot.velocity_mps[rows[react]][:, None]  # (R, H_r + 1, 2)
         moving = walk[react, :robot_steps + 1] - course  # from the body on its course
-        gap = routes.body.swept_gap_m(moving[:, :-1], moving[:, 1:], heading[react][:, None])  # (R, H_r)
         room = routes.robot_reach_m + step.room_m[rows[react], agents[react]]
+        gap = routes.body.swept_gap_within_m(moving[:, :-1], moving[:, 1:], heading[react][:, None],
+                                             room[:, None])  # (R, H_r)
         risk[react] = risk[react] + weight[react] * (np.maximum(room[:, None] - gap, 0.0) ** 2).sum(axis=1)
     return risk
 

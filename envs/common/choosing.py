@@ -55,8 +55,9 @@ def choose_all(routes: Routes, step: Step, tau: np.ndarray, offset: np.ndarray) 
     In each crowd they choose one after another, the nearest to the robot first, each seeing the choices made
     before it. Here every candidate is scored in one pass, then the terms between pedestrians in rounds: the
     first round scores every chooser against the others where they stand, and each further round only those
-    that see a pedestrian of their crowd before them whose choice changed in the last round. When no choice
-    changes, each is the one it makes seeing the choices before it: the walks are those of one after another.
+    that see a pedestrian of their crowd before them whose choice changed in the last round (one that chose to
+    stand where it stood changed nothing). When no choice changes, each is the one it makes seeing the choices
+    before it: the walks are those of one after another.
     """
     rows, agents = np.nonzero(step.off_log & ~step.chosen)
     if not len(agents):
@@ -73,7 +74,7 @@ def choose_all(routes: Routes, step: Step, tau: np.ndarray, offset: np.ndarray) 
     pending = np.arange(len(agents))
     while pending.size:
         choice = _best(routes, step, rows, agents, c, pending, near, seen, turn)
-        moved = pending[(best[pending] < 0) | (c.xy_m[choice] != c.xy_m[best[pending]]).any(axis=-1)]
+        moved = pending[(c.xy_m[choice] != seen[rows[pending], agents[pending]]).any(axis=-1)]  # as the others see
         best[pending] = choice
         seen[rows[moved], agents[moved]] = c.xy_m[best[moved]]
         changed = np.zeros(step.present.shape, bool)
@@ -112,16 +113,23 @@ def _best(routes: Routes, step: Step, rows: np.ndarray, agents: np.ndarray, c: C
     A candidate's cost is at least its ``least_cost``, and one that breaks ``too_fast`` or ``into_robot`` breaks
     a bound: each chooser scores its candidates in full in the order of ``Candidates.order``, first
     ``FIRST_LOOK`` of them, until every hopeful one it has not scored costs at least more than the cheapest
-    within every bound it has (all of them if none is). What it leaves unscored could not have been chosen."""
+    within every bound it has (all of them if none is). What it leaves unscored could not have been chosen. A
+    row's terms do not depend on the others scored with it: each widening scores only the rows it adds."""
     count, hopeful = c.first[pending + 1] - c.first[pending], c.hopeful[pending]
     take = np.where(hopeful > 0, np.minimum(hopeful, FIRST_LOOK), count)
+    done = np.zeros(len(pending), int)  # how many of each chooser's rows (in ``c.order``) are scored
+    violation, cost = np.empty(len(c.owner)), np.empty(len(c.owner))  # of the rows of ``c`` scored
     while True:
+        grew = np.flatnonzero(take > done)
+        new = c.order[spans(c.first[pending[grew]] + done[grew], take[grew] - done[grew])]
+        violation[new], cost[new] = _score(routes, step, rows, agents, c, pending[grew], new,
+                                           np.repeat(np.arange(len(grew)), take[grew] - done[grew]), near, seen, turn)
+        done = take
         local = np.repeat(np.arange(len(pending)), take)
         scored = c.order[spans(c.first[pending], take)]  # (R,) rows of c, each chooser's in a run
-        violation, cost = _score(routes, step, rows, agents, c, pending, scored, local, near, seen, turn)
-        starts = np.r_[0, np.cumsum(take)[:-1]]
-        fine = np.logical_or.reduceat(violation == 0, starts)
-        cheapest = np.minimum.reduceat(np.where(violation > 0, np.inf, cost), starts)  # (T,)
+        starts = np.cumsum(take) - take
+        fine = np.logical_or.reduceat(violation[scored] == 0, starts)
+        cheapest = np.minimum.reduceat(np.where(violation[scored] > 0, np.inf, cost[scored]), starts)  # (T,)
         runs = spans(c.first[pending], hopeful)  # every hopeful row of the pending choosers
         owner = np.repeat(np.arange(len(pending)), hopeful)
         needed = np.bincount(owner, c.least_cost[c.order[runs]] <= cheapest[owner], minlength=len(pending))
@@ -130,6 +138,7 @@ def _best(routes: Routes, step: Step, rows: np.ndarray, agents: np.ndarray, c: C
         if (wider == take).all():
             break
         take = wider
+    violation, cost = violation[scored], cost[scored]
     key = np.where(fine[local], np.where(violation > 0, np.inf, cost), violation)  # as np.argmin over all rows
     key = np.where(np.isnan(key), -np.inf, key)  # (np.argmin takes the first NaN)
     least = np.minimum.reduceat(key, starts)
@@ -186,17 +195,17 @@ def _pair_terms(routes: Routes, step: Step, rows: np.ndarray, agents: np.ndarray
     future = their_to[:, None] + ahead[:, None] * step.velocity_mps[their_row, other][:, None]  # (P, H, 2)
     # the pairs whose other comes within reach of the box of the chooser's scored rows (steps and walks on)
     later = c.later_m[scored, :ANTICIPATION_STEPS]  # (R, H, 2)
-    place, starts = c.xy_m[scored], np.r_[0, np.cumsum(np.bincount(local, minlength=len(rows)))[:-1]]
+    per_chooser = np.bincount(local, minlength=len(rows))
+    place, starts = c.xy_m[scored], np.cumsum(per_chooser) - per_chooser
     low = np.minimum(place, np.minimum.reduce([later[:, k] for k in range(ANTICIPATION_STEPS)]))
     high = np.maximum(place, np.maximum.reduce([later[:, k] for k in range(ANTICIPATION_STEPS)]))
     start = step.start[rows, agents]  # (T, 2)
-    box = np.c_[np.minimum(np.minimum.reduceat(low, starts), start), np.maximum(np.maximum.reduceat(high, starts),
-                                                                                start)]
-    their = np.c_[np.minimum(np.minimum(their_from, their_to), future.min(axis=1)),
-                  np.maximum(np.maximum(their_from, their_to), future.max(axis=1))]  # walking on or not
+    box = np.concatenate([np.minimum(np.minimum.reduceat(low, starts), start),
+                          np.maximum(np.maximum.reduceat(high, starts), start)], axis=1)
+    their = np.concatenate([np.minimum(np.minimum(their_from, their_to), future.min(axis=1)),  # walking on or not
+                            np.maximum(np.maximum(their_from, their_to), future.max(axis=1))], axis=1)
     counted = _within(box[chooser], their, PAIR_REACH_M)
     # every scored row of the pair's chooser
-    per_chooser = np.bincount(local, minlength=len(rows))
     sizes = np.where(counted, per_chooser[chooser], 0)
     pair = np.repeat(np.arange(len(chooser)), sizes)
     row = spans(starts[chooser], sizes)  # (E,) rows of ``scored``

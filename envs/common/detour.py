@@ -12,7 +12,7 @@ from collections.abc import Sequence
 from typing import Final
 
 import numpy as np
-from scipy.sparse import coo_matrix
+from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
 
 CELL_M: Final[float] = 0.1  # side of a grid cell [m]
@@ -54,20 +54,20 @@ def walking_distances_m(cells_m: Sequence[np.ndarray], free: Sequence[np.ndarray
             sources.append(int(base[g] + goal_row[0] * shapes[g, 1] + goal_col[0]))
     distance = np.full(base[-1], np.inf)
     if sources:
-        node = np.arange(base[-1])
-        grid = np.repeat(np.arange(len(shapes)), np.diff(base))
-        height, width = shapes[grid, 0], shapes[grid, 1]
-        row, col = divmod(node - base[grid], width)
-        open_all = np.concatenate([open_.ravel() for open_ in free])
         starts, ends, lengths = [], [], []
-        for d_row, d_col in NEIGHBOURS:
-            both = open_all & (row + d_row >= 0) & (row + d_row < height) & (col + d_col >= 0) & (col + d_col < width)
-            both[both] = open_all[(node + d_row * width + d_col)[both]]
-            starts.append(node[both])
-            ends.append((node + d_row * width + d_col)[both])
-            lengths.append(np.full(int(both.sum()), CELL_M * np.hypot(d_row, d_col)))
-        graph = coo_matrix((np.concatenate(lengths), (np.concatenate(starts), np.concatenate(ends))),
-                           shape=(base[-1], base[-1])).tocsr()
+        for g, open_ in enumerate(free):
+            node = base[g] + np.arange(open_.size).reshape(open_.shape)
+            for d_row, d_col in NEIGHBOURS:  # the edges between free cells, each once, from each cell to its neighbour
+                there = (slice(max(d_row, 0), open_.shape[0] + min(d_row, 0)),
+                         slice(max(d_col, 0), open_.shape[1] + min(d_col, 0)))
+                here = (slice(max(-d_row, 0), open_.shape[0] + min(-d_row, 0)),
+                        slice(max(-d_col, 0), open_.shape[1] + min(-d_col, 0)))
+                both = open_[here] & open_[there]
+                starts.append(node[here][both])
+                ends.append(node[there][both])
+                lengths.append(np.full(len(starts[-1]), CELL_M * np.hypot(d_row, d_col)))
+        graph = csr_matrix((np.concatenate(lengths), (np.concatenate(starts), np.concatenate(ends))),
+                           shape=(base[-1], base[-1]))
         distance = dijkstra(graph, directed=False, indices=sources, min_only=True)
     return [np.where(found, distance[nodes], np.inf) for nodes, found in where]
 

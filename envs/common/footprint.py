@@ -24,6 +24,7 @@ ROBOT_MARGIN_M: Final[float] = 0.05  # reactive pedestrians keep this much beyon
 PAIR_GIVE_M: Final[float] = 0.05  # two pedestrians may come this far inside body contact (shoulders turn) [m]
 COMFORT_M: Final[float] = 0.3  # room kept beyond contact from others off their logs, and from a robot's body not
 """noticed (a body in the way) [m]"""
+GAP_SLACK_M: Final[float] = 1e-6  # a gap is told apart from a bound only beyond this, far above rounding [m]
 
 
 @dataclass(frozen=True)
@@ -57,6 +58,19 @@ class Body:
         a = self.to_body_frame(np.asarray(offset_from_m, np.float64), heading_rad)
         b = self.to_body_frame(np.asarray(offset_to_m, np.float64), heading_rad)
         return segment_box_distance(a, b, self.half_m) - self.radius_m
+
+    def swept_gap_within_m(self, offset_from_m: np.ndarray, offset_to_m: np.ndarray, heading_rad: np.ndarray,
+                           within_m: float | np.ndarray) -> np.ndarray:
+        """(...) ``swept_gap_m`` where it may be less than ``within_m`` [m] (all broadcast to one shape (...)), inf
+        where it cannot (the move's midpoint too far from the body's centre for any of it to come that close): the
+        same wherever only a gap below ``within_m`` counts, computed for fewer points."""
+        a, b = np.broadcast_arrays(np.asarray(offset_from_m, np.float64), np.asarray(offset_to_m, np.float64))
+        shape = a.shape[:-1]
+        bound = (length_m(b - a) / 2 + float(np.hypot(*self.half_m)) + self.radius_m + within_m + GAP_SLACK_M)
+        close = ~(length_m((a + b) / 2) > bound)  # (NaN points: close)
+        gap = np.full(shape, np.inf)
+        gap[close] = self.swept_gap_m(a[close], b[close], np.broadcast_to(heading_rad, shape)[close])
+        return gap
 
     def nearest_point_m(self, offset_m: np.ndarray, heading_rad: float) -> np.ndarray:
         """(..., 2) offset from the robot's centre [m], world frame, of the point of its rectangle nearest to points at

@@ -19,12 +19,12 @@ def leading(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def distinct(values: np.ndarray) -> np.ndarray:
     """(J, K) bool: the first of each run of equal values in the sorted rows ``values`` (J, K) (``np.unique``'s)."""
-    return np.c_[np.ones(len(values), bool), values[:, 1:] != values[:, :-1]]
+    return np.concatenate([np.ones((len(values), 1), bool), values[:, 1:] != values[:, :-1]], axis=1)
 
 
 def spans(starts: np.ndarray, counts: np.ndarray) -> np.ndarray:
     """(sum of counts,) the runs ``starts[i], ..., starts[i] + counts[i] - 1`` (K,) each, one after another."""
-    return np.repeat(starts - np.r_[0, np.cumsum(counts)[:-1]], counts) + np.arange(counts.sum())
+    return np.repeat(starts - (np.cumsum(counts) - counts), counts) + np.arange(counts.sum())
 
 
 def exact_row_sums(row: np.ndarray, column: np.ndarray, value: np.ndarray, width: np.ndarray,
