@@ -10,8 +10,14 @@ the reactive pedestrians' ADE as a share of the blind ones' plus the relative er
 the cart against the recorded one; plus ``COLLISION_WEIGHT`` times the share of simulated pedestrians inside the cart.
 
 The search is a coordinate descent over fixed grids (``GRIDS``): each sweep tries every value of one parameter with
-the others held (every pair of values of the field of view and the hearing distance, which trade off), keeps the
-best, and goes on to the next; it stops after a sweep that improves nothing (or after ``--sweeps``).
+the others held (every pair of values of the field of view and the hearing distance, and of the costs of delay and
+of standing aside, which trade off), keeps the best, and goes on to the next; it stops after a sweep that improves
+nothing (or after ``--sweeps``). ``--search NAME ...`` searches only those grids, in that order:
+
+    python benchmarks/fit_reaction.py --search delay_cost+aside_cost clearance_m crossing_s --sweeps 1 \
+        --out runs/reaction/yielding.json
+    python -m st_sim reactive-validate --reaction runs/reaction/yielding.json --json runs/reaction/yielding-citr.json
+
 Deterministic: the same data gives the same fit. Writes the parameters, the fitted figures, the number of
 evaluations, the parameters it started from (the shipped ones) and this command into ``--out``.
 """
@@ -48,7 +54,8 @@ GRIDS: dict[str, tuple[tuple[float, ...], ...]] = {  # parameters joined by "+" 
     "head_on_s": (PER_MPS,),
     "behind_s": (PER_MPS,),
     "crossing_s": (PER_MPS,),
-}
+    "delay_cost+aside_cost": ((0.25, 0.5, 1.0), (0.5, 1.0, 2.0)),  # aside at least half a frame's delay a metre, so
+}  # that they rejoin their logs (tests/test_envs_reactive.py's draws)
 
 
 def figures(fit_cases: list[Case], body: Body, reaction: Reaction | None, blind: dict[str, float]) -> dict[str, dict]:
@@ -78,6 +85,8 @@ def main() -> None:
     parser.add_argument("--data", default=None, help="CITR folder (default: $STCROWD_CITR or the cache)")
     parser.add_argument("--sweeps", type=int, default=4, help="most sweeps over the parameters (default: 4)")
     parser.add_argument("--out", default="envs/common/reaction_fit.json", help="where the fit is written")
+    parser.add_argument("--search", nargs="+", choices=list(GRIDS), default=list(GRIDS), metavar="NAME",
+                        help=f"the grids searched, in this order (default: all, {' '.join(GRIDS)})")
     args = parser.parse_args()
     root = data_root(dataset=CITR) if args.data is None else Path(args.data)
     body = Body(CART_LENGTH_M, CART_WIDTH_M)
@@ -91,7 +100,8 @@ def main() -> None:
     print(f"start {dataclasses.asdict(best)}: loss {best_loss:.4f}")
     for sweep in range(args.sweeps):
         improved = False
-        for name, grid in GRIDS.items():
+        for name in args.search:
+            grid = GRIDS[name]
             for values in tqdm(list(itertools.product(*grid)), desc=f"sweep {sweep + 1} {name}", leave=False):
                 change = dict(zip(name.split("+"), values, strict=True))
                 if all(getattr(best, key) == value for key, value in change.items()):

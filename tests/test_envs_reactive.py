@@ -184,9 +184,11 @@ walk = {"seed": st.integers(0, 2**32 - 1), "walkers": st.integers(1, 12), "speed
 reactions = st.builds(Reaction, fov_deg=st.floats(0.0, 180.0), hearing_m=st.floats(0.0, 6.0),
                       reaction_s=st.floats(0.0, 2.0), anticipation_s=st.floats(0.4, 4.0),
                       clearance_m=st.floats(0.0, 1.5), head_on_s=st.floats(0.0, 1.5), behind_s=st.floats(0.0, 1.5),
-                      crossing_s=st.floats(0.0, 1.5))
+                      crossing_s=st.floats(0.0, 1.5), delay_cost=st.floats(0.25, 1.0),
+                      aside_cost=st.floats(0.5, 2.0))  # standing aside dear enough that they rejoin their logs
+# notices nothing: only the safety rule moves it
 UNAWARE = Reaction(fov_deg=0.0, hearing_m=0.0, reaction_s=0.0, anticipation_s=1.2, clearance_m=0.3, head_on_s=0.3,
-                   behind_s=0.3, crossing_s=0.3)  # notices nothing: only the safety rule moves it
+                   behind_s=0.3, crossing_s=0.3, delay_cost=1.0, aside_cost=0.5)
 
 
 @REACTIVE_DRAWS
@@ -299,7 +301,7 @@ def test_a_robot_coming_from_behind_is_noticed_only_within_hearing(lateral: floa
     within hearing; until then the walker keeps to its log exactly (but for the safety rule, once the robot's body
     is within a log step of its log)."""
     reaction = Reaction(fov_deg=fov, hearing_m=hearing, reaction_s=0.0, anticipation_s=1.6, clearance_m=0.5,
-                        head_on_s=0.5, behind_s=0.5, crossing_s=0.5)
+                        head_on_s=0.5, behind_s=0.5, crossing_s=0.5, delay_cost=1.0, aside_cost=0.5)
     path, log, robot = _walker_and_moving_robot(lateral, robot_speed, -8.0, reaction)
     gap = np.linalg.norm(log - robot, axis=1) - 0.3
     heard = np.flatnonzero(gap <= max(hearing, 0.25 + ROBOT_MARGIN_M + 0.48))  # 0.48 m: a step of its log
@@ -322,7 +324,7 @@ def test_a_walker_reacts_no_sooner_than_a_reaction_time_after_it_notices_the_rob
     view from the first step; the walker keeps to its log until ``reaction_s`` has passed (to the 0.4 s step it falls
     in), and then makes room."""
     reaction = Reaction(fov_deg=90.0, hearing_m=0.0, reaction_s=reaction_s, anticipation_s=4.0, clearance_m=1.5,
-                        head_on_s=0.5, behind_s=0.5, crossing_s=0.5)
+                        head_on_s=0.5, behind_s=0.5, crossing_s=0.5, delay_cost=1.0, aside_cost=0.5)
     path, log, _ = _walker_and_moving_robot(lateral, robot_speed, 10.0, reaction)
     strayed = np.flatnonzero(np.linalg.norm(path - log, axis=1) > 1e-9)
     assert strayed.size, "the walker never made room for the robot"
@@ -367,3 +369,27 @@ def test_a_walker_in_a_pocket_between_a_standing_robot_and_a_wall_walks_back_out
     gap, _ = closest_approach(path[:-1], path[1:])
     assert gap.min() >= CONTACT_M, f"came {gap.min():.3f} m from the robot's centre"
     assert not crowd.state.off_log.any(), f"still off its log at the end, at {path[-1, 0]}"
+
+
+@pytest.mark.parametrize("cross_at, robot_speed", [(4.0, 0.8), (4.0, 1.2), (5.0, 0.8), (5.0, 1.2)])
+def test_a_walker_that_finds_the_side_dear_yields_to_a_crossing_robot_instead_of_stepping_round(
+        cross_at: float, robot_speed: float) -> None:
+    """``Reaction.aside_cost`` against ``delay_cost``: a robot crosses the walker's way ahead of it, from 3 m to its
+    right; a walker for whom standing aside is cheap steps round in front of it, one for whom it is dear slows or
+    waits and passes behind, so it strays less to the side and falls farther behind its log; neither touches it."""
+    frames = 40
+    log = np.c_[np.arange(frames) * 0.4 * 1.2, np.zeros(frames)][:, None]  # along +x at 1.2 m/s
+    robot = np.c_[np.full(frames, cross_at), -3.0 + robot_speed * 0.4 * np.arange(frames)]  # along +y, across
+    aside_m, behind_m = {}, {}
+    for aside_cost in (0.05, 4.0):
+        reaction = Reaction(fov_deg=90.0, hearing_m=4.0, reaction_s=0.0, anticipation_s=1.6, clearance_m=0.5,
+                            head_on_s=0.5, behind_s=0.5, crossing_s=0.5, delay_cost=1.0, aside_cost=aside_cost)
+        crowd = ReactiveCrowd(log, np.ones((frames, 1), bool), _open_square(30.0), ROBOT, 0.25, reaction)
+        path = [crowd.reset(0)[0].copy()]
+        for index in range(1, frames):
+            path.append(crowd.step(index, robot[index - 1], robot[index])[0].copy())
+        path = np.array(path)
+        assert (np.linalg.norm(path - robot, axis=1) - ROBOT.radius_m > 0.25).all(), "the walker touched the robot"
+        aside_m[aside_cost], behind_m[aside_cost] = np.abs(path[:, 1]).max(), (log[:, 0, 0] - path[:, 0]).max()
+    assert aside_m[4.0] < aside_m[0.05], aside_m
+    assert behind_m[4.0] > behind_m[0.05], behind_m

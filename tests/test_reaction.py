@@ -5,18 +5,21 @@ from __future__ import annotations
 
 import dataclasses
 import json
+from pathlib import Path
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from envs.common.reaction import FIT_PATH, MEMORY_S, Reaction, attend, fitted_reaction, notices
+from envs.common.errors import ConfigError
+from envs.common.reaction import FIT_PATH, MEMORY_S, Reaction, attend, fitted_reaction, notices, read_reaction
 
 DRAWS = settings(max_examples=50, deadline=None)
 reactions = st.builds(Reaction, fov_deg=st.floats(0.0, 180.0), hearing_m=st.floats(0.0, 10.0),
                       reaction_s=st.floats(0.0, 3.0), anticipation_s=st.floats(0.0, 5.0),
                       clearance_m=st.floats(0.0, 2.0), head_on_s=st.floats(0.0, 2.0), behind_s=st.floats(0.0, 2.0),
-                      crossing_s=st.floats(0.0, 2.0))
+                      crossing_s=st.floats(0.0, 2.0), delay_cost=st.floats(0.0, 4.0), aside_cost=st.floats(0.0, 4.0))
 
 
 @DRAWS
@@ -78,3 +81,34 @@ def test_the_shipped_reaction_is_fitted_and_says_how() -> None:
     assert table["fitted_by"].startswith("benchmarks/fit_reaction.py")
     assert table["fitted_on"] == ["vci_back", "vci_front", "vci_lat_uni"] and table["held_out"] == ["vci_lat_bi"]
     assert 0.0 <= reaction.fov_deg <= 180.0 and reaction.reaction_s >= 0.0 and reaction.clearance_m >= 0.0
+
+
+FIELDS = [field.name for field in dataclasses.fields(Reaction)]
+
+
+@settings(max_examples=40, deadline=None)
+@given(damage=st.one_of(
+    st.tuples(st.just("drop"), st.sampled_from(FIELDS)),
+    st.tuples(st.just("value"), st.sampled_from(FIELDS),
+              st.sampled_from([float("nan"), float("inf"), -0.5, "fast", None, [1.0]])),
+    st.tuples(st.just("text"), st.sampled_from(["", "{", "[]", '{"params": 3}', "\x00\xff"]))))
+def test_a_bad_reaction_fit_file_is_refused_naming_the_file(tmp_path_factory: pytest.TempPathFactory,
+                                                            damage: tuple) -> None:
+    """Every class of damage to a fit file (a field missing, a field not a finite number >= 0, not JSON, no params)
+    gets ``ConfigError`` naming the file, never a KeyError or a Reaction with NaN in it."""
+    path = tmp_path_factory.mktemp("fit") / "fit.json"
+    table = json.loads(FIT_PATH.read_text())
+    if damage[0] == "drop":
+        del table["params"][damage[1]]
+    elif damage[0] == "value":
+        table["params"][damage[1]] = damage[2]
+    text = damage[1] if damage[0] == "text" else json.dumps(table)
+    path.write_text(text)
+    with pytest.raises(ConfigError, match=str(path)):
+        read_reaction(path)
+
+
+def test_a_fit_file_round_trips_and_a_missing_one_is_named(tmp_path: Path) -> None:
+    assert read_reaction(FIT_PATH) == fitted_reaction()
+    with pytest.raises(ConfigError, match="no such reaction fit file"):
+        read_reaction(tmp_path / "absent.json")

@@ -126,3 +126,24 @@ def test_bad_data_gives_one_error_line_naming_the_file(tmp_path: Path, capsys: p
     err = capsys.readouterr().err
     assert err.startswith("error: ") and f"run{VEH_SUFFIX}" in err and "without its pedestrian file" in err, err
     assert not (tmp_path / "v.json").exists()
+
+
+def test_another_reaction_fit_is_validated_and_a_bad_one_is_one_error_line(tmp_path: Path,
+                                                                           capsys: pytest.CaptureFixture) -> None:
+    """``--reaction FIT`` gives the reactive pedestrians that fit's parameters (recorded in the JSON's settings); a
+    file that is no fit is one error line before any data is read."""
+    folder = tmp_path / "data"
+    write_experiment(folder, "run", crossing(3, 3), np.c_[np.linspace(-8.0, 8.0, 150), np.zeros(150)], 0.0, 4.0)
+    fit = json.loads((Path(__file__).parents[1] / "envs/common/reaction_fit.json").read_text())
+    fit["params"]["aside_cost"] = 2.0
+    (tmp_path / "fit.json").write_text(json.dumps(fit))
+    out = tmp_path / "v.json"
+    assert main(["reactive-validate", "--data", str(folder), "--fps", "10", "--reaction", str(tmp_path / "fit.json"),
+                 "--json", str(out), "--quiet"]) == 0
+    settings_ = json.loads(out.read_text())["settings"]
+    assert settings_["reaction"]["aside_cost"] == 2.0 and settings_["reaction_file"] == str(tmp_path / "fit.json")
+    (tmp_path / "bad.json").write_text('{"params": {}}')
+    assert main(["reactive-validate", "--data", str(folder), "--reaction", str(tmp_path / "bad.json"),
+                 "--json", str(tmp_path / "w.json")]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("error: --reaction") and "bad.json" in err and "params.fov_deg" in err, err

@@ -2,7 +2,8 @@
 
 Each step it picks, among a grid of progress along its route (``PROGRESS_SHARES`` of the farthest it can walk in one,
 from half a step back, or to where its log is now) and side offsets (``OFFSETS_M``, up to ``MAX_OFFSET_M``), the place
-that loses the least time and strays the least while
+that loses the least time and strays the least (as its reaction weighs the two: ``Reaction.delay_cost`` a frame behind
+its log, ``Reaction.aside_cost`` a metre aside) while
 
 - it walks no faster than it can catch up (``CATCH_UP_MPS``, or ``CATCH_UP_FACTOR`` times its log's speed);
 - along its step (at ``PATH_SAMPLES``) it is never deeper in the scene's non-walkable area, nor farther off the image,
@@ -51,9 +52,7 @@ PROGRESS_SHARES: Final[np.ndarray] = np.linspace(-0.5, 1.0, 25)  # progress alon
 """as shares of the farthest it can walk in one (and catching up with its log at once); back up to half a step [-]"""
 OFFSETS_M: Final[np.ndarray] = np.linspace(-MAX_OFFSET_M, MAX_OFFSET_M, 31)  # side offsets it may choose [m]
 ANTICIPATION_STEPS: Final[int] = 3  # it keeps clear of where the others off their logs will be over this many steps
-LAG_COST: Final[float] = 1.0  # cost of a frame (0.4 s) of delay against its log [1/frame] ...
-LAG_PACE_MPS: Final[float] = 1.0  # ... the delay being at most the time to walk what it is behind at this pace [m/s]
-OFFSET_COST: Final[float] = 0.5  # cost of standing a metre to the side of its route [1/m]
+LAG_PACE_MPS: Final[float] = 1.0  # a delay counts at most the time to walk what it is behind at this pace [m/s]
 SWAY_COST: Final[float] = 0.2  # cost of changing its side offset by a metre in one step [1/m]
 STUCK_COST: Final[float] = 0.5  # cost of making no headway again, per step it already made none off its log [-]
 HEADWAY_M: Final[float] = 0.05  # ... a step makes none that gets it less than this farther along its route than it has
@@ -179,7 +178,9 @@ def place_candidates(routes: Routes, step: Step, rows: np.ndarray, agents: np.nd
     gain, behind = routes.progress(a, c_tau, step.farthest[rows, agents][owner], index[owner])
     staying = no_headway(gain, behind + np.abs(c_off), step.recent_m[rows, agents].min(axis=1)[owner])
     delay = np.minimum(index[owner] - c_tau, behind / (STEP_S * LAG_PACE_MPS))  # [frame]
-    fixed_cost = LAG_COST * delay + OFFSET_COST * np.abs(c_off) + SWAY_COST * np.abs(c_off - offset[owner])
+    style = routes.reaction  # how it trades delay against standing aside
+    fixed_cost = (style.delay_cost * delay + style.aside_cost * np.abs(c_off)
+                  + SWAY_COST * np.abs(c_off - offset[owner]))
     stuck_cost = STUCK_COST * step.stuck[rows, agents][owner] * staying
     firsts = np.concatenate([[0], np.cumsum(np.bincount(owner, minlength=len(agents)))])
     way_cost = np.zeros(len(owner))

@@ -10,6 +10,9 @@ the reactive pedestrians (``envs.common.reactive`` does the walking).
   the robot's speed times ``head_on_s`` (the robot's heading opposite to its own walking direction), ``behind_s``
   (the same direction) or ``crossing_s`` (square to it), blended by the cosine of the angle between the two; it looks
   ``anticipation_s`` ahead along its route and the robot's expected course.
+- **Yielding or stepping aside.** Off its log, each step it weighs ``delay_cost`` per 0.4 s frame it falls behind
+  its log against ``aside_cost`` per metre it stands to the side of its route: the dearer the side, the more it slows
+  or waits and passes behind the robot rather than stepping round it in front.
 
 The values are fitted on CITR's pedestrians reacting to a golf cart (``benchmarks/fit_reaction.py``, written to
 ``reaction_fit.json`` beside this module, which ``fitted_reaction`` reads); they are not a safety rule. The safety
@@ -27,6 +30,7 @@ from typing import Final
 
 import numpy as np
 
+from envs.common.errors import ConfigError
 from replays.constants import STEP_S
 
 FIT_PATH: Final[Path] = Path(__file__).with_name("reaction_fit.json")
@@ -54,6 +58,10 @@ class Reaction:
     """more room per m/s of a robot coming from behind [s]"""
     crossing_s: float
     """more room per m/s of a robot crossing the pedestrian's way [s]"""
+    delay_cost: float
+    """cost of falling a 0.4 s frame behind its log, off its log [1/frame]"""
+    aside_cost: float
+    """cost of standing a metre to the side of its route, off its log [1/m]"""
 
     @property
     def anticipation_steps(self) -> int:
@@ -79,11 +87,30 @@ class Reaction:
         return self.clearance_m + np.where(coming, np.linalg.norm(robot_velocity_mps) * per_mps, 0.0)
 
 
+def read_reaction(path: Path) -> Reaction:
+    """The reaction in a fit file (``{"params": {field: number, ...}}``, as ``benchmarks/fit_reaction.py`` writes);
+    ``ConfigError`` naming the file and the field when it cannot be read."""
+    try:
+        params = json.loads(Path(path).read_text())["params"]
+        values = {field.name: float(params[field.name]) for field in fields(Reaction)}
+    except FileNotFoundError:
+        raise ConfigError(f"{path}: no such reaction fit file") from None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
+        raise ConfigError(f"{path}: not a readable JSON reaction fit ({err})") from err
+    except KeyError as err:
+        raise ConfigError(f"{path}: no params.{err.args[0]} (a reaction fit names every field of Reaction)") from None
+    except (TypeError, ValueError) as err:
+        raise ConfigError(f"{path}: params must map every field of Reaction to a number ({err})") from err
+    bad = [name for name, value in values.items() if not np.isfinite(value) or value < 0]
+    if bad:
+        raise ConfigError(f"{path}: params.{bad[0]} = {values[bad[0]]}: expected a finite number >= 0")
+    return Reaction(**values)
+
+
 @cache
 def fitted_reaction() -> Reaction:
-    """The fitted reaction (``reaction_fit.json``), read once per process."""
-    table = json.loads(FIT_PATH.read_text())
-    return Reaction(**{field.name: float(table["params"][field.name]) for field in fields(Reaction)})
+    """The shipped fitted reaction (``reaction_fit.json``), read once per process."""
+    return read_reaction(FIT_PATH)
 
 
 def notices(reaction: Reaction, gap_m: np.ndarray, bearing_rad: np.ndarray) -> np.ndarray:

@@ -32,8 +32,9 @@ from typing import TYPE_CHECKING, Any, Final
 import numpy as np
 from tqdm import tqdm
 
+from envs.common.errors import ConfigError
 from envs.common.footprint import BODY_RADIUS_M, Body
-from envs.common.reaction import Reaction, fitted_reaction
+from envs.common.reaction import FIT_PATH, Reaction, read_reaction
 from envs.common.reactive import ReactiveCrowd
 from envs.common.routes import OpenGround
 from replays.atomic import write_text_atomic
@@ -227,16 +228,22 @@ def run(args: argparse.Namespace) -> int:
         if not (np.isfinite(value) and value > 0):
             raise CliError(f"{flag} {value}: expected a positive number")
     check_writable(Path(args.json).parent)
+    try:
+        reaction = read_reaction(Path(args.reaction))
+    except ConfigError as err:
+        raise CliError(f"--reaction {err}") from None
+    shipped = Path(args.reaction).resolve() == FIT_PATH.resolve()
     root = data_root(dataset=CITR) if args.data is None else Path(args.data)
     experiments = find_experiments(root, args.fps)
     body = Body(args.vehicle_length, args.vehicle_width)
-    reaction = fitted_reaction()
     result = validate(experiments, body, reaction, progress=not args.quiet)
     result["settings"] = {"data": str(args.data) if args.data else "$STCROWD_CITR or the cache", "fps": args.fps,
                           "vehicle_length_m": args.vehicle_length, "vehicle_width_m": args.vehicle_width,
                           "step_s": STEP_S, "near_m": NEAR_M, "intent_gap_m": INTENT_GAP_M,
                           "intent_steps": INTENT_STEPS, "post_steps": POST_STEPS, "onset_m": ONSET_M,
-                          "reaction": dataclasses.asdict(reaction), "held_out": list(HELD_OUT)}
+                          "reaction": dataclasses.asdict(reaction),
+                          "reaction_file": "envs/common/reaction_fit.json" if shipped else str(args.reaction),
+                          "held_out": list(HELD_OUT)}
     print(markdown_table(result))
     write_text_atomic(args.json, json.dumps(result, indent=1))
     print(f"wrote {args.json}")
@@ -281,6 +288,9 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
                         help=f"vehicle length [m] (default: {CART_LENGTH_M}, CITR's EZ-GO golf cart)")
     parser.add_argument("--vehicle-width", type=float, default=CART_WIDTH_M,
                         help=f"vehicle width [m] (default: {CART_WIDTH_M})")
+    parser.add_argument("--reaction", default=FIT_PATH, metavar="FIT",
+                        help="the reactive pedestrians' reaction: a fit file as benchmarks/fit_reaction.py --out "
+                             "writes (default: the shipped envs/common/reaction_fit.json)")
     parser.add_argument("--json", required=True, metavar="OUT", help="write the figures here (JSON)")
     parser.add_argument("--chart", default=None, metavar="PNG",
                         help="also draw recorded against simulated clearance and onset here (default: none)")
