@@ -14,12 +14,13 @@ the others held (every pair of values of the field of view and the hearing dista
 of standing aside, which trade off), keeps the best, and goes on to the next; it stops after a sweep that improves
 nothing (or after ``--sweeps``). ``--search NAME ...`` searches only those grids, in that order:
 
-    python benchmarks/fit_reaction.py --search delay_cost+aside_cost clearance_m crossing_s --sweeps 1 \
-        --out runs/reaction/yielding.json
-    python -m st_sim reactive-validate --reaction runs/reaction/yielding.json --json runs/reaction/yielding-citr.json
+    python benchmarks/fit_reaction.py --search delay_cost+aside_cost+crossing_s clearance_m --sweeps 1 \
+        --out runs/reaction/joint.json
+    python -m st_sim reactive-validate --reaction runs/reaction/joint.json --json runs/reaction/joint-citr.json
+    python benchmarks/fit_reaction.py --start runs/reaction/joint.json --sweeps 2 --out runs/reaction/full.json
 
 Deterministic: the same data gives the same fit. Writes the parameters, the fitted figures, the number of
-evaluations, the parameters it started from (the shipped ones) and this command into ``--out``.
+evaluations, the parameters it started from (the shipped ones, or ``--start FIT``) and this command into ``--out``.
 """
 
 from __future__ import annotations
@@ -36,7 +37,7 @@ import numpy as np
 from tqdm import tqdm
 
 from envs.common.footprint import Body
-from envs.common.reaction import Reaction, fitted_reaction
+from envs.common.reaction import FIT_PATH, Reaction, read_reaction
 from replays.atomic import write_text_atomic
 from replays.citr import CART_LENGTH_M, CART_WIDTH_M, find_experiments
 from replays.data_root import CITR, data_root
@@ -55,7 +56,9 @@ GRIDS: dict[str, tuple[tuple[float, ...], ...]] = {  # parameters joined by "+" 
     "behind_s": (PER_MPS,),
     "crossing_s": (PER_MPS,),
     "delay_cost+aside_cost": ((0.25, 0.5, 1.0), (0.5, 1.0, 2.0)),  # aside at least half a frame's delay a metre, so
-}  # that they rejoin their logs (tests/test_envs_reactive.py's draws)
+    # that they rejoin their logs (tests/test_envs_reactive.py's draws); with the crossing room, which they trade with:
+    "delay_cost+aside_cost+crossing_s": ((0.25, 0.5, 1.0), (0.5, 1.0, 2.0), PER_MPS),
+}
 
 
 def figures(fit_cases: list[Case], body: Body, reaction: Reaction | None, blind: dict[str, float]) -> dict[str, dict]:
@@ -85,6 +88,8 @@ def main() -> None:
     parser.add_argument("--data", default=None, help="CITR folder (default: $STCROWD_CITR or the cache)")
     parser.add_argument("--sweeps", type=int, default=4, help="most sweeps over the parameters (default: 4)")
     parser.add_argument("--out", default="envs/common/reaction_fit.json", help="where the fit is written")
+    parser.add_argument("--start", default=FIT_PATH, metavar="FIT",
+                        help="the fit the search starts from (default: the shipped one)")
     parser.add_argument("--search", nargs="+", choices=list(GRIDS), default=list(GRIDS), metavar="NAME",
                         help=f"the grids searched, in this order (default: all, {' '.join(GRIDS)})")
     args = parser.parse_args()
@@ -94,7 +99,7 @@ def main() -> None:
     assert not any(case.group in HELD_OUT for case in fit_cases)
     unit = dict.fromkeys(FITTED_ON, 1.0)  # the blind pedestrians' ADE as a share of 1 m: their ADE
     blind = {group: g["ade_ratio"] for group, g in figures(fit_cases, body, None, unit).items()}
-    best = start = fitted_reaction()  # the search starts from the shipped parameters
+    best = start = read_reaction(Path(args.start))
     best_figures = figures(fit_cases, body, best, blind)
     best_loss, evaluations = loss(best_figures), 1
     print(f"start {dataclasses.asdict(best)}: loss {best_loss:.4f}")
