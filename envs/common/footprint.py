@@ -158,4 +158,3 @@ def heading_of(from_m: np.ndarray, to_m: np.ndarray, heading_rad: float | None =
         return float(heading_rad)
     move = np.asarray(to_m, np.float64) - np.asarray(from_m, np.float64)
     return float(np.arctan2(move[1], move[0])) if np.hypot(*move) > 1e-9 else 0.0
-

@@ -182,7 +182,8 @@ def planner_options(run: NavRun) -> dict[str, Any]:
     if run.mpc is not None and run.policy != "mpc":
         raise ValueError(f"MPC settings given for the {run.policy} planner; they are the mpc planner's")
     if run.policy_file is not None and run.policy not in ("ppo", "ppo-reactive"):
-        raise ValueError(f"a policy file ({run.policy_file}) given for the {run.policy} planner; only ppo reads one")
+        raise ValueError(f"a policy file ({run.policy_file}) given for the {run.policy} planner; only ppo and "
+                         "ppo-reactive read one")
     return {"cfg": run.mpc} if run.mpc is not None else {"policy": run.policy_file} if run.policy_file else {}
 
 
