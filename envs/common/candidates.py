@@ -39,7 +39,7 @@ from typing import Final
 import numpy as np
 
 from envs.common.detour import cells_near, grid_cells, nearest_free_m, walking_distances_m
-from envs.common.footprint import BODY_RADIUS_M, COMFORT_M, Robot, length_m
+from envs.common.footprint import COMFORT_M, PAIR_BODY_M, Robot, length_m
 from envs.common.ragged import distinct
 from envs.common.reaction import MOVING_MPS
 from envs.common.routes import Routes
@@ -300,8 +300,9 @@ def _way_round_m(routes: Routes, step: Step, rows: np.ndarray, agents: np.ndarra
     """For each of the choosers ``rows``, ``agents`` (D,) at route points ``tau`` (D,): (C,) how far [m] it would
     have to walk from each of its ``places`` (C, 2) to a point of its route ahead (``DETOUR_AHEAD_M``; where that
     point is within the robot's reach, the nearest place clear of it) round the robot's body (where it stands and
-    where it is expected) and the others standing there (slower than ``MOVING_MPS``, ``BODY_RADIUS_M`` round their
-    centres), over ground no deeper in the non-walkable area than its log there (its route from
+    where it is expected) and the others standing there (slower than ``MOVING_MPS``; no closer to their centres than
+    a step may come, ``PAIR_BODY_M``: a gap a step may not pass is closed to the way round too),
+    over ground no deeper in the non-walkable area than its log there (its route from
     ``DETOUR_BACK_FRAMES`` behind route point ``tau`` to that point); counted from the nearest, and those cut off
     from that point 1 m beyond the farthest (0 for all when none can reach it). The shortest walks of all of them
     are found in one search."""
@@ -322,9 +323,9 @@ def _way_round_m(routes: Routes, step: Step, rows: np.ndarray, agents: np.ndarra
         around = np.vstack([places[j], route, goal[j][None], step.start[rows[j], agents[j]][None]])
         grids.append(grid_cells(around.min(axis=0) - DETOUR_MARGIN_M, around.max(axis=0) + DETOUR_MARGIN_M))
         standing = step.present[rows[j]] & (length_m(step.velocity_mps[rows[j]]) < MOVING_MPS)
-        standing[agents[j]] = False  # those standing round it block its way too
+        standing[agents[j]] = False  # those standing round it block its way too, as close as a step may come
         clear_cells.append(routes.clear_of_robot(grids[-1].reshape(-1, 2), *(end[j] for end in ends))
-                           & ~cells_near(grids[-1], step.start[rows[j]][standing], BODY_RADIUS_M).ravel())
+                           & ~cells_near(grids[-1], step.start[rows[j]][standing], PAIR_BODY_M).ravel())
     cells = np.concatenate([grid.reshape(-1, 2) for grid in grids])
     whose = np.repeat(np.arange(len(grids)), [grid.shape[0] * grid.shape[1] for grid in grids])
     free = np.concatenate(clear_cells)

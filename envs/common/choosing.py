@@ -2,7 +2,7 @@
 first, each seeing the choices made before it, batched in rounds.
 
 A candidate place (``envs.common.candidates``) is also scored against the others: along the whole step, moving in a
-straight line, it keeps ``2 BODY_RADIUS_M - PAIR_GIVE_M`` from everybody else (or at least the gap it already had,
+straight line, it keeps ``PAIR_BODY_M`` from everybody else (or at least the gap it already had,
 and that much again by the end of the step where their logs are that far apart), a bound; and it keeps its body's
 width from where the others off their logs will be over ``ANTICIPATION_STEPS`` (a cost, ``RISK_COST`` per square
 metre of intrusion, as round the robot: it steps aside early rather than at the last moment). Each pedestrian takes
@@ -35,7 +35,7 @@ from envs.common.candidates import (
     place_candidates,
     score_alone,
 )
-from envs.common.footprint import BODY_RADIUS_M, COMFORT_M, PAIR_GIVE_M, length_m
+from envs.common.footprint import BODY_RADIUS_M, COMFORT_M, PAIR_BODY_M, length_m
 from envs.common.ragged import exact_row_sums, spans
 from envs.common.routes import Routes
 from replays.constants import STEP_S
@@ -175,14 +175,14 @@ def _pair_terms(routes: Routes, step: Step, rows: np.ndarray, agents: np.ndarray
     ``other`` (P,) of the pairs near enough to count (``chooser`` (P,) in 0..T-1; ``earlier`` (P,) bool: the
     other chose before, and ``seen`` (N, A, 2) has its choice):
 
-    - too_close [m]: along the whole step it keeps ``2 BODY_RADIUS_M - PAIR_GIVE_M`` from everybody else (or at
+    - too_close [m]: along the whole step it keeps ``PAIR_BODY_M`` from everybody else (or at
       least the gap it already had, and that much again by the end of the step where their logs are that far
       apart);
     - pair_risk [m^2]: the squared intrusions into the comfort gap round the others off their logs going on at
       their velocities over ``ANTICIPATION_STEPS``.
 
     The sums over the others come out as over all of them, those out of reach adding 0 (``exact_row_sums``)."""
-    body_m = 2 * BODY_RADIUS_M - PAIR_GIVE_M
+    body_m = PAIR_BODY_M
     present, walks = step.present[rows], step.present[rows] & step.off_log[rows]  # (T, A)
     width, walk_width = present.sum(axis=1) - 1, walks.sum(axis=1) - 1  # (T,) others, those off their logs
     column = (np.cumsum(present, axis=1) - present)[chooser, other] - (agents[chooser] < other)  # sums' order

@@ -22,6 +22,7 @@ from replays.constants import STEP_S
 BODY_RADIUS_M: Final[float] = 0.2  # radius of a reactive pedestrian's body [m]
 ROBOT_MARGIN_M: Final[float] = 0.05  # reactive pedestrians keep this much beyond touching the robot's body [m]
 PAIR_GIVE_M: Final[float] = 0.05  # two pedestrians may come this far inside body contact (shoulders turn) [m]
+PAIR_BODY_M: Final[float] = 2 * BODY_RADIUS_M - PAIR_GIVE_M  # the closest two pedestrians' centres come [m]
 COMFORT_M: Final[float] = 0.3  # room kept beyond contact from others off their logs, and from a robot's body not
 """noticed (a body in the way) [m]"""
 GAP_SLACK_M: Final[float] = 1e-6  # a gap is told apart from a bound only beyond this, far above rounding [m]

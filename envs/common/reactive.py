@@ -41,7 +41,7 @@ import numpy as np
 
 from envs.common.candidates import HEADWAY_M, OFFSETS_M, RECENT_STEPS, Step, no_headway
 from envs.common.choosing import choose_all
-from envs.common.footprint import BODY_RADIUS_M, PAIR_GIVE_M, Body, Robot, heading_of, length_m
+from envs.common.footprint import BODY_RADIUS_M, PAIR_BODY_M, PAIR_GIVE_M, Body, Robot, heading_of, length_m
 from envs.common.ragged import leading
 from envs.common.reaction import MOVING_MPS, Reaction, attend, notices
 from envs.common.routes import Depth, Routes
@@ -342,7 +342,7 @@ def _place_newcomers(routes: Routes, step: Step, appearing: np.ndarray, clear: n
     """Start each pedestrian appearing (N, A) where its robot (not ``clear``) or one off its log stands beside its
     log instead, just clear of them and of everybody else (``_clear_offset``): ``step`` and ``offset`` (N, A) are
     updated in place."""
-    body_m = 2 * BODY_RADIUS_M - PAIR_GIVE_M
+    body_m = PAIR_BODY_M
     for row in np.flatnonzero(appearing.any(axis=1)):
         for agent in np.flatnonzero(appearing[row]):  # in order: each sees those placed before it
             taken = step.start[row][step.off_log[row] & step.present[row]]
@@ -364,7 +364,7 @@ def _clear_offset(routes: Routes, agent: int, index: int, robot: Robot, row: int
     places = routes.place(np.full(len(offsets), agent), np.full(len(offsets), float(index)), offsets, index)
     apart = np.linalg.norm(places[:, None] - others_m[None], axis=-1).min(axis=1, initial=np.inf)
     fine = (routes.clear_of_robot(places, robot.from_m[row], robot.to_m[row], robot.heading_rad[row])
-            & (apart >= 2 * BODY_RADIUS_M - PAIR_GIVE_M) & (routes.too_deep_m(agent, index, places, index) == 0))
+            & (apart >= PAIR_BODY_M) & (routes.too_deep_m(agent, index, places, index) == 0))
     return float(offsets[np.argmax(fine)]) if fine.any() else 0.0
 
 
