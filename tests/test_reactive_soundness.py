@@ -124,7 +124,7 @@ def _overlaps(path: np.ndarray, here: np.ndarray, log: np.ndarray) -> list[tuple
 @example(seed=50, walkers=9, walled=False)  # cea0b2b: went round ahead of its standing log, waited
 @example(seed=205, walkers=11, walled=True)  # two face to face between the robot and the block
 @example(seed=195, walkers=10, walled=True)  # could not stay where a step off its grid took it
-@example(seed=39, walkers=11, walled=True)  # 315e674: froze face to face, the gap open to the way round
+@example(seed=39, walkers=11, walled=True)  # joint fit, 83ab34f: froze face to face, the gap open
 def test_round_a_robot_parked_on_a_busy_spot_nobody_freezes_overlaps_leaves_far_or_touches_it(
         seed: int, walkers: int, walled: bool) -> None:
     block = (0.9, -1.0, 2.5, 1.5) if walled else None

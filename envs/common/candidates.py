@@ -301,11 +301,10 @@ def _way_round_m(routes: Routes, step: Step, rows: np.ndarray, agents: np.ndarra
     have to walk from each of its ``places`` (C, 2) to a point of its route ahead (``DETOUR_AHEAD_M``; where that
     point is within the robot's reach, the nearest place clear of it) round the robot's body (where it stands and
     where it is expected) and the others standing there (slower than ``MOVING_MPS``; no closer to their centres than
-    a step may come, ``PAIR_BODY_M``: a gap a step may not pass is closed to the way round too),
-    over ground no deeper in the non-walkable area than its log there (its route from
-    ``DETOUR_BACK_FRAMES`` behind route point ``tau`` to that point); counted from the nearest, and those cut off
-    from that point 1 m beyond the farthest (0 for all when none can reach it). The shortest walks of all of them
-    are found in one search."""
+    a step may come, ``PAIR_BODY_M``: a gap a step may not pass is closed to the way round too), over ground no deeper
+    in the non-walkable area than its log there (its route from ``DETOUR_BACK_FRAMES`` behind route point ``tau`` to
+    that point); counted from the nearest, and those cut off from that point 1 m beyond the farthest (0 for all when
+    none can reach it). The shortest walks of all of them are found in one search."""
     robot = step.robot
     ends = (robot.from_m[rows], robot.to_m[rows], robot.heading_rad[rows])  # (D, 2), (D, 2), (D,)
     ahead = routes.tau_ahead(agents, step.farthest[rows, agents], np.broadcast_to(DETOUR_AHEAD_M, (len(rows), 5)),

@@ -2,8 +2,8 @@
 first, each seeing the choices made before it, batched in rounds.
 
 A candidate place (``envs.common.candidates``) is also scored against the others: along the whole step, moving in a
-straight line, it keeps ``PAIR_BODY_M`` from everybody else (or at least the gap it already had,
-and that much again by the end of the step where their logs are that far apart), a bound; and it keeps its body's
+straight line, it keeps ``PAIR_BODY_M`` from everybody else (or at least the gap it already had, and that much again
+by the end of the step where their logs are that far apart), a bound; and it keeps its body's
 width from where the others off their logs will be over ``ANTICIPATION_STEPS`` (a cost, ``RISK_COST`` per square
 metre of intrusion, as round the robot: it steps aside early rather than at the last moment). Each pedestrian takes
 the cheapest place within every bound or, when none is, the one that breaks them least: a metre into the robot's
@@ -175,14 +175,12 @@ def _pair_terms(routes: Routes, step: Step, rows: np.ndarray, agents: np.ndarray
     ``other`` (P,) of the pairs near enough to count (``chooser`` (P,) in 0..T-1; ``earlier`` (P,) bool: the
     other chose before, and ``seen`` (N, A, 2) has its choice):
 
-    - too_close [m]: along the whole step it keeps ``PAIR_BODY_M`` from everybody else (or at
-      least the gap it already had, and that much again by the end of the step where their logs are that far
-      apart);
+    - too_close [m]: along the whole step it keeps ``PAIR_BODY_M`` from everybody else (or at least the gap it
+      already had, and that much again by the end of the step where their logs are that far apart);
     - pair_risk [m^2]: the squared intrusions into the comfort gap round the others off their logs going on at
       their velocities over ``ANTICIPATION_STEPS``.
 
     The sums over the others come out as over all of them, those out of reach adding 0 (``exact_row_sums``)."""
-    body_m = PAIR_BODY_M
     present, walks = step.present[rows], step.present[rows] & step.off_log[rows]  # (T, A)
     width, walk_width = present.sum(axis=1) - 1, walks.sum(axis=1) - 1  # (T,) others, those off their logs
     column = (np.cumsum(present, axis=1) - present)[chooser, other] - (agents[chooser] < other)  # sums' order
@@ -212,10 +210,10 @@ def _pair_terms(routes: Routes, step: Step, rows: np.ndarray, agents: np.ndarray
     here = start[chooser]  # (P, 2)
     n_rows = len(scored)
     # along the step
-    allowed = np.minimum(body_m, length_m(their_from - here) - 1e-6)[pair]
+    allowed = np.minimum(PAIR_BODY_M, length_m(their_from - here) - 1e-6)[pair]
     index = step.index[their_row]
     logged = length_m(routes.log_xy_m[index, agents[chooser]] - routes.log_xy_m[index, other])
-    together = np.minimum(body_m, np.nan_to_num(logged, nan=np.inf))[pair]  # closer now: part as the logs do
+    together = np.minimum(PAIR_BODY_M, np.nan_to_num(logged, nan=np.inf))[pair]  # closer now: part as the logs do
     to = their_to[pair]
     pair_gap, _ = closest_approach(here[pair] - their_from[pair], place[row] - to)
     too_close = (exact_row_sums(row, column[pair], np.maximum(allowed - pair_gap, 0.0), width[local], n_rows)

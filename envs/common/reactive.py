@@ -342,12 +342,11 @@ def _place_newcomers(routes: Routes, step: Step, appearing: np.ndarray, clear: n
     """Start each pedestrian appearing (N, A) where its robot (not ``clear``) or one off its log stands beside its
     log instead, just clear of them and of everybody else (``_clear_offset``): ``step`` and ``offset`` (N, A) are
     updated in place."""
-    body_m = PAIR_BODY_M
     for row in np.flatnonzero(appearing.any(axis=1)):
         for agent in np.flatnonzero(appearing[row]):  # in order: each sees those placed before it
             taken = step.start[row][step.off_log[row] & step.present[row]]
             log_now = routes.log_xy_m[step.index[row], agent]
-            if clear[row, agent] and not (np.linalg.norm(taken - log_now, axis=1) < body_m).any():
+            if clear[row, agent] and not (np.linalg.norm(taken - log_now, axis=1) < PAIR_BODY_M).any():
                 continue
             others = step.present[row] & (np.arange(len(step.present[row])) != agent)
             offset[row, agent] = _clear_offset(routes, agent, int(step.index[row]), step.robot, row,
