@@ -1,6 +1,7 @@
 """Learning curves of PPO training runs in one PNG: success rate and mean return of the last 100 training episodes
 against env steps, one colour per label (each run folder's ``curve.json``, written by ``train_ppo``). A label with
-several run folders (seeds) is drawn as their smoothed mean with a band over the runs.
+several run folders (seeds) is drawn as their smoothed mean with a band over the runs. Prints each run's last point
+and its success and return over the first and the last five points.
 
     python benchmarks/ppo_curves.py runs/nav/ppo-predictions runs/nav/ppo-no-predictions --out results/ppo/curves.png
     python benchmarks/ppo_curves.py predictions=runs/nav/p-seed0,runs/nav/p-seed1 --out runs/nav/seeds.png
@@ -11,6 +12,8 @@ from __future__ import annotations
 import argparse
 import json
 from pathlib import Path
+
+import numpy as np
 
 from st_sim.apps.navigation.train_ppo import plot_curve
 from st_sim.charts import new_figure
@@ -36,6 +39,11 @@ def main() -> None:
             curve = json.loads(path.read_text())
             curves.setdefault(label, []).append(curve)
             print(f"{label}: {run}: {len(curve)} points, last {curve[-1] if curve else {}}")
+            if curve:  # the mean of the first and of the last five points (each 100 training episodes)
+                ends = {key: (np.mean([p[key] for p in curve[:5]]), np.mean([p[key] for p in curve[-5:]]))
+                        for key in ("success", "return")}
+                print("  first / last five points: " + ", ".join(f"{key} {first:.3f} / {last:.3f}"
+                                                                  for key, (first, last) in ends.items()))
     print(f"wrote {plot_curve(curves, args.out, args.title)}")
 
 
