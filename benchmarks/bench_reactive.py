@@ -115,7 +115,7 @@ def main(argv: list[str] | None = None) -> int:
         args.digest.write_text("\n".join(lines) + "\n")
         print(f"wrote {len(lines)} episode digests to {args.digest}")
         return 0
-    gym.make(args.env, predictor="none", pedestrians="reactive").close()  # load the data once, untimed
+    single_rate(args.env, "reactive", seeds[:1])  # load the data and the compiled kernels once, untimed
 
     print(f"{args.env}, straight planner, no predictor; env steps per second")
     ratios = []

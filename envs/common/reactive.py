@@ -41,6 +41,9 @@ import numpy as np
 
 from envs.common.candidates import HEADWAY_M, OFFSETS_M, RECENT_STEPS, Step, no_headway
 from envs.common.choosing import choose_all
+from envs.common.compiled.choose import choose_compiled
+from envs.common.compiled.geometry import robot_rows
+from envs.common.compiled.in_the_way import others_in_the_way, robot_in_the_way
 from envs.common.footprint import BODY_RADIUS_M, PAIR_BODY_M, PAIR_GIVE_M, Body, Robot, heading_of, length_m
 from envs.common.ragged import leading
 from envs.common.reaction import MOVING_MPS, Reaction, attend, notices
@@ -113,8 +116,8 @@ class ReactiveCrowd:
     built here for this crowd alone; ``on`` shares them)."""
 
     def __init__(self, log_xy_m: np.ndarray, present: np.ndarray, depth: Depth, body: Body, touch_m: float,
-                 reaction: Reaction | None = None):
-        self.routes = Routes(log_xy_m, present, depth, body, touch_m, reaction)
+                 reaction: Reaction | None = None, compiled: bool = True):
+        self.routes = Routes(log_xy_m, present, depth, body, touch_m, reaction, compiled)
         self.state = on_log(self.routes, 0)
 
     @classmethod
@@ -211,8 +214,11 @@ def advance(routes: Routes, old: ReactiveState, index: np.ndarray, robot: Robot)
     present = logged | lingering
     off_log = (old.off_log & old.present & logged & (old.linger == 0)) | lingering  # a log that starts again: on
     start = np.where(old.present[..., None], old.xy_m, log_now)  # (N, A, 2) where each one is before the step
-    going = old.present & logged & ~off_log & (_robot_in_the_way(routes, index, robot, weight, room)
-                                               | _others_in_the_way(routes, index, old))
+    compiled = routes.compiled and routes.tables() is not None  # else the plain path, their reference
+    robot_in_way, others_in_way = ((_robot_in_the_way_compiled, _others_in_the_way_compiled) if compiled
+                                   else (_robot_in_the_way, _others_in_the_way))
+    going = old.present & logged & ~off_log & (robot_in_way(routes, index, robot, weight, room)
+                                               | others_in_way(routes, index, old))
     off_log |= going
     tau = np.where(going, frame - 1.0, np.where(off_log, old.tau, frame))  # going: from their log's last frame
     farthest = np.where(off_log, np.where(going, tau, old.farthest), frame)
@@ -225,13 +231,13 @@ def advance(routes: Routes, old: ReactiveState, index: np.ndarray, robot: Robot)
                 farthest, recent, detour, robot, weight, room)
     clear = routes.clear_of_robot(log_now, robot.from_m[:, None], robot.to_m[:, None], robot.heading_rad[:, None])
     _place_newcomers(routes, step, logged & ~old.present, clear, offset)
-    choose_all(routes, step, tau, offset)
+    (choose_compiled if compiled else choose_all)(routes, step, tau, offset)
     # back on the log: caught up, beside it, and nothing in the way; out of the scene: where the log ended
     ahead = ReactiveState(xy, velocity(xy, old.xy_m, old.present & present), present, off_log, tau, offset,
                           old.linger, old.stuck, farthest, recent, detour, noticed, unseen, weight)
     rejoin = (off_log & logged & (length_m(np.nan_to_num(xy - log_now, nan=np.inf)) <= REJOIN_M)
-              & ~_robot_in_the_way(routes, index + 1, robot.after(), weight, room)
-              & ~_others_in_the_way(routes, index + 1, ahead) & clear)
+              & ~robot_in_way(routes, index + 1, robot.after(), weight, room)
+              & ~others_in_way(routes, index + 1, ahead) & clear)
     xy[rejoin] = log_now[rejoin]
     off_log &= ~rejoin
     cols = np.arange(present.shape[1])
@@ -336,6 +342,18 @@ def _others_in_the_way(routes: Routes, index: np.ndarray, state: ReactiveState) 
              & (who[:, None, None, :] != cols[:, None, :, None]))  # nobody is in their own way
     found[rows, cols] = logged & (apart & (np.nan_to_num(gap, nan=np.inf) < bound)).any(axis=(1, 3))
     return found
+
+
+def _robot_in_the_way_compiled(routes: Routes, index: np.ndarray, robot: Robot, weight: np.ndarray,
+                               room_m: np.ndarray) -> np.ndarray:
+    """``_robot_in_the_way``, compiled (``envs.common.compiled.in_the_way``)."""
+    return robot_in_the_way(routes.tables(), routes.present, index, robot_rows(robot), weight, room_m)
+
+
+def _others_in_the_way_compiled(routes: Routes, index: np.ndarray, state: ReactiveState) -> np.ndarray:
+    """``_others_in_the_way``, compiled (``envs.common.compiled.in_the_way``)."""
+    return others_in_the_way(routes.tables(), routes.present, index, state.xy_m, state.velocity_mps,
+                             state.off_log & state.present, PAIR_LOOK_AHEAD_STEPS, PAIR_CLEARANCE_M)
 
 
 def _place_newcomers(routes: Routes, step: Step, appearing: np.ndarray, clear: np.ndarray, offset: np.ndarray) -> None:

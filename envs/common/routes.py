@@ -15,7 +15,7 @@ the log is traced at ``TRACE_SHARES`` of each step, as a fast log may cross a th
 
 from __future__ import annotations
 
-from typing import Final, Protocol
+from typing import Any, Final, Protocol
 
 import numpy as np
 
@@ -59,11 +59,15 @@ class Routes:
         touch_m: gap to the robot's body [m] within which a pedestrian's centre touches it (the pedestrian radius of
             the env's contact rule).
         reaction: when the pedestrians notice the robot and react, and the room they keep (default: the fitted one).
+        compiled: step the crowds with the compiled kernels (``envs.common.compiled``: the same walks, faster) where
+            they read the depth (a ``MapDepth`` or ``OpenGround``); False: the plain numpy path, their reference.
     """
 
     def __init__(self, log_xy_m: np.ndarray, present: np.ndarray, depth: Depth, body: Body, touch_m: float,
-                 reaction: Reaction | None = None):
+                 reaction: Reaction | None = None, compiled: bool = True):
         self.log_xy_m, self.present, self.depth, self.body = log_xy_m, present, depth, body
+        self.compiled = compiled
+        self._tables: Any = None
         self.reaction = fitted_reaction() if reaction is None else reaction
         self.robot_reach_m = touch_m + ROBOT_MARGIN_M  # gap a pedestrian keeps from the robot's body
         agents = present.shape[1]
@@ -82,6 +86,15 @@ class Routes:
         """(F, A, K) how deep each of those lies in the non-walkable area [m]"""
         self.tangent = smoothed(route_tangents(step, moving & (length >= MIN_STEP_M), present), self.run_first,
                                 self.run_last)  # (F, A, 2)
+
+    def tables(self) -> Any:
+        """The tables as the compiled kernels read them (``envs.common.compiled.tables.RouteTables``, built once), or
+        None where they cannot read the depth."""
+        if self._tables is None:
+            from envs.common.compiled.tables import route_tables  # (the kernels import this module)
+
+            self._tables = route_tables(self) or False
+        return self._tables or None
 
     def clear_of_robot(self, xy_m: np.ndarray, from_m: np.ndarray, to_m: np.ndarray,
                        heading_rad: np.ndarray) -> np.ndarray:
