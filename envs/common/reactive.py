@@ -43,7 +43,7 @@ from envs.common.candidates import HEADWAY_M, OFFSETS_M, RECENT_STEPS, Step, no_
 from envs.common.choosing import choose_all
 from envs.common.compiled.choose import choose_compiled
 from envs.common.compiled.geometry import robot_rows
-from envs.common.compiled.in_the_way import others_in_the_way, robot_in_the_way
+from envs.common.compiled.step import attention, leave, settle
 from envs.common.footprint import BODY_RADIUS_M, PAIR_BODY_M, PAIR_GIVE_M, Body, Robot, heading_of, length_m
 from envs.common.ragged import leading
 from envs.common.reaction import MOVING_MPS, Reaction, attend, notices
@@ -181,8 +181,9 @@ class ReactiveCrowd:
                           np.array([heading_of(robots_from_m[i], robots_to_m[i], robots_heading_rad[i])
                                     for i in members]))
             routes = crowds[members[0]].routes
-            state = advance(routes, stack_states([crowds[i].state for i in members]),
-                            np.array([indices[i] for i in members]), robot)
+            step = advance_compiled if routes.compiled and routes.tables() is not None else advance
+            state = step(routes, stack_states([crowds[i].state for i in members]),
+                         np.array([indices[i] for i in members]), robot)
             for row, i in enumerate(members):
                 crowds[i].state = unstack_state(state, row)
         return [crowd.state.xy_m for crowd in crowds]
@@ -207,18 +208,13 @@ def advance(routes: Routes, old: ReactiveState, index: np.ndarray, robot: Robot)
     walking = _walking(routes, old)
     noticed, unseen = attend(old.noticed_s, old.unseen_s, _notices(routes, old, robot, walking))
     weight = np.where(old.present, routes.reaction.weight(noticed), 0.0)
-    room = np.stack([routes.reaction.room_m(robot.velocity_mps[n], robot.heading[n], walking[n],
-                                            np.nan_to_num((old.xy_m[n] - robot.from_m[n]) @ robot.velocity_mps[n])
-                                            > 0) for n in range(len(index))])
+    room = _room(routes, old, robot, walking)
     lingering = old.present & old.off_log & ~logged & (old.linger < MAX_LINGER_STEPS)  # on their way out
     present = logged | lingering
     off_log = (old.off_log & old.present & logged & (old.linger == 0)) | lingering  # a log that starts again: on
     start = np.where(old.present[..., None], old.xy_m, log_now)  # (N, A, 2) where each one is before the step
-    compiled = routes.compiled and routes.tables() is not None  # else the plain path, their reference
-    robot_in_way, others_in_way = ((_robot_in_the_way_compiled, _others_in_the_way_compiled) if compiled
-                                   else (_robot_in_the_way, _others_in_the_way))
-    going = old.present & logged & ~off_log & (robot_in_way(routes, index, robot, weight, room)
-                                               | others_in_way(routes, index, old))
+    going = old.present & logged & ~off_log & (_robot_in_the_way(routes, index, robot, weight, room)
+                                               | _others_in_the_way(routes, index, old))
     off_log |= going
     tau = np.where(going, frame - 1.0, np.where(off_log, old.tau, frame))  # going: from their log's last frame
     farthest = np.where(off_log, np.where(going, tau, old.farthest), frame)
@@ -231,13 +227,13 @@ def advance(routes: Routes, old: ReactiveState, index: np.ndarray, robot: Robot)
                 farthest, recent, detour, robot, weight, room)
     clear = routes.clear_of_robot(log_now, robot.from_m[:, None], robot.to_m[:, None], robot.heading_rad[:, None])
     _place_newcomers(routes, step, logged & ~old.present, clear, offset)
-    (choose_compiled if compiled else choose_all)(routes, step, tau, offset)
+    choose_all(routes, step, tau, offset)
     # back on the log: caught up, beside it, and nothing in the way; out of the scene: where the log ended
     ahead = ReactiveState(xy, velocity(xy, old.xy_m, old.present & present), present, off_log, tau, offset,
                           old.linger, old.stuck, farthest, recent, detour, noticed, unseen, weight)
     rejoin = (off_log & logged & (length_m(np.nan_to_num(xy - log_now, nan=np.inf)) <= REJOIN_M)
-              & ~robot_in_way(routes, index + 1, robot.after(), weight, room)
-              & ~others_in_way(routes, index + 1, ahead) & clear)
+              & ~_robot_in_the_way(routes, index + 1, robot.after(), weight, room)
+              & ~_others_in_the_way(routes, index + 1, ahead) & clear)
     xy[rejoin] = log_now[rejoin]
     off_log &= ~rejoin
     cols = np.arange(present.shape[1])
@@ -264,6 +260,40 @@ def advance(routes: Routes, old: ReactiveState, index: np.ndarray, robot: Robot)
                          np.where(off_log, np.maximum(farthest, tau), frame),
                          np.concatenate([recent[..., 1:], behind[..., None]], axis=-1), detour,
                          np.where(present, noticed, 0.0), np.where(present, unseen, 0.0), weight)
+
+
+def advance_compiled(routes: Routes, old: ReactiveState, index: np.ndarray, robot: Robot) -> ReactiveState:
+    """``advance``, compiled (``envs.common.compiled``): the same state, bit for bit, in three passes round the room
+    each keeps, the newcomers and the choice."""
+    tables, reaction, rows = routes.tables(), routes.reaction, robot_rows(robot)
+    walking, noticed, unseen, weight = attention(
+        tables, old.present, old.xy_m, old.velocity_mps, old.tau, old.noticed_s, old.unseen_s, rows,
+        np.c_[np.cos(-robot.heading_rad), np.sin(-robot.heading_rad)], float(np.radians(reaction.fov_deg)),
+        reaction.hearing_m, reaction.reaction_s)
+    room = _room(routes, old, robot, walking)
+    lingering, present, off_log, start, tau, farthest, recent, detour, offset, xy, clear = leave(
+        tables, routes.present, index, rows, weight, room, old.xy_m, old.velocity_mps, old.present, old.off_log,
+        old.linger, old.tau, old.farthest, old.recent_m, old.detour, old.offset_m, MAX_LINGER_STEPS,
+        PAIR_LOOK_AHEAD_STEPS, PAIR_CLEARANCE_M)
+    step = Step(index, start, xy, present, off_log, np.zeros(present.shape, bool), old.velocity_mps, old.stuck,
+                farthest, recent, detour, robot, weight, room)
+    appearing = routes.present[index] & ~old.present
+    if appearing.any():
+        _place_newcomers(routes, step, appearing, clear, offset)
+    choose_compiled(routes, step, tau, offset)
+    state = settle(tables, routes.present, index, robot_rows(robot.after()), weight, room, xy, present, off_log,
+                   lingering, start, clear, tau, offset, farthest, recent, detour, old.xy_m, old.present, old.linger,
+                   old.stuck, REJOIN_M, STILL_M, LEAVE_BLOCKED_M, DETOUR_AFTER_STEPS, PAIR_LOOK_AHEAD_STEPS,
+                   PAIR_CLEARANCE_M)
+    return ReactiveState(*state, np.where(present, noticed, 0.0), np.where(present, unseen, 0.0), weight)
+
+
+def _room(routes: Routes, state: ReactiveState, robot: Robot, walking: np.ndarray) -> np.ndarray:
+    """(N, A) the room each pedestrian keeps from its crowd's robot this step [m] (``Reaction.room_m``; numpy's
+    matrix products, crowd by crowd, in both paths)."""
+    return np.stack([routes.reaction.room_m(robot.velocity_mps[n], robot.heading[n], walking[n],
+                                            np.nan_to_num((state.xy_m[n] - robot.from_m[n]) @ robot.velocity_mps[n])
+                                            > 0) for n in range(len(robot.heading_rad))])
 
 
 def _walking(routes: Routes, state: ReactiveState) -> np.ndarray:
@@ -342,18 +372,6 @@ def _others_in_the_way(routes: Routes, index: np.ndarray, state: ReactiveState) 
              & (who[:, None, None, :] != cols[:, None, :, None]))  # nobody is in their own way
     found[rows, cols] = logged & (apart & (np.nan_to_num(gap, nan=np.inf) < bound)).any(axis=(1, 3))
     return found
-
-
-def _robot_in_the_way_compiled(routes: Routes, index: np.ndarray, robot: Robot, weight: np.ndarray,
-                               room_m: np.ndarray) -> np.ndarray:
-    """``_robot_in_the_way``, compiled (``envs.common.compiled.in_the_way``)."""
-    return robot_in_the_way(routes.tables(), routes.present, index, robot_rows(robot), weight, room_m)
-
-
-def _others_in_the_way_compiled(routes: Routes, index: np.ndarray, state: ReactiveState) -> np.ndarray:
-    """``_others_in_the_way``, compiled (``envs.common.compiled.in_the_way``)."""
-    return others_in_the_way(routes.tables(), routes.present, index, state.xy_m, state.velocity_mps,
-                             state.off_log & state.present, PAIR_LOOK_AHEAD_STEPS, PAIR_CLEARANCE_M)
 
 
 def _place_newcomers(routes: Routes, step: Step, appearing: np.ndarray, clear: np.ndarray, offset: np.ndarray) -> None:

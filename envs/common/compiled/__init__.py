@@ -13,13 +13,56 @@ path spends its time calling numpy, not computing. Here the same arithmetic runs
 - ``choose``: every chooser of every crowd, one after another, the nearest to the robot first (``choosing``,
   ``candidates``);
 - ``in_the_way``: who leaves its log for the robot or for the others (``reactive._robot_in_the_way``,
-  ``reactive._others_in_the_way``).
+  ``reactive._others_in_the_way``);
+- ``step``: the rest of ``reactive.advance`` round the choice (noticing, leaving, rejoining, the counts carried on),
+  which ``reactive.advance_compiled`` calls round the room each keeps and the newcomers (numpy's, in both paths).
 
 The plain path stays the reference (``Routes(..., compiled=False)``): ``tests/test_reactive_compiled.py`` walks both
 on drawn crowds and on the replays and asserts every state equal, bit for bit, and ``benchmarks/bench_reactive.py
 --digest`` compares whole episodes. One difference is allowed and stated: on a scene whose image homography is
 projective (ETH, HOTEL; UCY's are affine) numpy maps points to pixels with a BLAS product whose rounding depends on
 the batch, so a point within a rounding error of a pixel's edge may be looked up in the neighbouring pixel (the plain
-path itself does so from one batch size to another). Kernels compile on first use and are cached on disk
-(``cache=True``); a process pays about a second to load them.
+path itself does so from one batch size to another). Kernels compile on first use (a few minutes of one core) and
+are cached on disk (``cache=True``, in this package's ``__pycache__``); a process pays a second or two to load them.
+numba re-compiles a kernel when its own file changes, not when a constant or function it took from another file does,
+so ``drop_stale_caches`` deletes the cached kernels whenever any file they depend on (``SOURCES``) has changed.
+
+The kernels pass arrays and scalars to the functions they call, never a tuple of arrays (``RouteTables``,
+``choose.StepArrays`` are read once per crowd or pedestrian): numba counts references to every array of a tuple at
+every call, which costs more than the arithmetic of the small functions called per candidate or grid cell.
 """
+
+from __future__ import annotations
+
+import hashlib
+from pathlib import Path
+
+from replays.atomic import write_text_atomic
+
+PACKAGE = Path(__file__).parent
+ROOT = PACKAGE.parents[2]
+SOURCES = (*sorted(path.relative_to(ROOT).as_posix() for path in PACKAGE.glob("*.py")),
+           "envs/common/candidates.py", "envs/common/choosing.py", "envs/common/detour.py", "envs/common/footprint.py",
+           "envs/common/reaction.py", "envs/common/routes.py", "replays/constants.py")
+"""the files whose code or constants the kernels compile in (``tests/test_reactive_compiled.py`` checks that every
+module the kernels import from is here)"""
+
+
+def drop_stale_caches() -> None:
+    """Delete the kernels' cached machine code when any of ``SOURCES`` changed since it was compiled: numba checks
+    only the file a kernel is defined in, not the constants and functions it took from others. Nothing happens where
+    the package cannot be written (an installed copy, whose sources do not change)."""
+    fingerprint = hashlib.sha256(b"".join((ROOT / name).read_bytes() for name in SOURCES)).hexdigest()
+    cache, stamp = PACKAGE / "__pycache__", PACKAGE / "__pycache__" / "kernels.sha256"
+    try:
+        if stamp.is_file() and stamp.read_text() == fingerprint:
+            return
+        for stale in [*cache.glob("*.nbi"), *cache.glob("*.nbc")]:
+            stale.unlink(missing_ok=True)
+        cache.mkdir(exist_ok=True)
+        write_text_atomic(stamp, fingerprint)
+    except OSError:
+        return
+
+
+drop_stale_caches()

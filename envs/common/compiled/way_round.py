@@ -1,7 +1,8 @@
 """The way round compiled: how far a pedestrian planning a way round the robot would walk from each of its candidate
 places to a point of its route ahead (``candidates._way_round_m``), on the grid of ``envs.common.detour`` with the
 same cells and, from a Dijkstra search of its own, the same distances (a shortest walk's length is the one fixed point
-of ``d(v) = min over neighbours u of d(u) + edge``, whatever the search's order)."""
+of ``d(v) = min over neighbours u of d(u) + edge``, whatever the search's order; the search stops once the cells of
+the candidate places are settled)."""
 
 from __future__ import annotations
 
@@ -27,53 +28,55 @@ def _cell(origin: float, value: float) -> int:
 
 
 @njit(cache=True)
-def _shortest_walks(free: np.ndarray, goal_row: int, goal_col: int) -> np.ndarray:
+def _shortest_walks(free: np.ndarray, goal_row: int, goal_col: int, wanted: np.ndarray) -> np.ndarray:
     """(H, W) length [m] of the shortest walk through the ``free`` cells (H, W) bool (eight neighbours) from each
-    cell to the goal's (inf where none)."""
+    cell to the goal's (inf where none), exact at least for the cells ``wanted`` (H, W) bool.
+
+    Cells wait in buckets ``CELL_M`` wide by their distance, nearest first (no step is shorter: a cell is settled
+    when its bucket comes, as in Dijkstra's search, without a heap); one whose distance drops again (a rounding at a
+    bucket's edge) waits again, so that every distance ends at the fixed point. The search stops once the bucket
+    reached lies beyond every ``wanted`` cell's distance."""
     rows, cols = free.shape
-    distance = np.full(rows * cols, np.inf)
-    done = np.zeros(rows * cols, np.bool_)
-    heap_d, heap_n = np.empty(8 * rows * cols + 1), np.empty(8 * rows * cols + 1, np.int64)
-    size = 0
-    distance[goal_row * cols + goal_col] = 0.0
-    heap_d[0], heap_n[0], size = 0.0, goal_row * cols + goal_col, 1
-    while size:
-        d, node = heap_d[0], heap_n[0]
-        size -= 1
-        last_d, last_n = heap_d[size], heap_n[size]
-        i = 0
-        while True:  # sift the last entry down from the root
-            child = 2 * i + 1
-            if child >= size:
-                break
-            if child + 1 < size and heap_d[child + 1] < heap_d[child]:
-                child += 1
-            if heap_d[child] < last_d:
-                heap_d[i], heap_n[i] = heap_d[child], heap_n[child]
-                i = child
-            else:
-                break
-        if size:
-            heap_d[i], heap_n[i] = last_d, last_n
-        if done[node]:
-            continue
-        done[node] = True
-        row, col = node // cols, node % cols
-        for d_row in range(-1, 2):
-            for d_col in range(-1, 2):
-                r, c = row + d_row, col + d_col
-                if (d_row == 0 and d_col == 0) or r < 0 or r >= rows or c < 0 or c >= cols or not free[r, c]:
-                    continue
-                there = r * cols + c
-                walked = d + (STRAIGHT_M if d_row == 0 or d_col == 0 else DIAGONAL_M)
-                if walked < distance[there]:
+    size = rows * cols
+    distance = np.full(size, np.inf)
+    slot = np.full(size, -1, np.int64)  # the bucket each cell waits in, -1 none
+    buckets = int(np.ceil((rows + cols) * DIAGONAL_M / STRAIGHT_M)) + 2
+    head = np.full(buckets, -1, np.int64)
+    entry_node, entry_next = np.empty(8 * size + 1, np.int64), np.empty(8 * size + 1, np.int64)
+    wanted_nodes = (wanted & free).ravel()
+    goal = goal_row * cols + goal_col
+    distance[goal], slot[goal], entries = 0.0, 0, 1
+    entry_node[0], entry_next[0], head[0] = goal, -1, 0
+    for bucket in range(buckets):
+        while head[bucket] >= 0:
+            entry = head[bucket]
+            head[bucket] = entry_next[entry]
+            node = entry_node[entry]
+            if slot[node] != bucket:  # it waits elsewhere now
+                continue
+            slot[node] = -1
+            row, col = node // cols, node % cols
+            for d_row in range(-1, 2):
+                for d_col in range(-1, 2):
+                    r, c = row + d_row, col + d_col
+                    if (d_row == 0 and d_col == 0) or r < 0 or r >= rows or c < 0 or c >= cols or not free[r, c]:
+                        continue
+                    there = r * cols + c
+                    walked = distance[node] + (STRAIGHT_M if d_row == 0 or d_col == 0 else DIAGONAL_M)
+                    if not walked < distance[there]:
+                        continue
                     distance[there] = walked
-                    i = size  # sift up
-                    size += 1
-                    while i > 0 and heap_d[(i - 1) // 2] > walked:
-                        heap_d[i], heap_n[i] = heap_d[(i - 1) // 2], heap_n[(i - 1) // 2]
-                        i = (i - 1) // 2
-                    heap_d[i], heap_n[i] = walked, there
+                    slot[there] = min(max(int(walked / STRAIGHT_M), bucket), buckets - 1)
+                    entry_node[entries], entry_next[entries] = there, head[slot[there]]
+                    head[slot[there]] = entries
+                    entries += 1
+        settled = True  # every wanted cell nearer than the next bucket, and none waiting to be nearer
+        for node in range(size):
+            if wanted_nodes[node] and (slot[node] >= 0 or not distance[node] < (bucket + 1) * STRAIGHT_M):
+                settled = False
+                break
+        if settled:
+            break
     return distance.reshape(rows, cols)
 
 
@@ -139,7 +142,12 @@ def way_round(t: RouteTables, agent: int, index: int, tau: float, farthest: floa
         row, col = _cell(ys[0], near_y), _cell(xs[0], near_x)
     walk = np.full(places.shape[0], np.inf)
     if 0 <= row < rows and 0 <= col < cols and free[row, col]:
-        walks = _shortest_walks(free, row, col)
+        wanted = np.zeros((rows, cols), np.bool_)
+        for c in range(places.shape[0]):
+            r, k = _cell(ys[0], places[c, 1]), _cell(xs[0], places[c, 0])
+            if 0 <= r < rows and 0 <= k < cols:
+                wanted[r, k] = True
+        walks = _shortest_walks(free, row, col, wanted)
         for c in range(places.shape[0]):
             r, k = _cell(ys[0], places[c, 1]), _cell(xs[0], places[c, 0])
             if 0 <= r < rows and 0 <= k < cols:
