@@ -9,53 +9,16 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from reactive_draws import FRAMES, ROBOT, chase, robot_paths, scene_with_walls, straight_logs
 
 import envs  # noqa: F401  (registers the ids)
 from envs.common import choosing
 from envs.common.detour import grid_cells, walking_distance_m, walking_distances_m
-from envs.common.footprint import Body
 from envs.common.ragged import exact_row_sums
 from envs.common.reactive import ReactiveCrowd
 from envs.common.routes import Routes
-from replays.scenes import Scene
-from st_sim.sim.map_depth import MapDepth
 
-ROBOT = Body(radius_m=0.3)
-FRAMES = 36
 DRAWS = settings(max_examples=10, deadline=None)
-
-
-def _scene_depth(half_m: float = 12.0) -> MapDepth:
-    """A square with a non-walkable block left of x = -1.5 m, above y = 1 m (walls to press against)."""
-    size = int(2 * half_m / 0.05)
-    walkable = np.ones((size, size), bool)
-    walkable[int((1.0 + half_m) / 0.05):, :int((-1.5 + half_m) / 0.05)] = False
-    H = np.array([[0.05, 0.0, -half_m], [0.0, 0.05, -half_m], [0.0, 0.0, 1.0]])
-    return MapDepth(Scene("block", H, walkable))
-
-
-def _logs(seed: int, walkers: int) -> tuple[np.ndarray, np.ndarray]:
-    """(F, W, 2) straight logs through the middle of the square, some starting or ending within the recording, and
-    (F, W) who is present."""
-    rng = np.random.default_rng(seed)
-    angle = rng.uniform(0, 2 * np.pi, walkers)
-    start = 6.0 * np.c_[np.cos(angle), np.sin(angle)] + rng.normal(0, 0.8, (walkers, 2))
-    end = -start + rng.normal(0, 0.8, (walkers, 2))
-    speed = rng.uniform(0.6, 1.6, walkers)
-    walked = np.arange(FRAMES)[:, None] * 0.4 * speed / np.linalg.norm(end - start, axis=1)
-    log = start + (end - start) * np.minimum(walked, 1.0)[..., None]
-    present = np.ones((FRAMES, walkers), bool)
-    first, last = rng.integers(0, 8, walkers), rng.integers(FRAMES - 8, FRAMES + 1, walkers)
-    present &= (np.arange(FRAMES)[:, None] >= first) & (np.arange(FRAMES)[:, None] < last)
-    return np.where(present[..., None], log, np.nan), present
-
-
-def _robot_paths(seed: int, crowds: int) -> np.ndarray:
-    """(N, F, 2) robots crossing the middle of the square, each its own line and pace (some standing)."""
-    rng = np.random.default_rng(seed + 1)
-    start = rng.uniform(-3, 3, (crowds, 2))
-    velocity = rng.uniform(-1.5, 1.5, (crowds, 2)) * (rng.random((crowds, 1)) < 0.7)
-    return start[:, None] + 0.4 * np.arange(FRAMES)[None, :, None] * velocity[:, None]
 
 
 def _walk(crowds: list[ReactiveCrowd], robots: np.ndarray, lag: list[int], together: bool) -> np.ndarray:
@@ -73,12 +36,13 @@ def _walk(crowds: list[ReactiveCrowd], robots: np.ndarray, lag: list[int], toget
     return np.array(paths)
 
 
+@pytest.mark.parametrize("compiled", [True, False], ids=["compiled", "plain"])
 @DRAWS
 @given(seed=st.integers(0, 2**31), walkers=st.integers(2, 14), crowds=st.integers(2, 4))
-def test_crowds_stepped_together_walk_as_each_alone(seed: int, walkers: int, crowds: int) -> None:
-    log, present = _logs(seed, walkers)
-    routes = Routes(log, present, _scene_depth(), ROBOT, 0.25)
-    robots, lag = _robot_paths(seed, crowds), [int(k) for k in np.random.default_rng(seed).integers(0, 4, crowds)]
+def test_crowds_stepped_together_walk_as_each_alone(compiled: bool, seed: int, walkers: int, crowds: int) -> None:
+    log, present = straight_logs(seed, walkers)
+    routes = Routes(log, present, scene_with_walls(), ROBOT, 0.25, compiled=compiled)
+    robots, lag = robot_paths(seed, crowds), [int(k) for k in np.random.default_rng(seed).integers(0, 4, crowds)]
     alone = _walk([ReactiveCrowd.on(routes) for _ in range(crowds)], robots, lag, together=False)
     together = _walk([ReactiveCrowd.on(routes) for _ in range(crowds)], robots, lag, together=True)
     assert np.array_equal(alone, together, equal_nan=True), \
@@ -89,10 +53,12 @@ def test_crowds_stepped_together_walk_as_each_alone(seed: int, walkers: int, cro
 @given(seed=st.integers(0, 2**31), walkers=st.integers(2, 14))
 def test_scoring_every_candidate_against_everybody_changes_no_walk(seed: int, walkers: int) -> None:
     """The shortcuts: a pedestrian scores in full only the candidates that could still be chosen, and the others
-    only where they are within reach; scoring everything against everybody chooses the same places."""
-    log, present = _logs(seed, walkers)
-    robots = _robot_paths(seed, 1)
-    shortcut = _walk([ReactiveCrowd(log, present, _scene_depth(), ROBOT, 0.25)], robots, [0], together=True)
+    only where they are within reach; scoring everything against everybody chooses the same places (the plain path,
+    whose shortcuts the compiled one takes too, ``tests/test_reactive_compiled.py``)."""
+    log, present = straight_logs(seed, walkers)
+    robots = robot_paths(seed, 1)
+    shortcut = _walk([ReactiveCrowd(log, present, scene_with_walls(), ROBOT, 0.25, compiled=False)], robots, [0],
+                     together=True)
 
     def everybody(step, rows, agents, c):
         near = step.present[rows] & (np.arange(step.present.shape[1]) != agents[:, None])
@@ -101,7 +67,8 @@ def test_scoring_every_candidate_against_everybody_changes_no_walk(seed: int, wa
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(choosing, "FIRST_LOOK", 10**9)
         patch.setattr(choosing, "_near_pairs", everybody)
-        full = _walk([ReactiveCrowd(log, present, _scene_depth(), ROBOT, 0.25)], robots, [0], together=True)
+        full = _walk([ReactiveCrowd(log, present, scene_with_walls(), ROBOT, 0.25, compiled=False)], robots, [0],
+                     together=True)
     assert np.array_equal(shortcut, full, equal_nan=True), \
         f"first difference at (frame, agent) {np.argwhere(~((shortcut == full) | np.isnan(full)))[0][1:3]}"
 
@@ -135,19 +102,6 @@ def test_ways_round_of_several_grids_in_one_search_equal_each_grid_alone(seed: i
         assert np.array_equal(together[g], alone), f"grid {g}: {together[g]} vs {alone}"
 
 
-def _chase(obs: dict[str, np.ndarray], rng: np.random.Generator) -> np.ndarray:
-    """(N, 2) float32 full speed toward the nearest pedestrian plus N(0, 0.3 m/s) noise: robots that walk into the
-    crowd (toward the goal where nobody is present)."""
-    ego = obs["ego"][:, :2]
-    now, seen = obs["history"][:, :, -1], obs["history_mask"][:, :, -1]  # (N, N_max, 2), (N, N_max)
-    distance = np.where(seen, np.linalg.norm(now - ego[:, None], axis=-1), np.inf)
-    target = np.where(np.isfinite(distance.min(axis=1))[:, None], now[np.arange(len(ego)), distance.argmin(axis=1)],
-                      obs["ego"][:, 4:6])
-    to = target - ego
-    velocity = 1.5 * to / np.maximum(np.linalg.norm(to, axis=-1, keepdims=True), 1e-6)
-    return (velocity + rng.normal(0.0, 0.3, velocity.shape)).astype(np.float32)
-
-
 @pytest.mark.parametrize("env_id", ["STCrowd-Univ-v0", "STCrowd-Zara1-v0"])
 @settings(max_examples=2, deadline=None)
 @given(seed=st.integers(0, 10_000), num_envs=st.integers(2, 5))
@@ -162,7 +116,7 @@ def test_a_reactive_vector_env_equals_single_envs(env_id: str, seed: int, num_en
     rng = np.random.default_rng(seed)
     off_log, ended = 0, np.zeros(num_envs, bool)
     for t in range(25):
-        actions = _chase(obs, rng)
+        actions = chase(obs, rng)
         obs, reward, terminated, truncated, info = vec.step(actions)
         for i, env in enumerate(singles):
             if ended[i]:  # the vector env resets it this step (NEXT_STEP autoreset)

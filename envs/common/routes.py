@@ -15,6 +15,7 @@ the log is traced at ``TRACE_SHARES`` of each step, as a fast log may cross a th
 
 from __future__ import annotations
 
+import copy
 from typing import Any, Final, Protocol
 
 import numpy as np
@@ -86,6 +87,12 @@ class Routes:
         """(F, A, K) how deep each of those lies in the non-walkable area [m]"""
         self.tangent = smoothed(route_tangents(step, moving & (length >= MIN_STEP_M), present), self.run_first,
                                 self.run_last)  # (F, A, 2)
+
+    def stepped(self, compiled: bool) -> Routes:
+        """These routes (their tables shared, not copied) stepped by the compiled kernels or by the plain path."""
+        routes = copy.copy(self)
+        routes.compiled = compiled
+        return routes
 
     def tables(self) -> Any:
         """The tables as the compiled kernels read them (``envs.common.compiled.tables.RouteTables``, built once), or

@@ -48,13 +48,15 @@ SOURCES = (*sorted(path.relative_to(ROOT).as_posix() for path in PACKAGE.glob("*
 module the kernels import from is here)"""
 
 
-def drop_stale_caches() -> None:
-    """Delete the kernels' cached machine code when any of ``SOURCES`` changed since it was compiled: numba checks
-    only the file a kernel is defined in, not the constants and functions it took from others. Nothing happens where
-    the package cannot be written (an installed copy, whose sources do not change)."""
-    fingerprint = hashlib.sha256(b"".join((ROOT / name).read_bytes() for name in SOURCES)).hexdigest()
-    cache, stamp = PACKAGE / "__pycache__", PACKAGE / "__pycache__" / "kernels.sha256"
+def drop_stale_caches(package: Path = PACKAGE, root: Path = ROOT, sources: tuple[str, ...] = SOURCES) -> None:
+    """Delete the kernels' cached machine code (``package``'s ``__pycache__/*.nbi``, ``*.nbc``) when any of
+    ``sources`` (paths under ``root``) changed since it was compiled: numba checks only the file a kernel is defined
+    in, not the constants and functions it took from others. Nothing happens where the package cannot be written
+    (an installed copy, whose sources do not change)."""
+    cache = package / "__pycache__"
+    stamp = cache / "kernels.sha256"
     try:
+        fingerprint = hashlib.sha256(b"".join((root / name).read_bytes() for name in sources)).hexdigest()
         if stamp.is_file() and stamp.read_text() == fingerprint:
             return
         for stale in [*cache.glob("*.nbi"), *cache.glob("*.nbc")]:
