@@ -11,6 +11,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from replays import strict_json
 from replays.atomic import write_text_atomic
 from replays.constants import TASKS
 from st_sim.apps import reactive_validate
@@ -185,7 +186,7 @@ def run_figures(args: argparse.Namespace) -> int:
 
 def write_json_atomic(path: Path, data: dict) -> None:
     """Write JSON through a temp file and a rename, so a crash never leaves half a file."""
-    write_text_atomic(path, json.dumps(data, indent=1))
+    write_text_atomic(path, strict_json.dumps(data, indent=1))
 
 
 COMMANDS = {"evaluate": run_evaluate, "demo": run_demo, "plot": run_plot, "figures": run_figures,

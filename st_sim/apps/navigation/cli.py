@@ -7,9 +7,9 @@
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
+from replays import strict_json
 from replays.atomic import write_text_atomic
 from st_sim.apps.navigation.policies import SPEC_HELP, check_policy_spec
 from st_sim.apps.navigation.predictors import predictor_argument
@@ -65,7 +65,7 @@ def run(args: argparse.Namespace) -> int:
     result = run_navigation(nav_run, progress=not args.quiet)
     print(summary_text(result))
     if args.json:
-        write_text_atomic(Path(args.json), json.dumps(result, indent=1))
+        write_text_atomic(Path(args.json), strict_json.dumps(result, indent=1))
         print(f"wrote {args.json}")
     if args.rerun:
         print(f"wrote {args.episodes} recording(s) into {args.rerun}/")

@@ -7,7 +7,6 @@ episodes (same crowd, start and goal) and runs can be compared pair by pair.
 from __future__ import annotations
 
 import inspect
-import json
 import re
 import time
 from dataclasses import asdict, dataclass, is_dataclass
@@ -20,6 +19,7 @@ from tqdm import tqdm
 
 import envs  # noqa: F401  (registers the ids)
 from envs.common.config import EnvConfig
+from replays import strict_json
 from replays.atomic import write_text_atomic
 from st_sim.apps.grid import Job
 from st_sim.apps.navigation.metrics import EpisodeTrace, Outcome, episode_metrics, outcome_of, summarize
@@ -152,7 +152,7 @@ class TraceRecorder:
                             at_fault=at_fault, log_deviation_m=np.array(self.deviation, np.float64),
                             pedestrians_xy_m=pedestrians, pedestrian_groups=groups,
                             ego_radius_m=self.world.ego_radius_m, pedestrian_radius_m=self.world.pedestrian_radius_m,
-                            step_s=self.world.step_s)
+                            goal_radius_m=self.world.goal_radius_m, step_s=self.world.step_s)
 
 
 def run_episode(env: gym.Env, planner: Planner, world: NavWorld, seed: int) -> tuple[EpisodeTrace, float]:
@@ -228,7 +228,7 @@ def navigation_job(output: str, mpc: dict[str, Any] | None = None, **run: Any) -
     written as JSON to ``output``."""
     cfg = None if mpc is None else MpcConfig(**{k: tuple(v) if isinstance(v, list) else v for k, v in mpc.items()})
     result = run_navigation(NavRun(**run, mpc=cfg), progress=False)
-    write_text_atomic(output, json.dumps(result, indent=1))
+    write_text_atomic(output, strict_json.dumps(result, indent=1))
 
 
 def grid_job(name: str, run: NavRun, output: Path) -> Job:
