@@ -10,8 +10,9 @@ How an episode ends is in ``info["termination"]``: "goal", "pedestrian_collision
 step that terminated the episode; a collision outranks the goal, a pedestrian outranks a wall) or None
 while it goes on. Contacts are found along the step, not only at its end (``st_sim.sim.sweep``): on a pedestrian
 collision ``info["contact_time_s"]`` is the moment of impact (seconds into the step) and ``info["at_fault"]`` says
-whether the robot was at fault then (``envs.common.fault``: unless it was nearly stopped or every pedestrian it
-touched was behind it); both None otherwise.
+whether the robot was at fault then (``envs.common.fault``: it closed the gap, its velocity toward a pedestrian it
+touched at least that pedestrian's toward it and above 0.1 m/s); a wall collision is always at fault
+(``contact_time_s`` None). Both are None without a collision.
 The env never ends an episode for time: "timeout" is the ``TimeLimit`` wrapper's truncation (``truncated``
 with ``termination`` None), like the end of a replay's recording.
 
@@ -334,7 +335,8 @@ class CrowdEnv(gym.Env):
 
         Default (replays): no walls; the ego and every pedestrian present in both frames move in a straight line
         between them, and they touch when their centres come closer than ``ego_radius_m + pedestrian_radius_m``;
-        a pedestrian who appears this frame is tested where it appears, at the end of the step.
+        a pedestrian who appears this frame is tested where it appears, at the end of the step, with an unknown
+        velocity (it walked in: not the robot's fault, ``envs.common.fault``).
         """
         before, now = self.tracks.frames[-2], self.tracks.now
         if len(now.ids) == 0:
@@ -351,7 +353,7 @@ class CrowdEnv(gym.Env):
             new = ~stayed & (np.linalg.norm(now.xy_m - self.ego_xy_m, axis=1) < reach_m)
             if new.any():
                 contact = Contact(STEP_S, self.ego_xy_m.copy(), self.ego_velocity_mps.copy(), now.ids[new],
-                                  now.xy_m[new])
+                                  now.xy_m[new], np.full((int(new.sum()), 2), np.nan))  # their velocity: unknown
         return contact, False, nearest_m
 
     def _world_ended(self) -> bool:
@@ -469,9 +471,11 @@ class CrowdEnv(gym.Env):
     def _info(self, reward_parts: dict[str, float], termination: str | None) -> dict[str, Any]:
         """Fresh info dict; ``agent_ids[i]``/``predicted_ids[i]`` name the agent of observation row i (-1: none);
         ``termination`` is what ended the episode this step (see ``TERMINATIONS``), None otherwise; on a pedestrian
-        collision ``contact_time_s`` is the moment of impact [s into the step] and ``at_fault`` the judgement then."""
+        collision ``contact_time_s`` is the moment of impact [s into the step] and ``at_fault`` the judgement then
+        (``envs.common.fault``), on a wall collision ``at_fault`` is True."""
         row_ids = self.tracks.row_ids.copy()
         hit = self._contact if termination == "pedestrian_collision" else None
+        at_fault = True if termination == "wall_collision" else None if hit is None else robot_at_fault(hit)
         return {
             "frame": int(self.tracks.now.frame),
             "agent_ids": row_ids,
@@ -479,7 +483,7 @@ class CrowdEnv(gym.Env):
             "reward_parts": dict(reward_parts),
             "termination": termination,
             "contact_time_s": None if hit is None else float(hit.time_s),
-            "at_fault": None if hit is None else robot_at_fault(hit),
+            "at_fault": at_fault,
             "metrics": self.metrics.summary(),
         }
 

@@ -8,8 +8,11 @@ figure exists (time to goal and path ratio: successful episodes only), which sta
 planners run on the same seeds are compared with McNemar's exact test on the episodes where only one of them
 collided.
 
-A collision is at fault (``collision_at_fault``) when the robot hit a wall, or hit a pedestrian while it was not
-stopped and the pedestrian was not behind it (the env's ``info["at_fault"]``, ``envs.common.fault``).
+A collision is at fault (``collision_at_fault``) when the robot hit a wall, or hit a pedestrian by closing the gap
+itself: at the impact its velocity toward the pedestrian was at least the pedestrian's toward it and above 0.1 m/s
+(the env's ``info["at_fault"]``, ``envs.common.fault``). Pedestrian collisions are also counted apart by that rule,
+robot-on-person and person-on-robot (``collision_robot_on_person``, ``collision_person_on_robot``), as SEANavBench
+and HuNavSim count them; the zone entries are split by the same rule.
 
 Choices where the sources differ: intimate-zone entries are near misses, so they count as safety, personal-zone
 entries as comfort (SEANavBench counts both, split by who moved in); off-map steps are the replays' stand-in for
@@ -31,6 +34,7 @@ import numpy as np
 from scipy import stats
 
 from envs.common.config import EnvConfig
+from envs.common.fault import APPROACH_FLOOR_MPS
 from replays.constants import STEP_S
 from st_sim.apps.navigation.social_metrics import (
     INTIMATE_M,
@@ -92,7 +96,8 @@ class EpisodeTrace:
             nearest gap when ``pedestrians_xy_m`` is None (else the gaps come from the positions).
         off_map: (T + 1,) bool, the ego stood on non-walkable ground.
         goal_m: (2,) [m].  outcome: how it ended.
-        at_fault: on a pedestrian collision, whether the robot was at fault (the env's ``info["at_fault"]``).
+        at_fault: on a pedestrian collision, whether the robot was at fault (the env's ``info["at_fault"]``; None:
+            not judged, counted as the robot's).
         log_deviation_m: (T,) mean distance of the pedestrians from their recorded paths after each step [m]
             (reactive replays; empty elsewhere).
         pedestrians_xy_m: (T + 1, N, 2) float64 positions of every pedestrian seen, one column per pedestrian id,
@@ -147,12 +152,16 @@ def episode_metrics(trace: EpisodeTrace) -> dict[str, float | int | str | bool]:
 
 
 def _safety(trace: EpisodeTrace, gaps: np.ndarray | None, nearest: np.ndarray) -> dict[str, float | int | bool]:
-    """Collision, at fault, least gap and time to collision, intimate-zone entries, off-map share."""
-    at_fault = trace.outcome is Outcome.WALL or (trace.outcome is Outcome.PEDESTRIAN and trace.at_fault is not False)
+    """Collision, at fault, who moved into whom, least gap and time to collision, intimate-zone entries, off-map
+    share."""
+    pedestrian = trace.outcome is Outcome.PEDESTRIAN
+    robot_on_person = pedestrian and trace.at_fault is not False
     finite = nearest[np.isfinite(nearest)]
     ttc = NAN if gaps is None else min_time_to_collision_s(trace.ego_xy_m, trace.ego_velocity_mps,
                                                            trace.pedestrians_xy_m, trace.contact_m, trace.step_s)
-    return {"collision": trace.outcome in (Outcome.PEDESTRIAN, Outcome.WALL), "at_fault": bool(at_fault),
+    return {"collision": trace.outcome in (Outcome.PEDESTRIAN, Outcome.WALL),
+            "at_fault": trace.outcome is Outcome.WALL or robot_on_person, "robot_on_person": robot_on_person,
+            "person_on_robot": pedestrian and not robot_on_person,
             "min_distance_m": float(finite.min()) if finite.size else NAN, "min_ttc_s": ttc,
             **_entries(trace, gaps, INTIMATE_M, "intimate"), "off_map": float(np.mean(_step_ends(trace.off_map)))}
 
@@ -189,7 +198,7 @@ def _entries(trace: EpisodeTrace, gaps: np.ndarray | None, limit_m: float, zone:
     """``{zone}_entries_robot`` and ``{zone}_entries_person`` (``social_metrics.zone_entries``); NaN without
     pedestrian positions."""
     robot, person = (NAN, NAN) if gaps is None else zone_entries(trace.ego_xy_m, trace.pedestrians_xy_m, gaps,
-                                                                 limit_m)
+                                                                 limit_m, trace.step_s)
     return {f"{zone}_entries_robot": robot, f"{zone}_entries_person": person}
 
 
@@ -242,9 +251,10 @@ def _zone_share(band: str) -> Metric:
 
 
 def _zone_entries(zone: str, limit_m: float, mover: str) -> Metric:
-    who = {"robot": "the robot's displacement toward the person over that step is at least the person's toward the "
-                    "robot",
-           "person": "the person's displacement toward the robot is greater, or the person appeared inside"}[mover]
+    who = {"robot": "the robot closed the gap over that step (the rule of collision_robot_on_person on the step's "
+                    "displacements / step, along the line at its start)",
+           "person": "the robot did not close it (the person came faster, or neither above the floor), or the person "
+                     "appeared inside"}[mover]
     return Metric("safety" if zone == "intimate" else "comfort", "mean", "count",
                   f"{mover}-made entries into a person's {zone} zone: the body gap falls below {limit_m} m between "
                   f"two states and {who}", "SEANavBench")
@@ -255,10 +265,21 @@ METRICS: dict[str, Metric] = {
     "collision": _rate("safety", "the episode ended in a collision with a pedestrian or a wall", "SEANavBench, "
                        "SocNavBench, HuNavSim, CrowdNav++", lambda e: e["outcome"] in (Outcome.PEDESTRIAN.value,
                                                                                       Outcome.WALL.value)),
-    "collision_at_fault": _rate("safety", "a wall collision, or a pedestrian collision while the robot moved and "
-                                "the pedestrian was not behind it (episode key at_fault)",
-                                "ours (SEANavBench, HuNavSim: robot-on-person vs person-on-robot)",
-                                lambda e: bool(e.get("at_fault"))),  # older result files lack the field
+    "collision_at_fault": _rate("safety", "a wall collision or a robot-on-person collision (episode key at_fault; "
+                                "result files without the key robot_on_person judged by the former rule: the robot "
+                                "moved at 0.2 m/s or more and the person was not behind it)",
+                                "ours (SEANavBench, HuNavSim count the two kinds apart)",
+                                lambda e: bool(e.get("at_fault"))),  # older result files lack it
+    "collision_robot_on_person": _rate("safety", "a pedestrian collision the robot made: at the impact (the first "
+                                       "instant the bodies touch within the step) its velocity component toward a "
+                                       "person it touched, along the line between their centres, was at least that "
+                                       f"person's toward it and above {APPROACH_FLOOR_MPS} m/s (a robot standing, "
+                                       "creeping or backing away never makes one; a person who appeared inside made "
+                                       "it); episode key robot_on_person", "SEANavBench, HuNavSim",
+                                       lambda e: bool(e.get("robot_on_person"))),  # older result files lack it
+    "collision_person_on_robot": _rate("safety", "a pedestrian collision the person made: every other one (episode "
+                                       "key person_on_robot)", "SEANavBench, HuNavSim",
+                                       lambda e: bool(e.get("person_on_robot"))),
     "pedestrian_collision": _rate("safety", "the episode ended in a collision with a pedestrian",
                                   "SEANavBench, HuNavSim", lambda e: e["outcome"] == Outcome.PEDESTRIAN.value),
     "wall_collision": _rate("safety", "the episode ended with the robot touching a wall", "SEANavBench",
