@@ -39,7 +39,7 @@ from replays import strict_json
 from replays.atomic import write_text_atomic
 from st_sim.apps.grid import Job, raise_on_failure, run_jobs
 from st_sim.apps.navigation.episodes import NavRun, grid_job
-from st_sim.apps.navigation.metrics import rate_interval
+from st_sim.apps.navigation.metrics import RATES, rate_interval
 from st_sim.charts import ScatterPoint, interval_scatter, save_figure
 from st_sim.command_line import add_grid_arguments
 
@@ -115,7 +115,7 @@ def study_env(env: str, labels: list[str], open_results: dict, closed_results: d
     samples = {label: open_loop_samples(env, open_results[label]) for label in labels}
     units = samples[labels[0]][2]
     episodes = {label: closed_results[label]["episodes"] for label in labels}
-    at_fault = np.array([[bool(e["at_fault"]) for e in episodes[label]] for label in labels], float)  # (P, E)
+    at_fault = np.array([[RATES["collision_at_fault"](e) for e in episodes[label]] for label in labels], float)
     failed = np.array([[e["outcome"] != "goal" for e in episodes[label]] for label in labels], float)
     fde = np.array([samples[label][0] for label in labels])  # (P, U) per sample/seed
     ade = np.array([samples[label][1] for label in labels])

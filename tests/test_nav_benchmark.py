@@ -7,6 +7,7 @@ from __future__ import annotations
 import copy
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -143,13 +144,16 @@ def test_a_policy_from_outside_the_project_runs_every_scenario_with_a_plain_loop
     assert (summary["suite"], summary["suite_version"], summary["split"]) == (SUITE.name, SUITE.version, "val")
     lines = [json.loads(line) for line in (out / "episodes.jsonl").read_text().splitlines()]
     assert len(lines) == 2 * len(SUITE.scenarios)
+    documented = set(re.findall(r"^\| `(\w+)` \|", (REPO / "docs" / "benchmark-your-policy.md").read_text(), re.M))
+    assert all(set(line) == {"scenario", "episode", "seed", "outcome"} | documented for line in lines), \
+        "an episode line holds exactly the keys the guide lists: scenario, episode, seed, outcome, every metric"
     for scenario in summary["scenarios"]:
         assert scenario["env_kwargs"]["predictor"] == "cvm"
         assert [e["seed"] for e in scenario["episodes"]] == list(SUITE.seeds["val"][:2])
         for episode in scenario["episodes"]:
-            assert {"success", "collision", "at_fault", "time_to_goal_s", "path_length_m", "min_distance_m"} \
-                <= set(episode)
-            assert isinstance(episode["success"], bool) and isinstance(episode["at_fault"], bool)
+            assert {"success", "collision", "collision_at_fault", "time_to_goal_s", "path_length_m",
+                    "min_distance_m"} <= set(episode)
+            assert isinstance(episode["success"], bool) and isinstance(episode["collision_at_fault"], bool)
     # in this process (where --perturb nudges the simulated crowds as it does the plain loop's)
     names = ("sim-corridor", "zara1-reactive", "frontal-approach")
     here = run_benchmark(BenchmarkRun(KEEP_CLEAR, str(tmp_path / "here"), predictor="cvm", split="val", episodes=2,

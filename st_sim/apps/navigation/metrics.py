@@ -140,7 +140,8 @@ class EpisodeTrace:
 
 
 def episode_metrics(trace: EpisodeTrace) -> dict[str, float | int | str | bool]:
-    """Every figure of ``METRICS`` for one episode (NaN where it does not exist), plus its outcome.
+    """Every figure of ``METRICS`` for one episode under its name (rates as bools, NaN where a figure does not
+    exist), after its outcome.
 
     Per-step figures are taken at the steps' ends (states 1..T; the reset state alone when T = 0).
     """
@@ -160,8 +161,10 @@ def _safety(trace: EpisodeTrace, gaps: np.ndarray | None, nearest: np.ndarray) -
     ttc = NAN if gaps is None else min_time_to_collision_s(trace.ego_xy_m, trace.ego_velocity_mps,
                                                            trace.pedestrians_xy_m, trace.contact_m, trace.step_s)
     return {"collision": trace.outcome in (Outcome.PEDESTRIAN, Outcome.WALL),
-            "at_fault": trace.outcome is Outcome.WALL or robot_on_person, "robot_on_person": robot_on_person,
-            "person_on_robot": pedestrian and not robot_on_person,
+            "collision_at_fault": trace.outcome is Outcome.WALL or robot_on_person,
+            "collision_robot_on_person": robot_on_person,
+            "collision_person_on_robot": pedestrian and not robot_on_person,
+            "pedestrian_collision": pedestrian, "wall_collision": trace.outcome is Outcome.WALL,
             "min_distance_m": float(finite.min()) if finite.size else NAN, "min_ttc_s": ttc,
             **_entries(trace, gaps, INTIMATE_M, "intimate"), "off_map": float(np.mean(_step_ends(trace.off_map)))}
 
@@ -265,21 +268,20 @@ METRICS: dict[str, Metric] = {
     "collision": _rate("safety", "the episode ended in a collision with a pedestrian or a wall", "SEANavBench, "
                        "SocNavBench, HuNavSim, CrowdNav++", lambda e: e["outcome"] in (Outcome.PEDESTRIAN.value,
                                                                                       Outcome.WALL.value)),
-    "collision_at_fault": _rate("safety", "a wall collision or a robot-on-person collision (episode key at_fault; "
-                                "result files without the key robot_on_person judged by the former rule: the robot "
-                                "moved at 0.2 m/s or more and the person was not behind it)",
+    "collision_at_fault": _rate("safety", "a wall collision or a robot-on-person collision (result files of before "
+                                "2026-11-28, key at_fault, judged by the former rule: the robot moved at 0.2 m/s or "
+                                "more and the person was not behind it)",
                                 "ours (SEANavBench, HuNavSim count the two kinds apart)",
-                                lambda e: bool(e.get("at_fault"))),  # older result files lack it
+                                lambda e: bool(e.get("collision_at_fault", e.get("at_fault")))),
     "collision_robot_on_person": _rate("safety", "a pedestrian collision the robot made: at the impact (the first "
                                        "instant the bodies touch within the step) its velocity component toward a "
                                        "person it touched, along the line between their centres, was at least that "
                                        f"person's toward it and above {APPROACH_FLOOR_MPS} m/s (a robot standing, "
                                        "creeping or backing away never makes one; a person who appeared inside made "
-                                       "it); episode key robot_on_person", "SEANavBench, HuNavSim",
-                                       lambda e: bool(e.get("robot_on_person"))),  # older result files lack it
-    "collision_person_on_robot": _rate("safety", "a pedestrian collision the person made: every other one (episode "
-                                       "key person_on_robot)", "SEANavBench, HuNavSim",
-                                       lambda e: bool(e.get("person_on_robot"))),
+                                       "it)", "SEANavBench, HuNavSim",
+                                       lambda e: bool(e.get("collision_robot_on_person"))),  # older files lack it
+    "collision_person_on_robot": _rate("safety", "a pedestrian collision the person made: every other one",
+                                       "SEANavBench, HuNavSim", lambda e: bool(e.get("collision_person_on_robot"))),
     "pedestrian_collision": _rate("safety", "the episode ended in a collision with a pedestrian",
                                   "SEANavBench, HuNavSim", lambda e: e["outcome"] == Outcome.PEDESTRIAN.value),
     "wall_collision": _rate("safety", "the episode ended with the robot touching a wall", "SEANavBench",
