@@ -145,9 +145,10 @@ def test_pedestrian_collisions_split_into_robot_on_person_and_person_on_robot(
     metrics = [episode_metrics(trace(outcome, at_fault)) for outcome, at_fault in episodes]
     for m, (outcome, at_fault) in zip(metrics, episodes, strict=True):
         pedestrian = outcome is Outcome.PEDESTRIAN
-        assert m["robot_on_person"] + m["person_on_robot"] == pedestrian
-        assert m["at_fault"] == (outcome is Outcome.WALL or m["robot_on_person"])
-        assert m["person_on_robot"] == (pedestrian and at_fault is False), "an unjudged collision is the robot's"
+        assert m["collision_robot_on_person"] + m["collision_person_on_robot"] == pedestrian
+        assert m["collision_at_fault"] == (outcome is Outcome.WALL or m["collision_robot_on_person"])
+        assert m["collision_person_on_robot"] == (pedestrian and at_fault is False), \
+            "an unjudged collision is the robot's"
     if metrics:
         summary = summarize(metrics)
         split = summary["collision_robot_on_person"]["value"] + summary["collision_person_on_robot"]["value"]

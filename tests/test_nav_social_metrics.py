@@ -63,7 +63,7 @@ def test_a_standing_robot_that_a_person_walks_up_to_suffers_a_person_on_robot_en
 def test_a_robot_driving_straight_past_a_standing_person_enters_its_personal_zone() -> None:
     ego = line((-5.0, 0.0), (0.4, 0.0), 26)  # 1 m/s for 10 m
     person = np.tile([0.0, 1.2], (26, 1))
-    m = episode_metrics(trace_of(ego, person[:, None], outcome=Outcome.GOAL))
+    m = episode_metrics(trace_of(ego, person[:, None], outcome=Outcome.GOAL, goal_m=(5.5, 0.0)))  # its edge at 5 m
     assert (m["personal_entries_robot"], m["personal_entries_person"]) == (1, 0)
     assert m["intimate_entries_robot"] == m["intimate_entries_person"] == 0
     assert m["min_distance_m"] == pytest.approx(math.hypot(0.2, 1.2) - 0.55), "closest at x = +-0.2 m"
