@@ -16,7 +16,8 @@ An example of wrapping someone else's planner: each class here follows the plann
 
 Forecasts are not read (these planners react to the current state): run them with ``--predictor none``.
 
-The behaviours keep their libraries' defaults except where noted on the classes. navground (``navground.core``, a
+The behaviours keep their libraries' defaults except where noted on the classes, and navground's safety margin
+(``SAFETY_MARGIN_M``). navground (``navground.core``, a
 C++ library with Python bindings) is given the state as a ``GeometricState`` and asked ``compute_cmd`` in the
 absolute (world) frame, the robot's orientation being its heading (the direction to the waypoint when nearly
 still): HL sees only ahead of it. PySocialForce is a pedestrian simulator: the robot is its agent 0 among the
@@ -41,6 +42,7 @@ WAYPOINT_M = 3.0  # the robot heads for the point this far along its shortest wa
 STILL_MPS = 0.05  # below this speed the robot's heading is the direction to its waypoint [m/s]
 MAX_TURN_RADPS = 10.0  # angular speed limit given to navground's kinematics: the envs' robot turns at once [rad/s]
 WALL_DISC_SPACING_M = 0.2  # HRVO, which has no line obstacles, sees walls as discs this far apart [m]
+SAFETY_MARGIN_M = 0.05  # navground keeps this gap to everyone, as STCrowd's ORCA adds it to every radius [m]
 PEERS_EXTRA = 'pip install -e ".[peers]"'
 
 
@@ -145,6 +147,7 @@ class NavgroundPlanner(PeerPlanner):
         self.agent.radius = world.ego_radius_m
         self.agent.optimal_speed = world.max_speed_mps
         self.agent.horizon = SENSING_M
+        self.agent.safety_margin = SAFETY_MARGIN_M
         self.agent.assume_cmd_is_actuated = False  # the robot's velocity is the observed one, not the last command
         for name, value in self.properties.items():
             self.agent.set(name, value)
@@ -228,5 +231,6 @@ class PySocialForcePlanner(PeerPlanner):
         sim.peds.step_width = self.world.step_s
         sim.peds.agent_radius = self.world.ego_radius_m
         sim.peds.max_speeds = np.r_[self.world.max_speed_mps, sim.peds.max_speeds[1:]]
-        sim.step_once()
+        with np.errstate(divide="ignore", invalid="ignore"):  # its speed cap divides by zero for people standing
+            sim.step_once()
         return np.asarray(sim.peds.vel()[0], np.float32)
