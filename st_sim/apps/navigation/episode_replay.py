@@ -55,12 +55,12 @@ def find_episode(summary: dict[str, Any], folder: str | os.PathLike, scenario: s
 
 
 def differences(expected: dict[str, Any], measured: dict[str, Any]) -> list[str]:
-    """The figures of two episode lines that differ, one phrase each ("min_distance_m: 0.41 in the run, 0.43
-    now"); a figure present on one side only counts too."""
+    """The figures of two episode lines that differ as JSON writes them, one phrase each ("min_distance_m: 0.41 in
+    the run, 0.43 now"); a figure present on one side only counts too."""
     found = []
     for key in sorted(set(expected) | set(measured)):
         was, now = expected.get(key, NO_FIGURE), measured.get(key, NO_FIGURE)
-        if was != now:
+        if _shown(was) != _shown(now):
             found.append(f"{key}: {_shown(was)} in the run, {_shown(now)} now")
     return found
 
