@@ -453,19 +453,7 @@ class CrowdEnv(gym.Env):
             self._rerun_step = 0
             if self._rerun.path is not None:
                 self.rerun_paths.append(self._rerun.path)
-        obs, present = self._obs, info["agent_ids"] >= 0
-        predicted = obs["futures_mask"]
-        metrics = {name: float(value) for name, value in info["metrics"].items()
-                   if value is not None and np.isfinite(value)}  # nothing logged until there is a value
-        prototype = adapted = None
-        if self.anchors is not None:
-            prototype, adapted = self.anchors[1], self.anchors[2]
-        self._rerun.log_step(
-            self._rerun_step, obs["history"][present, -1], info["agent_ids"][present],
-            trails=obs["history"][present], trail_mask=obs["history_mask"][present],
-            predictions=obs["futures"][predicted], prediction_ids=info["predicted_ids"][predicted],
-            ego_xy_m=obs["ego"][:2] if self.ego else None, ego_goal_m=obs["ego"][4:6] if self.ego else None,
-            metrics={**metrics, "reward": reward}, prototype_anchors=prototype, adapted_anchors=adapted)
+        self._rerun.log_step(self._rerun_step, **rerun_step(self._obs, info, reward, self.ego, self.anchors))
         self._rerun_step += 1
 
     def _info(self, reward_parts: dict[str, float], termination: str | None) -> dict[str, Any]:
@@ -486,6 +474,24 @@ class CrowdEnv(gym.Env):
             "at_fault": at_fault,
             "metrics": self.metrics.summary(),
         }
+
+
+def rerun_step(obs: dict[str, np.ndarray], info: dict[str, Any], reward: float, ego: bool,
+               anchors: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> dict[str, Any]:
+    """The arguments of ``RerunLogger.log_step`` (after the step index) for one state of an env: the agents present,
+    their trails, the forecasts, the ego and its goal (if ``ego``), the running metrics that have a value and the
+    reward, the anchors (``CrowdEnv.anchors``) if given. Arrays are copies of the present rows only, so a caller may
+    keep them."""
+    present, predicted = info["agent_ids"] >= 0, obs["futures_mask"]
+    metrics = {name: float(value) for name, value in info["metrics"].items()
+               if value is not None and np.isfinite(value)}  # nothing logged until there is a value
+    return {"positions_m": obs["history"][present, -1], "ids": info["agent_ids"][present],
+            "trails": obs["history"][present], "trail_mask": obs["history_mask"][present],
+            "predictions": obs["futures"][predicted], "prediction_ids": info["predicted_ids"][predicted],
+            "ego_xy_m": obs["ego"][:2].copy() if ego else None, "ego_goal_m": obs["ego"][4:6].copy() if ego else None,
+            "metrics": {**metrics, "reward": float(reward)},
+            "prototype_anchors": None if anchors is None else anchors[1],
+            "adapted_anchors": None if anchors is None else anchors[2]}
 
 
 def check_flag(name: str, value: Any) -> None:

@@ -13,6 +13,7 @@ Layout of the output folder:
                                         run, or the same spec pointing at another model or other code, is refused
     parts/<scenario>/<first>.jsonl      one chunk's episodes, appended as they finish
     parts/<scenario>/<first>.json       the chunk's timing, written when it is complete
+    recordings/<scenario>/<episode>.rrd a Rerun recording of each episode ``--record`` chose (``episode_recording``)
     episodes.jsonl                      every episode, one JSON line each, in suite order
     summary.json                        policy, its fingerprint, suite, version, split, the scenario set; per
                                         scenario its env, keywords, episodes, summary and timing; the pooled summary
@@ -42,6 +43,7 @@ from gymnasium import spaces
 from replays import strict_json
 from replays.atomic import write_text_atomic
 from st_sim.apps.grid import Job, run_jobs
+from st_sim.apps.navigation.episode_recording import BenchmarkRecorder
 from st_sim.apps.navigation.episodes import run_episode
 from st_sim.apps.navigation.fingerprint import fingerprint_changes, policy_fingerprint
 from st_sim.apps.navigation.metrics import episode_metrics, summarize
@@ -80,6 +82,8 @@ class BenchmarkRun:
     """a suite file (None: the shipped suite)"""
     data_root: str | None = None
     """ETH/UCY data root for the replays (default: $STCROWD_DATA or the cache); not part of the results"""
+    record: str = "none"
+    """Rerun recordings of the episodes run now: none, failures (not at the goal) or all; not part of the results"""
 
 
 def env_kwargs_of(scenario: Scenario, predictor: str) -> dict[str, Any]:
@@ -110,10 +114,11 @@ def episode_record(scenario: str, episode: int, seed: int, metrics: dict[str, An
 
 
 def run_chunk(suite_file: str | None, scenario: str, split: str, first: int, count: int, policy: str,
-              predictor: str, part: str, data_root: str | None = None) -> None:
+              predictor: str, part: str, data_root: str | None = None, record: str = "none") -> None:
     """Grid job: episodes ``first .. first + count - 1`` of ``scenario``, appended to ``part`` (.jsonl) one line each
     as they finish; then the chunk's timing into ``part`` with suffix .json. Episodes already in ``part`` are kept
-    and skipped (a torn last line, from a killed run, is dropped).
+    and skipped (a torn last line, from a killed run, is dropped). ``record`` chooses the episodes recorded into
+    ``recordings/<scenario>/`` beside ``parts`` (``episode_recording.BenchmarkRecorder``).
 
     Raises:
         PolicyError: the policy failed; the message names it, the scenario, the episode and the seed.
@@ -130,17 +135,20 @@ def run_chunk(suite_file: str | None, scenario: str, split: str, first: int, cou
         world = world_of(env)
         checked = load_policy(policy, world, predictor)
         checked.check_fits(env.observation_space, scenario)
+        recorder = BenchmarkRecorder(env, record, lines_path.parents[2] / "recordings" / scenario, policy, predictor)
         with lines_path.open("a") as lines:
             for i, seed in enumerate(seeds, start=first):
                 if i in done:
                     continue
                 try:
-                    trace, thinking_s = run_episode(env, checked, world, seed)
+                    trace, thinking_s = run_episode(recorder.env, checked, world, seed)
                 except PolicyError as err:
                     raise PolicyError(f"{err} (scenario {scenario!r}, episode {i}, seed {seed})") from err
                 policy_s += thinking_s
                 steps += len(trace.ego_xy_m) - 1
-                lines.write(strict_json.dumps(episode_record(scenario, i, seed, episode_metrics(trace))) + "\n")
+                line = episode_record(scenario, i, seed, episode_metrics(trace))
+                recorder.keep(line)
+                lines.write(strict_json.dumps(line) + "\n")
                 lines.flush()
                 os.fsync(lines.fileno())
     finally:
@@ -183,7 +191,7 @@ def plan(run: BenchmarkRun, suite: Suite) -> list[Job]:
                       "scenario": scenario.name, "split": run.split, "first": first,
                       "count": min(CHUNK_EPISODES, count - first), "policy": _portable(run.policy),
                       "predictor": run.predictor,
-                      "part": str(part), "data_root": data_root}
+                      "part": str(part), "data_root": data_root, "record": run.record}
             jobs.append(Job(f"{scenario.name}/{first}", "st_sim.apps.navigation.benchmark:run_chunk", kwargs,
                             str(part.with_suffix(".json"))))
     return jobs

@@ -14,6 +14,7 @@ import argparse
 from pathlib import Path
 
 from replays.atomic import write_text_atomic
+from st_sim.apps.navigation.episode_recording import RECORD_CHOICES
 from st_sim.apps.navigation.policies import SPEC_HELP
 from st_sim.apps.navigation.predictors import predictor_argument
 from st_sim.command_line import CliError, add_grid_arguments, check_writable, positive_int
@@ -38,6 +39,9 @@ def add_parsers(subparsers: argparse._SubParsersAction) -> None:
                             "them) (default: singular)")
     bench.add_argument("--out", default=None, metavar="DIR", help="output folder (required unless --list)")
     bench.add_argument("--list", action="store_true", help="print the suite's scenarios and exit")
+    bench.add_argument("--record", choices=list(RECORD_CHOICES), default="none",
+                       help="write a Rerun recording of these episodes into DIR/recordings/<scenario>/<episode>.rrd: "
+                            "failures (every episode that did not reach the goal), all, or none (default: none)")
     add_grid_arguments(bench)
     bench.add_argument("--data-root", default=None, help="ETH/UCY folder (default: $STCROWD_DATA or the cache)")
     bench.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -82,7 +86,7 @@ def run_benchmark_command(args: argparse.Namespace) -> int:
     check_writable(Path(args.out))
     run = BenchmarkRun(policy=args.policy, out=args.out, predictor=args.predictor, split=args.split,
                        episodes=args.episodes, scenarios=None if args.scenarios is None else tuple(args.scenarios),
-                       suite_file=args.suite_file, data_root=args.data_root)
+                       suite_file=args.suite_file, data_root=args.data_root, record=args.record)
     summary = run_benchmark(run, executor=args.executor, workers=args.workers, address=args.ray_address,
                             progress=not args.quiet)
     print(markdown([summary]))

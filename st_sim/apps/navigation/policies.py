@@ -5,7 +5,8 @@
     action = policy.act(obs)             # (2,) velocity command [m/s], world frame, checked
 
 A spec is one of:
-- a shipped planner name (``planners.PLANNERS``: straight, orca, mpc, ppo, ppo-reactive);
+- a shipped planner name (``planners.PLANNERS``: straight, orca, mpc, ppo, ppo-reactive) or a peer's
+  (``planners.PEERS``: navground-hl, navground-orca, navground-hrvo, navground-sf, pysocialforce; ``peers``);
 - ``package.module:name``: a class or factory following the planner protocol (``act(obs) -> (2,)`` velocity,
   optionally ``reset()``), built as ``name(world, use_predictions)`` like the shipped planners when its signature
   takes two arguments, else as ``name()``;
@@ -30,7 +31,7 @@ import numpy as np
 from gymnasium import spaces
 
 from predictor.plugins import PluginError, describe_error, resolve_factory
-from st_sim.apps.navigation.planners import PLANNERS, make_planner
+from st_sim.apps.navigation.planners import NAMED, make_planner
 from st_sim.apps.navigation.world import NavWorld
 
 SB3_PREFIX = "sb3:"
@@ -41,8 +42,10 @@ SB3_ALGORITHMS: dict[str, tuple[str, ...]] = {
 }
 """module of a saved model's policy class -> the algorithms that load it (the first is used; any of them predicts
 the same)"""
-SPEC_HELP = ("a shipped planner (straight, orca, mpc, ppo, ppo-reactive), package.module:name (a class or factory "
-             "with act(obs) -> (2,) velocity), or sb3:PATH.zip (a stable-baselines3 model)")
+SPEC_HELP = ("a shipped planner (straight, orca, mpc, ppo, ppo-reactive), another project's (navground-hl, "
+             "navground-orca, navground-hrvo, navground-sf, pysocialforce: pip install -e \".[peers]\"), "
+             "package.module:name (a class or factory with act(obs) -> (2,) velocity), or sb3:PATH.zip (a "
+             "stable-baselines3 model)")
 
 
 class PolicyError(ValueError):
@@ -52,7 +55,7 @@ class PolicyError(ValueError):
 def check_policy_spec(spec: str) -> None:
     """Refuse a spec that cannot name a policy, before any work: an unknown name, a plug-in that does not import or
     names nothing callable, a model file that is missing (``PolicyError``)."""
-    if spec in PLANNERS:
+    if spec in NAMED:
         return
     if spec.startswith(SB3_PREFIX):
         path = Path(spec.removeprefix(SB3_PREFIX)).expanduser()
@@ -69,9 +72,9 @@ def load_policy(spec: str, world: NavWorld, predictor: str = "singular", **optio
     policy is told that no forecasts are there); ``options`` go to a shipped planner (the MPC's ``cfg``, PPO's
     ``policy`` file). Raises ``PolicyError`` if it cannot be built."""
     check_policy_spec(spec)
-    if options and spec not in PLANNERS:
+    if options and spec not in NAMED:
         raise PolicyError(f"policy {spec!r}: options {', '.join(options)} are for the shipped planners only")
-    if spec in PLANNERS:
+    if spec in NAMED:
         policy = make_planner(spec, world, predictor, **options)
     elif spec.startswith(SB3_PREFIX):
         policy = Sb3Policy(Path(spec.removeprefix(SB3_PREFIX)).expanduser())
