@@ -70,6 +70,9 @@ class BenchmarkRun:
     """a suite file (None: the shipped suite)"""
     data_root: str | None = None
     """ETH/UCY data root for the replays (default: $STCROWD_DATA or the cache); not part of the results"""
+    trust_policy_file: bool = False
+    """load an sb3: model with stable-baselines3's own loader, which runs code stored in the file (``policies``); not
+    part of the results"""
 
 
 def env_kwargs_of(scenario: Scenario, predictor: str) -> dict[str, Any]:
@@ -100,7 +103,7 @@ def episode_record(scenario: str, episode: int, seed: int, metrics: dict[str, An
 
 
 def run_chunk(suite_file: str | None, scenario: str, split: str, first: int, count: int, policy: str,
-              predictor: str, part: str, data_root: str | None = None) -> None:
+              predictor: str, part: str, data_root: str | None = None, trust_policy_file: bool = False) -> None:
     """Grid job: episodes ``first .. first + count - 1`` of ``scenario``, appended to ``part`` (.jsonl) one line each
     as they finish; then the chunk's timing into ``part`` with suffix .json. Episodes already in ``part`` are kept
     and skipped (a torn last line, from a killed run, is dropped).
@@ -118,7 +121,7 @@ def run_chunk(suite_file: str | None, scenario: str, split: str, first: int, cou
     env = make_scenario_env(entry, predictor, data_root)
     try:
         world = world_of(env)
-        checked = load_policy(policy, world, predictor)
+        checked = load_policy(policy, world, predictor, trust_file=trust_policy_file)
         checked.check_fits(env.observation_space, scenario)
         with lines_path.open("a") as lines:
             for i, seed in enumerate(seeds, start=first):
@@ -173,7 +176,7 @@ def plan(run: BenchmarkRun, suite: Suite) -> list[Job]:
                       "scenario": scenario.name, "split": run.split, "first": first,
                       "count": min(CHUNK_EPISODES, count - first), "policy": _portable(run.policy),
                       "predictor": run.predictor,
-                      "part": str(part), "data_root": data_root}
+                      "part": str(part), "data_root": data_root, "trust_policy_file": run.trust_policy_file}
             jobs.append(Job(f"{scenario.name}/{first}", "st_sim.apps.navigation.benchmark:run_chunk", kwargs,
                             str(part.with_suffix(".json"))))
     return jobs
@@ -203,7 +206,7 @@ def check_run(run: BenchmarkRun, suite: Suite) -> None:
             raise BenchmarkError(f"{run.out} holds another run ({differ}); give another --out")
     env = make_scenario_env(scenarios[0], "none", run.data_root)
     try:
-        policy = load_policy(run.policy, world_of(env), run.predictor)
+        policy = load_policy(run.policy, world_of(env), run.predictor, trust_file=run.trust_policy_file)
     finally:
         env.close()
     if policy.observation_space is not None:
