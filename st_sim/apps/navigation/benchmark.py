@@ -84,6 +84,9 @@ class BenchmarkRun:
     """ETH/UCY data root for the replays (default: $STCROWD_DATA or the cache); not part of the results"""
     record: str = "none"
     """Rerun recordings of the episodes run now: none, failures (not at the goal) or all; not part of the results"""
+    trust_policy_file: bool = False
+    """load an sb3: model with stable-baselines3's own loader, which runs code stored in the file (``policies``); not
+    part of the results"""
 
 
 def env_kwargs_of(scenario: Scenario, predictor: str) -> dict[str, Any]:
@@ -114,7 +117,8 @@ def episode_record(scenario: str, episode: int, seed: int, metrics: dict[str, An
 
 
 def run_chunk(suite_file: str | None, scenario: str, split: str, first: int, count: int, policy: str,
-              predictor: str, part: str, data_root: str | None = None, record: str = "none") -> None:
+              predictor: str, part: str, data_root: str | None = None, record: str = "none",
+              trust_policy_file: bool = False) -> None:
     """Grid job: episodes ``first .. first + count - 1`` of ``scenario``, appended to ``part`` (.jsonl) one line each
     as they finish; then the chunk's timing into ``part`` with suffix .json. Episodes already in ``part`` are kept
     and skipped (a torn last line, from a killed run, is dropped). ``record`` chooses the episodes recorded into
@@ -133,7 +137,7 @@ def run_chunk(suite_file: str | None, scenario: str, split: str, first: int, cou
     env = make_scenario_env(entry, predictor, data_root)
     try:
         world = world_of(env)
-        checked = load_policy(policy, world, predictor)
+        checked = load_policy(policy, world, predictor, trust_file=trust_policy_file)
         checked.check_fits(env.observation_space, scenario)
         recorder = BenchmarkRecorder(env, record, lines_path.parents[2] / "recordings" / scenario, policy, predictor)
         with lines_path.open("a") as lines:
@@ -191,7 +195,8 @@ def plan(run: BenchmarkRun, suite: Suite) -> list[Job]:
                       "scenario": scenario.name, "split": run.split, "first": first,
                       "count": min(CHUNK_EPISODES, count - first), "policy": _portable(run.policy),
                       "predictor": run.predictor,
-                      "part": str(part), "data_root": data_root, "record": run.record}
+                      "part": str(part), "data_root": data_root, "record": run.record,
+                      "trust_policy_file": run.trust_policy_file}
             jobs.append(Job(f"{scenario.name}/{first}", "st_sim.apps.navigation.benchmark:run_chunk", kwargs,
                             str(part.with_suffix(".json"))))
     return jobs
@@ -214,7 +219,7 @@ def check_run(run: BenchmarkRun, suite: Suite) -> dict[str, Any]:
     scenarios = suite.select(run.scenarios)
     env = make_scenario_env(scenarios[0], "none", run.data_root)
     try:
-        policy = load_policy(run.policy, world_of(env), run.predictor)
+        policy = load_policy(run.policy, world_of(env), run.predictor, trust_file=run.trust_policy_file)
     finally:
         env.close()
     if policy.observation_space is not None:

@@ -2,7 +2,7 @@
 side).
 
     python -m st_sim benchmark --policy mypkg.policy:MyPolicy [--suite val|test] [--episodes N] \\
-        [--scenarios NAME ...] [--predictor singular] --out DIR
+        [--scenarios NAME ...] [--predictor singular] [--record failures] [--trust-policy-file] --out DIR
     python -m st_sim leaderboard DIR [DIR ...] [--out board.md] [--chart board.png] [--no-baselines] \\
         [--common-scenarios]
     python -m st_sim leaderboard --paired DIR_A DIR_B [--scenarios PATTERN ...]
@@ -15,7 +15,7 @@ from pathlib import Path
 
 from replays.atomic import write_text_atomic
 from st_sim.apps.navigation.episode_recording import RECORD_CHOICES
-from st_sim.apps.navigation.policies import SPEC_HELP
+from st_sim.apps.navigation.policies import SPEC_HELP, TRUST_HELP
 from st_sim.apps.navigation.predictors import predictor_argument
 from st_sim.command_line import CliError, add_grid_arguments, check_writable, positive_int
 
@@ -25,6 +25,7 @@ def add_parsers(subparsers: argparse._SubParsersAction) -> None:
     bench = subparsers.add_parser("benchmark", help="navigation benchmark: a policy through the suite's scenarios on "
                                                     "its published seeds, the field's metrics per episode")
     bench.add_argument("--policy", default=None, help=f"the policy (required unless --list): {SPEC_HELP}")
+    bench.add_argument("--trust-policy-file", action="store_true", help=TRUST_HELP)
     bench.add_argument("--suite", choices=["val", "test"], default="test", dest="split",
                        help="seed list: val to tune on, test for the figures you report (default: test)")
     bench.add_argument("--suite-file", default=None, metavar="PATH",
@@ -86,7 +87,8 @@ def run_benchmark_command(args: argparse.Namespace) -> int:
     check_writable(Path(args.out))
     run = BenchmarkRun(policy=args.policy, out=args.out, predictor=args.predictor, split=args.split,
                        episodes=args.episodes, scenarios=None if args.scenarios is None else tuple(args.scenarios),
-                       suite_file=args.suite_file, data_root=args.data_root, record=args.record)
+                       suite_file=args.suite_file, data_root=args.data_root, record=args.record,
+                       trust_policy_file=args.trust_policy_file)
     summary = run_benchmark(run, executor=args.executor, workers=args.workers, address=args.ray_address,
                             progress=not args.quiet)
     print(markdown([summary]))

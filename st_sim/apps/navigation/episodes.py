@@ -63,6 +63,8 @@ class NavRun:
     """tunables of the MPC planner (None: the defaults); other planners take none"""
     policy_file: str | None = None
     """the PPO planner: a policy file (``train_ppo``'s policy.pt) instead of the shipped policy"""
+    trust_policy_file: bool = False
+    """an sb3: model: load it with stable-baselines3's own loader, which runs code stored in the file"""
 
 
 def accepts_keyword(env_id: str, name: str) -> bool:
@@ -198,7 +200,8 @@ def run_navigation(run: NavRun, progress: bool = True) -> dict[str, Any]:
     see_ego = run.pedestrians_see_ego if accepts_keyword(run.env_id, SEE_EGO_KWARG) else None
     env = make_nav_env(run)
     world = world_of(env)
-    planner = load_policy(run.policy, world, run.predictor, **planner_options(run))
+    planner = load_policy(run.policy, world, run.predictor, trust_file=run.trust_policy_file, **planner_options(run))
+    planner.check_fits(env.observation_space, run.env_id)
     episodes, thinking_s, decisions = [], 0.0, 0
     start = time.perf_counter()
     for i in tqdm(range(run.episodes), desc=f"{run.policy}/{run.predictor} {run.env_id}", disable=not progress,
