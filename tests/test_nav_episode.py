@@ -65,7 +65,7 @@ def test_record_all_writes_each_episode_with_its_walls_line_and_collision(runs: 
             if line["collision"]:
                 (step, logged), = marker.items()
                 assert step == line["steps"], "the marker appears at the colliding step"
-                assert ("robot at fault" in logged["Points2D:labels"][0]) == line["at_fault"]
+                assert ("robot at fault" in logged["Points2D:labels"][0]) == line["collision_at_fault"]
 
 
 def test_record_failures_writes_exactly_the_failed_episodes(tmp_path: Path) -> None:

@@ -18,7 +18,6 @@ next reset; the file is written through ``RerunLogger``, whose memory does not g
 
 from __future__ import annotations
 
-import json
 import os
 from pathlib import Path
 from typing import Any
@@ -27,7 +26,9 @@ import gymnasium as gym
 import numpy as np
 
 from envs.common.crowd_env import rerun_step
+from replays import strict_json
 from replays.constants import STEP_S
+from st_sim.apps.navigation.metrics import RATES
 from st_sim.sim.map_walls import map_wall_segments
 
 RECORD_CHOICES: tuple[str, ...] = ("none", "failures", "all")
@@ -49,8 +50,8 @@ def episode_notes(line: dict[str, Any], policy: str) -> str:
     head = (f"**{line.get('scenario', '?')}**, episode {line.get('episode', '?')} (seed {line.get('seed', '?')}), "
             f"policy `{policy}`: {line.get('outcome', '?')}")
     if line.get("collision"):
-        head += ", robot at fault" if line.get("at_fault") else ", robot not at fault"
-    figures = [f"| {key} | {json.dumps(value)} |" for key, value in line.items()
+        head += ", robot at fault" if RATES["collision_at_fault"](line) else ", robot not at fault"
+    figures = [f"| {key} | {strict_json.dumps(value)} |" for key, value in line.items()
                if key not in ("scenario", "episode", "seed", "outcome")]
     return "\n".join([head, "", "| figure | value |", "|---|---|", *figures])
 
@@ -119,7 +120,7 @@ class EpisodeTape(gym.Wrapper):
                 log.log_step(step, **state)
             if self.collision is not None:
                 step, where, termination = self.collision
-                at_fault = bool(line.get("at_fault"))
+                at_fault = bool(RATES["collision_at_fault"](line))
                 label = f"{termination.replace('_', ' ')}, robot {'at fault' if at_fault else 'not at fault'}"
                 log.log_marker(step, "collision", where, label, AT_FAULT_RGB if at_fault else NOT_AT_FAULT_RGB)
         return log.path

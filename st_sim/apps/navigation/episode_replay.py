@@ -15,11 +15,11 @@ shows exactly the episode the numbers came from. The recording is ``episode_reco
 from __future__ import annotations
 
 import argparse
-import json
 import os
 from pathlib import Path
 from typing import Any
 
+from replays import strict_json
 from st_sim.apps.grid import one_thread
 from st_sim.command_line import CliError
 
@@ -66,7 +66,7 @@ def differences(expected: dict[str, Any], measured: dict[str, Any]) -> list[str]
 
 
 def _shown(value: Any) -> str:
-    return "absent" if value is NO_FIGURE else json.dumps(value)
+    return "absent" if value is NO_FIGURE else strict_json.dumps(value)
 
 
 def replay_episode(folder: str | os.PathLike, scenario: str, episode: int, rerun: str | None = None,
