@@ -29,7 +29,6 @@ import argparse
 import dataclasses
 import datetime
 import itertools
-import json
 import sys
 from pathlib import Path
 
@@ -38,6 +37,7 @@ from tqdm import tqdm
 
 from envs.common.footprint import Body
 from envs.common.reaction import FIT_PATH, Reaction, read_reaction
+from replays import strict_json
 from replays.atomic import write_text_atomic
 from replays.citr import CART_LENGTH_M, CART_WIDTH_M, find_experiments
 from replays.data_root import CITR, data_root
@@ -125,8 +125,8 @@ def main() -> None:
              "blind_ade_m": blind, "evaluations": evaluations, "fitted_on": list(FITTED_ON),
              "held_out": list(HELD_OUT), "fitted_by": "benchmarks/fit_reaction.py " + " ".join(sys.argv[1:]),
              "date": datetime.date.today().isoformat()}
-    write_text_atomic(args.out, json.dumps(table, indent=2) + "\n")
-    print(json.dumps(table, indent=2))
+    write_text_atomic(args.out, strict_json.dumps(table, indent=2) + "\n")
+    print(strict_json.dumps(table, indent=2))
 
 
 if __name__ == "__main__":

@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Final
@@ -37,6 +36,7 @@ from envs.common.footprint import BODY_RADIUS_M, Body
 from envs.common.reaction import FIT_PATH, Reaction, read_reaction
 from envs.common.reactive import ReactiveCrowd
 from envs.common.routes import OpenGround
+from replays import strict_json
 from replays.atomic import write_text_atomic
 from replays.citr import CART_LENGTH_M, CART_WIDTH_M, CITR_FPS, Experiment, Grid, find_experiments, on_grid
 from replays.constants import STEP_S
@@ -245,7 +245,7 @@ def run(args: argparse.Namespace) -> int:
                           "reaction_file": "envs/common/reaction_fit.json" if shipped else str(args.reaction),
                           "held_out": list(HELD_OUT)}
     print(markdown_table(result))
-    write_text_atomic(args.json, json.dumps(result, indent=1))
+    write_text_atomic(args.json, strict_json.dumps(result, indent=1))
     print(f"wrote {args.json}")
     if args.chart:
         from st_sim.charts import save_figure
