@@ -20,10 +20,9 @@ from typing import Any
 
 import numpy as np
 
-from st_sim.apps.navigation.benchmark import make_scenario_env
+from envs.suite import load_suite, make_scenario_env
 from st_sim.apps.navigation.episodes import run_episode
 from st_sim.apps.navigation.policies import load_policy
-from st_sim.apps.navigation.suite import load_suite
 from st_sim.apps.navigation.world import world_of
 
 PARTS = ("world", "forecast", "policy", "other")

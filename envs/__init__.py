@@ -6,8 +6,11 @@
     env = gym.make("STCrowd-SimDoorway-v1")                 # a scripted encounter: someone comes through the door
     env = gym.make("STCrowd-Zara1-v0", ego=False, task="deterministic", predictor="cvm-s")
     vec = gym.make_vec("STCrowd-SimCrossing-v1", num_envs=16)   # native vector env: one forecast call per step
+    env = gym.make("STCrowd-Suite-v1", predictor="cvm")     # the suite's train split, a scenario per episode, seen
+                                                            # through the fixed-size view (envs.view)
 
-Replay and real-scene simulated ids need the ETH/UCY data root ($STCROWD_DATA or the user cache).
+Replay and real-scene simulated ids, and the suite env with its replay scenarios, need the ETH/UCY data root
+($STCROWD_DATA or the user cache).
 """
 
 from __future__ import annotations
@@ -52,6 +55,11 @@ for _encounter, _name in SIM_ENCOUNTERS.items():
         max_episode_steps=MAX_EPISODE_STEPS,
     )
 
+# The navigation suite as one env: a scenario per episode, every one seen through the fixed-size view (envs.view).
+# No time limit of its own: each scenario's env keeps its registered one.
+SUITE_ID = "STCrowd-Suite-v1"
+register(id=SUITE_ID, entry_point="envs.suite_env:SuiteEnv")
+
 ENCOUNTER_IDS: tuple[str, ...] = tuple(f"STCrowd-Sim{s}-v{SIM_VERSION}" for s in SIM_ENCOUNTERS)
 """the scripted encounters' ids"""
 STCROWD_IDS: tuple[str, ...] = (
@@ -59,4 +67,4 @@ STCROWD_IDS: tuple[str, ...] = (
     *(f"STCrowd-Sim{s}-v{SIM_VERSION}" for s in SIM_LAYOUTS + REPLAY_SCENES),
     *ENCOUNTER_IDS,
 )
-"""every registered id, replays first"""
+"""every crowd env's id, replays first (the suite env, ``SUITE_ID``, draws among them)"""

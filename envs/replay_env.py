@@ -300,6 +300,14 @@ class ReplayCrowdEnv(CrowdEnv):
             info["log_deviation_m"] = float(deviation.mean()) if deviation.size else 0.0
         return info
 
+    @property
+    def bounds_m(self) -> tuple[float, float, float, float]:
+        return (*self.arena_low_m.tolist(), *self.arena_high_m.tolist())
+
+    @property
+    def wall_clearance_m(self) -> float:
+        return 0.0
+
     def _world_ended(self) -> bool:
         return self.index >= len(self.replay.frames) - 1
 

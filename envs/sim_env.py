@@ -205,6 +205,14 @@ class SimCrowdEnv(CrowdEnv):
         least ego-pedestrian distance."""
         return self.sim.ego_contact, self.sim.ego_touched_wall, self.sim.ego_nearest_m
 
+    @property
+    def bounds_m(self) -> tuple[float, float, float, float]:
+        return tuple(self.layout.bounds_m)
+
+    @property
+    def wall_clearance_m(self) -> float:
+        return self.cfg.ego_radius_m
+
     def _info(self, reward_parts: dict[str, float], termination: str | None) -> dict[str, Any]:
         return {**super()._info(reward_parts, termination), "pedestrians_see_ego": self.pedestrians_see_ego,
                 "group_ids": self._group_ids()}

@@ -121,6 +121,7 @@ def test_env_registration_imports_no_env_code() -> None:
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "[]", f"importing envs imported {out.strip()}"
     assert len(set(STCROWD_IDS)) == 18
+    assert envs.SUITE_ID in gym.registry and envs.SUITE_ID not in STCROWD_IDS, "the suite env draws among them"
     assert all(gym.spec(env_id).max_episode_steps == envs.MAX_EPISODE_STEPS for env_id in STCROWD_IDS)
 
 

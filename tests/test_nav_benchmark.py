@@ -21,13 +21,13 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import envs  # noqa: F401  (registers the ids)
+from envs.suite import LISTED_SPLITS, SuiteError, env_kwargs_of, load_suite
 from st_sim.apps.cli import main
-from st_sim.apps.navigation.benchmark import BenchmarkRun, env_kwargs_of, episode_record, run_benchmark
+from st_sim.apps.navigation.benchmark import BenchmarkRun, episode_record, run_benchmark
 from st_sim.apps.navigation.episodes import TraceRecorder
 from st_sim.apps.navigation.leaderboard import LeaderboardError, load_result, markdown
 from st_sim.apps.navigation.metrics import METRICS, episode_metrics, outcome_of
 from st_sim.apps.navigation.policies import PolicyError, load_policy
-from st_sim.apps.navigation.suite import SPLITS, SuiteError, load_suite
 from st_sim.apps.navigation.world import world_of
 
 REPO = Path(__file__).resolve().parents[1]
@@ -43,7 +43,7 @@ def run_cli(*args: str, **popen) -> subprocess.CompletedProcess:
 
 
 def test_the_shipped_suite_has_disjoint_seed_lists_and_every_scenario_makes() -> None:
-    val, test = (set(SUITE.seeds[split]) for split in SPLITS)
+    val, test = (set(SUITE.seeds[split]) for split in LISTED_SPLITS)
     assert not val & test, "tuning seeds must never be test seeds"
     assert len(val) == len(SUITE.seeds["val"]) and len(test) == len(SUITE.seeds["test"]), "no repeats"
     assert min(len(val), len(test)) >= SUITE.episodes
@@ -63,7 +63,9 @@ CORRUPTIONS = {
     "repeated seed": lambda s: s["seeds"]["test"].append(s["seeds"]["test"][0]),
     "negative seed": lambda s: s["seeds"]["val"].append(-1),
     "bool seed": lambda s: s["seeds"]["val"].append(True),
-    "third split": lambda s: s["seeds"].update(train=[1]),
+    "fourth split": lambda s: s["seeds"].update(holdout=[1]),
+    "train as a list": lambda s: s["seeds"].update(train=[1]),
+    "no test list": lambda s: s["seeds"].pop("test"),
     "unknown env": lambda s: s["scenarios"][0].update(env="STCrowd-Nowhere-v9"),
     "twin name": lambda s: s["scenarios"].append(dict(s["scenarios"][0])),
     "predictor kwarg": lambda s: s["scenarios"][1].update(env_kwargs={"predictor": "cvm"}),
@@ -88,8 +90,8 @@ def test_a_corrupt_suite_file_is_refused_naming_the_file(tmp_path: Path, names: 
 def test_unknown_scenarios_splits_and_too_many_episodes_are_refused() -> None:
     with pytest.raises(SuiteError, match="no scenario 'nowhere'"):
         SUITE.select(["sim-crossing", "nowhere"])
-    with pytest.raises(SuiteError, match="no seed list 'train'"):
-        SUITE.seeds_of("train")
+    with pytest.raises(SuiteError, match="no split 'training'"):
+        SUITE.seeds_of("training")
     with pytest.raises(SuiteError, match="ask 1 to"):
         SUITE.seeds_of("test", len(SUITE.seeds["test"]) + 1)
 
@@ -259,21 +261,35 @@ def test_an_sb3_model_runs_where_it_fits_and_is_refused_before_any_episode_where
     assert main([*args, "--scenarios", "sim-corridor", "zara1-log", "--out", str(tmp_path / "misfit")]) == 1
     err = capsys.readouterr().err
     assert "does not fit scenario 'zara1-log'" in err and "(20, 8, 2)" in err and "(40, 8, 2)" in err
+    assert "envs.view.FixedView" in err, "the way round is named"
     assert not (tmp_path / "misfit" / "parts").exists(), "refused before any episode"
 
 
+def test_a_model_of_the_fixed_view_fits_any_pedestrian_slots_but_not_other_histories_or_samples() -> None:
+    from envs.view import view_space
+    from st_sim.apps.navigation.policies import observation_fits
+
+    for env_id, kwargs in [("STCrowd-SimCorridor-v1", {}), ("STCrowd-Univ-v0", {}), ("STCrowd-Hotel-v0", {})]:
+        env_space = gym.make(env_id, predictor="none", **kwargs).observation_space
+        assert observation_fits(view_space(8, 16, 8, 20), env_space), env_id
+        assert observation_fits(view_space(3, 5, 8, 20), env_space), f"{env_id}: any K and R"
+        assert not observation_fits(view_space(8, 16, 2, 20), env_space), f"{env_id}: 2 observed steps, not 8"
+        assert not observation_fits(view_space(8, 16, 8, 1), env_space), f"{env_id}: 1 sample, not 20"
+
+
 def test_the_example_sb3_policy_trains_in_a_few_lines_and_runs_where_the_raw_model_could_not(tmp_path: Path) -> None:
-    model = tmp_path / "nearest.zip"
-    trained = subprocess.run([sys.executable, "-m", "examples.my_policy.train_sb3", "--steps", "512", "--out",
-                              str(model)], cwd=REPO, env={**os.environ, "OMP_NUM_THREADS": "1"}, capture_output=True,
-                             text=True, timeout=900)
+    """The example trains on the suite env's fixed-size view; ``--policy sb3:PATH.zip`` takes the model as it is, in
+    a scenario it never saw and with another number of pedestrian slots (UNIV: 75), after checking it fits every
+    scenario of the suite."""
+    model = tmp_path / "suite.zip"
+    trained = subprocess.run([sys.executable, "-m", "examples.my_policy.train_sb3", "--steps", "512", "--scenarios",
+                              "frontal-approach", "zara1-log", "--out", str(model)], cwd=REPO,
+                             env={**os.environ, "OMP_NUM_THREADS": "1"}, capture_output=True, text=True, timeout=900)
     assert trained.returncode == 0, trained.stderr
-    done = subprocess.run([sys.executable, "-m", "st_sim", "benchmark", "--policy",
-                           "examples.my_policy.nearest:Sb3Nearest", "--predictor", "none", "--suite", "val",
-                           "--episodes", "1", "--scenarios", "frontal-approach", "univ-reactive", "--workers", "1",
-                           "--quiet", "--out", str(tmp_path / "bench")], cwd=REPO,
-                          env={**os.environ, "OMP_NUM_THREADS": "1", "MY_POLICY_MODEL": str(model)},
-                          capture_output=True, text=True, timeout=900)
+    done = subprocess.run([sys.executable, "-m", "st_sim", "benchmark", "--policy", f"sb3:{model}", "--predictor",
+                           "cvm", "--suite", "val", "--episodes", "1", "--scenarios", "overtaking", "univ-log",
+                           "--workers", "1", "--quiet", "--out", str(tmp_path / "bench")], cwd=REPO,
+                          env={**os.environ, "OMP_NUM_THREADS": "1"}, capture_output=True, text=True, timeout=900)
     assert done.returncode == 0, done.stderr
     assert len((tmp_path / "bench" / "episodes.jsonl").read_text().splitlines()) == 2
 

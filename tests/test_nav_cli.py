@@ -9,11 +9,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from envs.common.terrain import Terrain
 from replays.scenes import Scene
 from st_sim.apps.cli import main
 from st_sim.apps.navigation.episodes import SEE_EGO_KWARG, NavRun, accepts_keyword, run_navigation
 from st_sim.apps.navigation.ppo import SHIPPED, SHIPPED_REACTIVE, PolicyFileError, load_policy
-from st_sim.apps.navigation.terrain import Terrain
 
 
 def test_navigate_prints_intervals_writes_json_and_recordings_and_repeats(tmp_path: Path,

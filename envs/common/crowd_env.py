@@ -356,6 +356,18 @@ class CrowdEnv(gym.Env):
                                   now.xy_m[new], np.full((int(new.sum()), 2), np.nan))  # their velocity: unknown
         return contact, False, nearest_m
 
+    @property
+    def bounds_m(self) -> tuple[float, float, float, float]:
+        """(xmin, ymin, xmax, ymax) where the ego can be [m]: a replay's arena, a simulated layout's bounds."""
+        raise NotImplementedError
+
+    @property
+    def wall_clearance_m(self) -> float:
+        """Least distance the ego's centre keeps from non-walkable ground [m]: its radius where walls are solid
+        (simulated crowds: touching one is a collision), 0 where they are only marked on the map (replays: an off-map
+        step costs reward but does not end the episode)."""
+        raise NotImplementedError
+
     def _world_ended(self) -> bool:
         """No further step possible (a recording's last frame)."""
         return False

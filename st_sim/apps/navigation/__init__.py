@@ -9,11 +9,12 @@ Modules, one concept each:
   stable-baselines3 model file read without running anything stored in it;
   ``straight``, ``orca``, ``mpc``, ``ppo``: one planner class each;
 - ``predictors``: the predictor names (none, cvm, cvm-s, singular) and "none" (nobody moves);
-- ``world``, ``terrain``, ``pedestrians``: what a planner knows (limits, radii, map grid, cost-to-go) and sees;
+- ``world``, ``pedestrians``: what a planner knows (limits, radii, the map grid and cost-to-go of
+  ``envs.common.terrain``) and sees;
 - ``features``, ``train_ppo``: the learned policy's inputs and its stable-baselines3 training script;
 - ``episodes``, ``metrics``, ``social_metrics``, ``report``, ``cli``: seeded episodes, their figures in three groups
   with 95 % intervals, the command;
-- ``suite``, ``benchmark``, ``leaderboard``, ``benchmark_cli``: the versioned suite, any policy through it, results
+- ``benchmark``, ``leaderboard``, ``benchmark_cli``: any policy through the versioned suite (``envs.suite``), results
   side by side.
 
 Application layer: it imports envs, predictor, replays and st_sim; nothing below imports it.

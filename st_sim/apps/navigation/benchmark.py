@@ -36,10 +36,10 @@ from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 from typing import Any
 
-import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from envs.suite import Scenario, Suite, env_kwargs_of, load_suite, make_scenario_env
 from replays import strict_json
 from replays.atomic import write_text_atomic
 from st_sim.apps.grid import Job, run_jobs
@@ -47,8 +47,7 @@ from st_sim.apps.navigation.episode_recording import BenchmarkRecorder
 from st_sim.apps.navigation.episodes import run_episode
 from st_sim.apps.navigation.fingerprint import fingerprint_changes, policy_fingerprint
 from st_sim.apps.navigation.metrics import episode_metrics, summarize
-from st_sim.apps.navigation.policies import SB3_PREFIX, PolicyError, load_policy, observation_fits
-from st_sim.apps.navigation.suite import Scenario, Suite, load_suite
+from st_sim.apps.navigation.policies import FIXED_VIEW_HINT, SB3_PREFIX, PolicyError, load_policy, observation_fits
 from st_sim.apps.navigation.world import world_of
 
 CHUNK_EPISODES = 25  # episodes of one scenario per grid job [-]
@@ -87,17 +86,6 @@ class BenchmarkRun:
     trust_policy_file: bool = False
     """load an sb3: model with stable-baselines3's own loader, which runs code stored in the file (``policies``); not
     part of the results"""
-
-
-def env_kwargs_of(scenario: Scenario, predictor: str) -> dict[str, Any]:
-    """Every keyword the benchmark passes to ``gym.make`` for ``scenario`` (the data root aside)."""
-    return {**scenario.env_kwargs, "predictor": predictor}
-
-
-def make_scenario_env(scenario: Scenario, predictor: str, data_root: str | None = None) -> gym.Env:
-    """``gym.make(scenario.env, **env_kwargs_of(scenario, predictor))``, with ``root`` when a data root is given."""
-    extra = {} if data_root is None else {"root": data_root}
-    return gym.make(scenario.env, **env_kwargs_of(scenario, predictor), **extra)
 
 
 def json_value(value: Any) -> Any:
@@ -252,9 +240,7 @@ def _check_fits(spec: str, own: spaces.Space, scenarios: tuple[Scenario, ...], s
     more = f" (nor {len(misfits) - 1} more)" if len(misfits) > 1 else ""
     raise PolicyError(
         f"policy {spec!r} does not fit scenario {misfits[0]!r}{more}: it reads observations of {own}, the scenario's "
-        f"env gives {env_spaces[misfits[0]]}. {where}; or train it on a fixed-size view of the observation, or wrap "
-        "it in a class (package.module:name) that turns any STCrowd observation into its input, for instance the "
-        "nearest pedestrians (docs: Benchmark your policy)")
+        f"env gives {env_spaces[misfits[0]]}. {where}; or {FIXED_VIEW_HINT}")
 
 
 def _differences(held: dict[str, Any], identity: dict[str, Any]) -> list[str]:

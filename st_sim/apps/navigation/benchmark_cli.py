@@ -69,9 +69,9 @@ def add_parsers(subparsers: argparse._SubParsersAction) -> None:
 
 def run_benchmark_command(args: argparse.Namespace) -> int:
     """Run (or resume) the benchmark, print its grouped summary; exit code 0."""
+    from envs.suite import load_suite
     from st_sim.apps.navigation.benchmark import BenchmarkRun, run_benchmark
     from st_sim.apps.navigation.leaderboard import markdown
-    from st_sim.apps.navigation.suite import load_suite
 
     if args.list:
         suite = load_suite(args.suite_file)

@@ -3,7 +3,8 @@
 The frame's x axis points along the shortest walkable path to the goal (``Terrain.direction_to``), y to its
 left. Features, all scaled to about [-1, 1]:
 - ego (3): distance to the goal / 10 m (at most 2), velocity along x and y / speed limit;
-- walls (16): free distance along 16 rays from the ego's centre until its body would touch a wall, / 3 m;
+- walls (16): free distance along 16 rays from the ego's centre until its body would touch a wall, / 3 m (the
+  readings of the fixed-size view, ``envs.view.wall_readings_m``);
 - pedestrians (6 nearest within the sensor range, by distance; absent slots all zero): present flag, position / 5 m
   and velocity / speed limit relative to the ego (5 each); with predictions also the mean predicted position over the
   samples 0.8, 1.6 and 3.2 s ahead / 5 m (6) and the samples' spread (root mean square distance from that
@@ -22,13 +23,11 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from envs.view import RAY_COUNT, RAY_RANGE_M, frames_along_path, nearest_pedestrians, to_world, wall_readings_m
 from replays.constants import STEP_S, T_PRED
 from st_sim.apps.navigation.world import NavWorld, world_of
 
 GOAL_SCALE_M = 10.0  # goal distance unit [m]
-RAY_COUNT = 16  # wall rays, evenly spaced from the path direction [-]
-RAY_RANGE_M = 3.0  # rays see this far [m]
-RAY_STEP_M = 0.1  # ray sampling interval [m]
 NEAREST = 6  # pedestrians in the features [-]
 POSITION_SCALE_M = 5.0  # pedestrian position unit [m]
 SPREAD_SCALE_M = 2.0  # prediction spread unit [m]
@@ -68,10 +67,7 @@ def path_frame(obs: dict[str, np.ndarray], world: NavWorld) -> np.ndarray:
 
 def path_frames(ego: np.ndarray, world: NavWorld) -> np.ndarray:
     """(B, 2, 2) ``path_frame`` of B observations from their ego rows ``obs["ego"]`` (B, 6)."""
-    xy, goal = ego[:, :2].astype(np.float64), ego[:, 4:6].astype(np.float64)
-    x_axis = world.terrain.directions_to(xy, goal, world.wall_clearance_m)
-    x_axis[~x_axis.any(axis=1)] = (1.0, 0.0)
-    return np.stack([x_axis, np.stack([-x_axis[:, 1], x_axis[:, 0]], axis=1)], axis=1)
+    return frames_along_path(ego, world.terrain, world.wall_clearance_m)
 
 
 def encode(obs: dict[str, np.ndarray], world: NavWorld, cfg: FeatureConfig, frame: np.ndarray | None = None
@@ -93,15 +89,10 @@ def encode_batch(obs: dict[str, np.ndarray], world: NavWorld, cfg: FeatureConfig
     ego = np.concatenate([np.minimum(np.linalg.norm(goal - ego_xy, axis=1) / GOAL_SCALE_M, 2.0)[:, None],
                           np.einsum("bij,bj->bi", frames, ego_v) / world.max_speed_mps], axis=1)
 
-    angles = np.arange(RAY_COUNT) * 2 * np.pi / RAY_COUNT
-    rays = np.cos(angles)[:, None] * frames[:, None, 0] + np.sin(angles)[:, None] * frames[:, None, 1]  # (B, R, 2)
-    reach = np.arange(1, int(RAY_RANGE_M / RAY_STEP_M) + 1) * RAY_STEP_M  # (D,)
-    points = ego_xy[:, None, None] + rays[:, :, None] * reach[:, None]  # (B, R, D, 2)
-    blocked = world.terrain.clearance_at(points) <= world.wall_clearance_m
-    free_m = np.where(blocked.any(axis=2), reach[np.argmax(blocked, axis=2)] - RAY_STEP_M, RAY_RANGE_M)
+    free_m = wall_readings_m(world.terrain, ego_xy, frames, world.wall_clearance_m, RAY_COUNT)  # (B, RAY_COUNT)
 
     slots = np.zeros((batch, NEAREST, cfg.slot_size))
-    nearest, sensed = nearest_pedestrians(obs, ego_xy, cfg.sensor_range_m)  # (B, NEAREST) rows, bool
+    nearest, sensed = nearest_pedestrians(obs, ego_xy, cfg.sensor_range_m, NEAREST)  # (B, NEAREST) rows, bool
     rows = np.arange(batch)[:, None]
     xy = obs["history"][rows, nearest, -1].astype(np.float64)  # (B, NEAREST, 2)
     seen_before = obs["history_mask"][rows, nearest, -2] if obs["history"].shape[2] > 1 else np.zeros(xy.shape[:2],
@@ -132,22 +123,6 @@ def encode_batch(obs: dict[str, np.ndarray], world: NavWorld, cfg: FeatureConfig
     return np.concatenate([ego, free_m / RAY_RANGE_M, slots.reshape(batch, -1)], axis=1).astype(np.float32)
 
 
-def nearest_pedestrians(obs: dict[str, np.ndarray], ego_xy_m: np.ndarray, sensor_range_m: float
-                        ) -> tuple[np.ndarray, np.ndarray]:
-    """The ``NEAREST`` present pedestrians of B batched observations, nearest first (ties in row order), and which
-    of them are within ``sensor_range_m``: ((B, NEAREST) observation rows, (B, NEAREST) bool; False for slots
-    beyond the pedestrians present). ``ego_xy_m`` (B, 2) [m]."""
-    present = obs["history_mask"][:, :, -1]  # (B, N)
-    distance_m = np.linalg.norm(obs["history"][:, :, -1].astype(np.float64) - ego_xy_m[:, None], axis=-1)
-    distance_m[~present] = np.inf
-    if distance_m.shape[1] < NEAREST:
-        distance_m = np.pad(distance_m, ((0, 0), (0, NEAREST - distance_m.shape[1])), constant_values=np.inf)
-    nearest = np.argsort(distance_m, axis=1, kind="stable")[:, :NEAREST]
-    chosen = np.take_along_axis(distance_m, nearest, axis=1)
-    nearest = np.minimum(nearest, obs["history"].shape[1] - 1)  # padding rows point at a real (absent) row
-    return nearest, np.isfinite(chosen) & (chosen <= sensor_range_m)
-
-
 def drop_predictions(features: np.ndarray, cfg: FeatureConfig = FeatureConfig(True)) -> np.ndarray:
     """(..., cfg.size) features with predictions -> (..., FeatureConfig(False).size): the same observation's
     features without the prediction columns (each pedestrian slot keeps its first 5 values)."""
@@ -166,7 +141,7 @@ def to_velocity(action: np.ndarray, obs: dict[str, np.ndarray], world: NavWorld,
 def to_velocities(actions: np.ndarray, frames: np.ndarray, max_speed_mps: float) -> np.ndarray:
     """(B, 2) float32 world-frame velocities [m/s] of B policy actions (B, 2) in [-1, 1] in their path frames
     (B, 2, 2)."""
-    return (np.einsum("bi,bij->bj", np.clip(actions, -1.0, 1.0), frames) * max_speed_mps).astype(np.float32)
+    return (to_world(np.clip(actions, -1.0, 1.0), frames) * max_speed_mps).astype(np.float32)
 
 
 class NavFeatures(gym.Wrapper):

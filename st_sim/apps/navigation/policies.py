@@ -13,9 +13,11 @@ A spec is one of:
 - ``sb3:PATH.zip``: a stable-baselines3 model (the MlpPolicy or MultiInputPolicy of PPO, A2C, SAC, TD3 or DDPG)
   saved after training on an STCrowd env's own observations; it acts with ``predict(obs, deterministic=True)``. A
   model whose observation space is a ``Dict`` holding some of the env's keys (trained behind ``FilterObservation``)
-  gets only those. The file is read without running anything stored in it (``sb3_zip``), so a file from anyone is
-  safe to score; ``trust_file=True`` (``--trust-policy-file``) loads it with SB3's own loader instead, which
-  unpickles the objects the file holds (running their code) and so reads custom policy classes and extractors.
+  gets only those; a model trained on the fixed-size view (``envs.view``: ``FixedView`` or ``STCrowd-Suite-v1``) gets
+  each observation through ``fixed_view`` and acts in the robot's frame, so it runs in every scenario. The file is
+  read without running anything stored in it (``sb3_zip``), so a file from anyone is safe to score;
+  ``trust_file=True`` (``--trust-policy-file``) loads it with SB3's own loader instead, which unpickles the objects
+  the file holds (running their code) and so reads custom policy classes and extractors.
 
 What is built is wrapped in ``CheckedPolicy``: an action that is not 2 finite numbers, or an exception inside the
 policy, becomes a ``PolicyError`` naming the policy.
@@ -31,6 +33,7 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 
+from envs.view import fixed_view, frames_along_path, to_world, view_sizes, view_space
 from predictor.plugins import PluginError, describe_error, resolve_factory
 from st_sim.apps.navigation.planners import NAMED, make_planner
 from st_sim.apps.navigation.world import NavWorld
@@ -172,13 +175,22 @@ class CheckedPolicy:
         raise PolicyError(
             f"policy {self.spec!r} does not fit scenario {scenario!r}: it reads observations of {own}, the scenario's "
             f"env gives {env_space}. Run it on the scenarios it was trained for (--scenarios), train it on this "
-            "scenario's env, or wrap it in a class (package.module:name) that turns any STCrowd observation into its "
-            "input, for instance the nearest pedestrians (docs: Benchmark your policy)")
+            f"scenario's env, or {FIXED_VIEW_HINT}")
+
+
+FIXED_VIEW_HINT = ("train it on the fixed-size view, which fits every scenario (envs.view.FixedView, or the "
+                   "STCrowd-Suite-v1 env), or wrap it in a class (package.module:name) that turns any STCrowd "
+                   "observation into its input (docs: Benchmark your policy)")
 
 
 def observation_fits(own: spaces.Space, env_space: spaces.Space) -> bool:
-    """True if observations of ``env_space`` can feed a policy reading ``own``: the same space, or a Dict of some of
-    the env's keys, each with the env's shape and dtype."""
+    """True if observations of ``env_space`` can feed a policy reading ``own``: the same space, a Dict of some of
+    the env's keys, each with the env's shape and dtype, or the fixed-size view (``envs.view``) of the env's
+    observations with the env's observed steps and forecast samples."""
+    sizes = view_sizes(own)
+    if sizes is not None and isinstance(env_space, spaces.Dict) and {"history", "futures"} <= set(env_space.spaces):
+        nearest, rays = sizes[:2]
+        env_space = view_space(nearest, rays, env_space["history"].shape[1], env_space["futures"].shape[1])
     if isinstance(own, spaces.Dict) and isinstance(env_space, spaces.Dict):
         return all(key in env_space.spaces and env_space[key].shape == sub.shape and env_space[key].dtype == sub.dtype
                    for key, sub in own.spaces.items())
@@ -195,12 +207,21 @@ class Sb3Policy:
     """
 
     def __init__(self, path: Path, world: NavWorld, trust_file: bool = False):
-        self.path = path
+        self.path, self.world = path, world
         self.model = _load_with_sb3(path) if trust_file else _load_safely(path, world)
         self.observation_space = self.model.observation_space
+        self.view = view_sizes(self.observation_space)
+        """(K, R, T_obs, S) if the model reads the fixed-size view (``envs.view``), else None"""
 
     def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
-        """(2,) velocity command [m/s]: the model's deterministic action."""
+        """(2,) velocity command [m/s], world frame: the model's deterministic action (given in the robot's frame
+        by a model of the fixed-size view)."""
+        if self.view is not None:
+            terrain, body_m = self.world.terrain, self.world.wall_clearance_m
+            frame = frames_along_path(obs["ego"][None], terrain, body_m)[0]
+            seen = fixed_view(obs, terrain, body_m, *self.view[:2], frame=frame)
+            action, _ = self.model.predict(seen, deterministic=True)
+            return to_world(np.asarray(action, np.float64)[None], frame[None])[0]
         if isinstance(self.observation_space, spaces.Dict):
             obs = {key: obs[key] for key in self.observation_space.spaces}
         action, _ = self.model.predict(obs, deterministic=True)

@@ -9,10 +9,10 @@ from functools import cached_property
 import gymnasium as gym
 import numpy as np
 
+from envs.common.terrain import Terrain
 from replays.constants import STEP_S
 from replays.scenes import Scene
 from st_sim.apps.navigation.sample_prior import sample_prior
-from st_sim.apps.navigation.terrain import Terrain
 
 
 @dataclass(frozen=True, eq=False)
@@ -69,10 +69,8 @@ def world_of(env: gym.Env) -> NavWorld:
     crowd_env = env.unwrapped
     cfg = crowd_env.cfg
     prior = sample_prior(getattr(crowd_env.predictor, "source", None), crowd_env.num_samples)
-    if hasattr(crowd_env, "layout"):  # simulated: the simulator's bodies and layout bounds, solid walls
-        return NavWorld(crowd_env.scene, tuple(crowd_env.layout.bounds_m), cfg.ego_radius_m,
-                        crowd_env.crowd_cfg.radius_m, cfg.max_speed_mps, crowd_env.ego_max_accel_mps2,
-                        cfg.goal_radius_m, cfg.ego_radius_m, prior)
-    bounds = (*np.asarray(crowd_env.arena_low_m).tolist(), *np.asarray(crowd_env.arena_high_m).tolist())
-    return NavWorld(crowd_env.scene, bounds, cfg.ego_radius_m, cfg.pedestrian_radius_m, cfg.max_speed_mps,
-                    crowd_env.ego_max_accel_mps2, cfg.goal_radius_m, 0.0, prior)
+    # the pedestrians' size: a simulated crowd's bodies, else the replay collision test's radius
+    crowd = getattr(crowd_env, "crowd_cfg", None)
+    pedestrian_radius_m = cfg.pedestrian_radius_m if crowd is None else crowd.radius_m
+    return NavWorld(crowd_env.scene, crowd_env.bounds_m, cfg.ego_radius_m, pedestrian_radius_m, cfg.max_speed_mps,
+                    crowd_env.ego_max_accel_mps2, cfg.goal_radius_m, crowd_env.wall_clearance_m, prior)

@@ -1,7 +1,7 @@
-"""The walkability map as a planner sees it: a metric grid with wall clearance and a geodesic cost-to-go.
+"""The walkability map as a robot sees it: a metric grid with wall clearance, range readings and a geodesic cost-to-go.
 
-The scene's map is sampled at the centres of square cells (``cell_m``) over the env's bounds, so distances
-are in metres even where the homography has perspective (ETH, HOTEL). Off-map points count as walls.
+The scene's map is sampled at the centres of square cells (``cell_m``) over the env's bounds (``CrowdEnv.bounds_m``),
+so distances are in metres even where the homography has perspective (ETH, HOTEL). Off-map points count as walls.
 """
 
 from __future__ import annotations
@@ -71,6 +71,23 @@ class Terrain:
         """(..., 2) metres -> (...) distance to the nearest wall [m]; 0 off the grid."""
         row, col, inside = self._cells(xy_m)
         return np.where(inside, self.clearance_m[row, col], 0.0)
+
+    def free_distances_m(self, xy_m: np.ndarray, directions: np.ndarray, body_m: float, range_m: float,
+                         step_m: float) -> np.ndarray:
+        """Range readings: how far each point can go along each direction before a body of radius ``body_m`` would
+        touch a wall (0: before its centre leaves walkable ground), sampled every ``step_m`` up to ``range_m``.
+
+        Args:
+            xy_m: (B, 2) points [m].  directions: (B, R, 2) unit vectors, world frame.
+
+        Returns:
+            (B, R) float64 metres in [0, range_m]: the last free sample before the first blocked one, ``range_m``
+            if none is blocked.
+        """
+        reach = np.arange(1, int(range_m / step_m) + 1) * step_m  # (D,)
+        points = xy_m[:, None, None] + directions[:, :, None] * reach[:, None]  # (B, R, D, 2)
+        blocked = self.clearance_at(points) <= body_m
+        return np.where(blocked.any(axis=2), reach[np.argmax(blocked, axis=2)] - step_m, range_m)
 
     def cost_to_go(self, xy_m: np.ndarray, goal_m: np.ndarray, body_m: float) -> np.ndarray:
         """Geodesic distance [m] from points to the goal along cells with ``body_m`` of wall clearance.
