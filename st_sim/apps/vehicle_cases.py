@@ -14,6 +14,9 @@ Scored against the recording, per pedestrian (``score``): ADE [m] over the inter
 ``POST_STEPS`` after its recorded closest approach), the least gap between its centre and the vehicle's body [m]
 along every step, whether the simulated pedestrian's centre entered the body (a collision), and the onset of its
 reaction: the gap to the vehicle's body when it first strays ``ONSET_M`` from its intent (none if it never does).
+
+**Rollouts** (``rollout``, for ``st_sim.apps.sim_agents``' realism score): the same walk with seeded variety
+(``Variety``): each intent walked at a pace of its own, and a reactive crowd's reaction drawn round the fitted one.
 """
 
 from __future__ import annotations
@@ -161,8 +164,9 @@ def cases(experiments: list[Experiment], body: Body) -> list[Case]:
 class Variety:
     """How seeded rollouts of the same experiment differ (``rollout``): each scored pedestrian walks its intent at a
     pace drawn from N(1, ``pace_sigma``) (kept within ``PACE_RANGE``), blind and reactive alike; a reactive crowd
-    also draws one reaction per rollout, each field of ``JITTERED`` times exp(N(0, ``reaction_sigma``)). Zero sigmas:
-    the deterministic models."""
+    also draws one reaction per rollout, each field of ``JITTERED`` times exp(N(0, ``reaction_sigma``)), shared by
+    the experiment's pedestrians (the reactive crowd takes one reaction). Zero sigmas: the deterministic models. The
+    defaults are chosen, not fitted: a tenth of a pedestrian's pace, a fifth of each parameter."""
 
     pace_sigma: float = 0.1
     reaction_sigma: float = 0.2
