@@ -21,6 +21,7 @@ import argparse
 import json
 from pathlib import Path
 
+from replays import strict_json
 from replays.atomic import write_text_atomic
 from replays.scenes import SCENE_NAMES
 from st_sim.apps.grid import Job, raise_on_failure, run_jobs
@@ -101,7 +102,8 @@ def main(argv: list[str] | None = None) -> int:
           f"({o['variant']}), step {o['overlap_step']}. Deepest wall intrusion {100 * worst['max_wall_m']:.2f} cm "
           f"(bound {100 * WALL_BOUND_M:.0f} cm): {w['layout']}, {w['asked']} asked, seed {w['seed']} ({w['variant']}), "
           f"step {w['wall_step']}. Escapes: {worst['escapes']}.")
-    write_text_atomic(out / "summary.json", json.dumps({"steps": args.steps, "seeds": args.seeds, **worst}, indent=1))
+    report = {"steps": args.steps, "seeds": args.seeds, **worst}
+    write_text_atomic(out / "summary.json", strict_json.dumps(report, indent=1))
     held = worst["max_overlap_m"] <= OVERLAP_BOUND_M and worst["max_wall_m"] <= WALL_BOUND_M and not worst["escapes"]
     return 0 if held else 1
 

@@ -18,12 +18,11 @@ from __future__ import annotations
 
 import argparse
 import datetime
-import json
 from pathlib import Path
 
 import numpy as np
 
-from replays import SCENE_NAMES
+from replays import SCENE_NAMES, strict_json
 from replays.constants import STEP_S
 from st_sim.sim import PopulationConfig
 from st_sim.sim.crowd_stats import (
@@ -66,7 +65,7 @@ def main(argv: list[str] | None = None) -> int:
         params, counts = fit_scene(scene)
         table["scenes"][scene] = {"params": params, "from": counts}
         print(scene, params, counts, flush=True)
-    args.out.write_text(json.dumps(table, indent=2) + "\n")
+    args.out.write_text(strict_json.dumps(table, indent=2) + "\n")
     print(f"written to {args.out}")
     return 0
 

@@ -34,12 +34,12 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import datetime
-import json
 import sys
 from pathlib import Path
 
 from envs.common.footprint import Body
 from envs.common.reaction import FIT_PATH, read_reaction
+from replays import strict_json
 from replays.atomic import write_text_atomic
 from replays.citr import CART_LENGTH_M, CART_WIDTH_M, find_experiments
 from replays.data_root import CITR, data_root
@@ -128,8 +128,8 @@ def main() -> None:
         table = {**fit_table(fold_fit(scorer, scorer.groups, chosen, folder), scorer, chosen),
                  "chosen_variant": best, "cross_validation": scores,
                  "selected_by": "the lowest max(mean / 0.8, worst / 0.9) of the held-out ADE ratios (ties: mean)"}
-    write_text_atomic(args.out, json.dumps(table, indent=2) + "\n")
-    print(json.dumps({key: table[key] for key in ("params", "figures", "evaluations", "fitted_on")}, indent=2))
+    write_text_atomic(args.out, strict_json.dumps(table, indent=2) + "\n")
+    print(strict_json.dumps({key: table[key] for key in ("params", "figures", "evaluations", "fitted_on")}, indent=2))
 
 
 if __name__ == "__main__":

@@ -31,6 +31,7 @@ import numpy as np
 from scipy.optimize import minimize
 from scipy.stats import qmc
 
+from replays import strict_json
 from st_sim.sim import CrowdConfig, SocialForceConfig, SpeedModelConfig
 from st_sim.sim.fits import STEERING_FIT
 from st_sim.sim.measures import SPECIFIC_FLOW_RANGE, weidmann_speed_mps
@@ -118,7 +119,7 @@ def main(argv: list[str] | None = None) -> int:
         "params": params, "figures": parts, "evaluations": len(history),
         "fitted_by": f"benchmarks/fit_steering.py --model {args.model} --samples {args.samples} "
                      f"--iterations {args.iterations}", "date": datetime.date.today().isoformat()}
-    args.out.write_text(json.dumps(table, indent=2) + "\n")
+    args.out.write_text(strict_json.dumps(table, indent=2) + "\n")
     print(f"best loss {loss:.4f}: {params}\nwritten to {args.out}")
     return 0
 

@@ -35,10 +35,11 @@ from scipy import stats
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # `examples` imports from the repository root
 
 from predictor.train import TRAIN_SUMMARY, TrainConfig
+from replays import strict_json
 from replays.atomic import write_text_atomic
 from st_sim.apps.grid import Job, raise_on_failure, run_jobs
 from st_sim.apps.navigation.episodes import NavRun, grid_job
-from st_sim.apps.navigation.metrics import rate_interval
+from st_sim.apps.navigation.metrics import RATES, rate_interval
 from st_sim.charts import ScatterPoint, interval_scatter, save_figure
 from st_sim.command_line import add_grid_arguments
 
@@ -69,7 +70,7 @@ def stream_job(spec: str, seeds: int, steps: int, output: str) -> None:
             *_, info = env.step(np.zeros(2))
         metrics = info["metrics"]
         per_seed.append({"ade": metrics["ade_m"], "fde": metrics["fde_m"], "matured": metrics["matured"]})
-    write_text_atomic(output, json.dumps({"spec": spec, "per_seed": per_seed}))
+    write_text_atomic(output, strict_json.dumps({"spec": spec, "per_seed": per_seed}))
 
 
 def cell_key(label: str) -> str:
@@ -114,7 +115,7 @@ def study_env(env: str, labels: list[str], open_results: dict, closed_results: d
     samples = {label: open_loop_samples(env, open_results[label]) for label in labels}
     units = samples[labels[0]][2]
     episodes = {label: closed_results[label]["episodes"] for label in labels}
-    at_fault = np.array([[bool(e["at_fault"]) for e in episodes[label]] for label in labels], float)  # (P, E)
+    at_fault = np.array([[RATES["collision_at_fault"](e) for e in episodes[label]] for label in labels], float)
     failed = np.array([[e["outcome"] != "goal" for e in episodes[label]] for label in labels], float)
     fde = np.array([samples[label][0] for label in labels])  # (P, U) per sample/seed
     ade = np.array([samples[label][1] for label in labels])
@@ -237,7 +238,7 @@ def main() -> None:
             tau = part["tau"][kind]
             print(f"\nKendall tau, FDE vs {text}: {tau['tau']:+.3f} (95 % bootstrap interval {tau['low']:+.3f} .. "
                   f"{tau['high']:+.3f})")
-    write_text_atomic(out / "study.json", json.dumps({"episodes": args.episodes, "study": study}, indent=1))
+    write_text_atomic(out / "study.json", strict_json.dumps({"episodes": args.episodes, "study": study}, indent=1))
     print(f"\nwrote {out / 'study.json'} and {plot(study, args.episodes, out / 'study.png')}")
 
 

@@ -17,7 +17,6 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import itertools
-import json
 
 import numpy as np
 from fit_reaction import FITTED_ON  # benchmarks/ is the script's folder, first on sys.path
@@ -25,6 +24,7 @@ from tqdm import tqdm
 
 from envs.common.footprint import Body
 from envs.common.reaction import fitted_reaction
+from replays import strict_json
 from replays.atomic import write_text_atomic
 from replays.citr import CART_LENGTH_M, CART_WIDTH_M, find_experiments
 from replays.data_root import CITR, data_root
@@ -61,7 +61,8 @@ def main() -> None:
               f"{row['held_out_clearance_m']:.2f} ({row['held_out_recorded_clearance_m']:.2f}) | "
               f"{row['held_out_collisions']} |")
     if args.json:
-        write_text_atomic(args.json, json.dumps({"rows": rows, "shipped": dataclasses.asdict(shipped)}, indent=1))
+        table = {"rows": rows, "shipped": dataclasses.asdict(shipped)}
+        write_text_atomic(args.json, strict_json.dumps(table, indent=1))
 
 
 if __name__ == "__main__":

@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from replays import strict_json
 from replays.atomic import write_text_atomic
 from replays.constants import STEP_S
 from st_sim.charts import band_chart, save_figure
@@ -231,7 +232,7 @@ def main(argv: list[str] | None = None) -> int:
             report.setdefault("orca", {})[f"two_way_{rho:g}"] = row
         report.setdefault("orca", {})["fundamental_diagram"] = orca
     plot = plot_fd(fd, orca, args.out / "fundamental_diagram.png")
-    write_text_atomic(args.out / "sim_validation.json", json.dumps(report, indent=2, default=float) + "\n")
+    write_text_atomic(args.out / "sim_validation.json", strict_json.dumps(report, indent=2, default=float) + "\n")
     print(f"\nplot: {plot}; figures: {args.out / 'sim_validation.json'}")
     return 0
 

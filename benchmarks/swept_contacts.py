@@ -8,8 +8,9 @@ step independently of the env: robot and pedestrians are moved linearly between 
 instants; a pedestrian present in both frames whose centre comes closer than the contact distance at any instant
 is a contact (a pedestrian who appears this frame counts where it appears). Prints, per env, the contacts this check
 finds, those the env did not report (target 0), the collisions the env reports, and how many of those the old rule
-(the bodies' positions at the end of the step) would have judged not at fault although the env, judging at the
-impact, finds the robot at fault.
+(the bodies' positions at the end of the step, the robot at fault unless stopped or every pedestrian touched was
+behind it) would have judged not at fault although the env, judging at the impact by who closed the gap
+(``envs.common.fault``), finds the robot at fault.
 """
 
 from __future__ import annotations
@@ -21,10 +22,10 @@ import numpy as np
 from tqdm import tqdm
 
 import envs  # noqa: F401  (registers the ids)
-from envs.common.fault import STOPPED_MPS
 from st_sim.sim.sweep import TOUCH_SLACK_M
 
 SAMPLES = 400  # instants per 0.4 s step of the independent check
+END_OF_STEP_STOPPED_MPS = 0.2  # the end-of-step rule's robot was stopped below this speed [m/s]
 
 
 def dense_contact(ego_from: np.ndarray, ego_to: np.ndarray, before: np.ndarray, after: np.ndarray,
@@ -41,8 +42,9 @@ def dense_contact(ego_from: np.ndarray, ego_to: np.ndarray, before: np.ndarray, 
 
 
 def old_rule_at_fault(ego_xy: np.ndarray, velocity: np.ndarray, peds_xy: np.ndarray, reach_m: float) -> bool:
-    """The fault rule as it was before judging at the impact: the bodies where the step ended."""
-    if np.hypot(*velocity) < STOPPED_MPS or len(peds_xy) == 0:
+    """The fault rule as it was before judging at the impact: the bodies where the step ended, the robot at fault
+    unless it was (nearly) stopped or every pedestrian it touched was behind it."""
+    if np.hypot(*velocity) < END_OF_STEP_STOPPED_MPS or len(peds_xy) == 0:
         return False
     distance = np.linalg.norm(peds_xy - ego_xy, axis=1)
     near = distance < reach_m + TOUCH_SLACK_M

@@ -16,6 +16,7 @@ import torch
 from predictor.model import ModelConfig, SingularTrajectory
 from predictor.refiner import Refiner
 from predictor.singular_space import SingularSpace
+from replays import strict_json
 from replays.atomic import atomic_path
 
 FORMAT = "stcrowd-singular-trajectory/1"
@@ -28,7 +29,7 @@ class CheckpointError(ValueError):
 
 def content_hash(state: dict) -> str:
     """SHA-256 over a model state's config and every tensor (name, dtype, shape, bytes), in a fixed order."""
-    digest = hashlib.sha256(json.dumps(state["config"], sort_keys=True).encode())
+    digest = hashlib.sha256(strict_json.dumps(state["config"], sort_keys=True).encode())
     tensors = {f"weights.{k}": v for k, v in state["weights"].items()}
     tensors.update({k: v for k, v in state.items() if isinstance(v, torch.Tensor)})
     for name in sorted(tensors):

@@ -10,6 +10,7 @@ from pathlib import Path
 
 from predictor.checkpoint import PRETRAINED_DIR, CheckpointError, load, model_state, read_checkpoint, save_atomic
 from predictor.train import TRAIN_SUMMARY, finished, read_summary
+from replays import strict_json
 from replays.atomic import write_text_atomic
 from replays.scenes import SCENE_NAMES
 
@@ -60,5 +61,5 @@ def export_checkpoint(checkpoint: str | os.PathLike, name: str, root=None) -> di
     manifest_path = pretrained_dir() / "manifest.json"
     manifest = json.loads(manifest_path.read_text()) if manifest_path.is_file() else {"checkpoints": {}}
     manifest["checkpoints"][name] = entry
-    write_text_atomic(manifest_path, json.dumps(manifest, indent=1, sort_keys=True))
+    write_text_atomic(manifest_path, strict_json.dumps(manifest, indent=1, sort_keys=True))
     return entry

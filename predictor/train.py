@@ -27,6 +27,7 @@ from predictor.model import ModelConfig, SingularTrajectory, window_batches
 from predictor.normalize import SLOW_SPEED_M, agent_frames
 from predictor.refiner import SAMPLERS, Refiner
 from predictor.singular_space import fit_singular_space
+from replays import strict_json
 from replays.atomic import write_text_atomic
 from replays.constants import TASKS
 from replays.data_root import data_root, expected_sums
@@ -442,7 +443,7 @@ def main(cfg: TrainConfig) -> Path:
         raise TrainingError(f"{run_name}: no epoch gave a finite validation FDE, so no {out / 'best.pt'} was written")
     summary = {**recorded, "best": best, "epochs": epochs, "history": history,
                "wall_s": history[-1]["wall_s"] if history else 0.0}
-    write_text_atomic(out / TRAIN_SUMMARY, json.dumps(summary, indent=1))
+    write_text_atomic(out / TRAIN_SUMMARY, strict_json.dumps(summary, indent=1))
     return out / "best.pt"
 
 

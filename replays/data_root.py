@@ -27,6 +27,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Final
 
+from replays import strict_json
 from replays.atomic import atomic_path
 from replays.errors import DataRootError
 from replays.files import open_regular
@@ -201,7 +202,7 @@ def _read_digest_cache(path: Path) -> dict[str, list]:
 def _write_digest_cache(path: Path, files: dict[str, list]) -> None:
     try:
         with atomic_path(path) as tmp:
-            tmp.write_text(json.dumps({"files": files}))
+            tmp.write_text(strict_json.dumps({"files": files}))
     except OSError:
         pass  # a read-only cache only costs speed
 

@@ -334,3 +334,56 @@ def grouped_bars(y_label: str, panels: Mapping[str, tuple[Sequence[str], Mapping
     if title:
         figure.suptitle(title)
     return figure
+
+
+def small_multiples(x_label: str, y_label: str, panels: Mapping[str, Sequence[ScatterPoint]], columns: int = 6,
+                    limits: tuple[float, float] = (0.0, 1.0), title: str = "") -> Figure:
+    """One small panel per entry of ``panels`` (panel title -> points), ``columns`` to a row, all on the same axes
+    ``limits``: each point with its error bars, coloured and marked by its label (the series), named once in a
+    shared legend.
+
+    Raises:
+        ValueError: a panel has no point, or an interval does not contain its point.
+    """
+    series = list(dict.fromkeys(point.label for points in panels.values() for point in points))
+    colours = _series_colours(len(series))
+    rows = -(-len(panels) // columns)
+    figure = new_figure(figsize=(2.6 * columns, 2.4 * rows + 1.2))
+    axes = figure.subplots(rows, columns, squeeze=False, sharex=True, sharey=True)
+    pad = 0.05 * (limits[1] - limits[0])
+    for ax, (panel, points) in zip(axes.ravel(), panels.items(), strict=False):
+        if not points:
+            raise ValueError(f"small_multiples: panel {panel!r} has no point")
+        for point in points:
+            _check_interval(panel, point)
+            k = series.index(point.label)
+            x_err = None if point.x_interval is None else [[point.x - point.x_interval[0]],
+                                                            [point.x_interval[1] - point.x]]
+            y_err = None if point.y_interval is None else [[point.y - point.y_interval[0]],
+                                                            [point.y_interval[1] - point.y]]
+            ax.errorbar(point.x, point.y, xerr=x_err, yerr=y_err, fmt=MARKERS[k % len(MARKERS)], color=colours[k],
+                        ecolor=colours[k], elinewidth=0.6, capsize=0, markersize=4, alpha=0.85)
+        ax.set_title(panel, fontsize="small")
+        ax.set_xlim(limits[0] - pad, limits[1] + pad)
+        ax.set_ylim(limits[0] - pad, limits[1] + pad)
+        ax.grid(alpha=0.3)
+    for ax in axes.ravel()[len(panels):]:
+        ax.set_visible(False)
+    for ax in axes[-1]:
+        ax.set_xlabel(x_label, fontsize="small")
+    for ax in axes[:, 0]:
+        ax.set_ylabel(y_label, fontsize="small")
+    handles = [axes[0, 0].errorbar([], [], fmt=MARKERS[k % len(MARKERS)], color=colours[k], label=name)
+               for k, name in enumerate(series)]
+    figure.legend(handles=handles, loc="outside lower center", ncols=min(len(series), 5), fontsize="small")
+    if title:
+        figure.suptitle(title)
+    return figure
+
+
+def _series_colours(count: int) -> list[tuple[float, ...]]:
+    """``count`` distinguishable colours (matplotlib's tab10, then tab20's lighter shades)."""
+    from matplotlib import colormaps
+
+    palette = list(colormaps["tab10"].colors) + list(colormaps["tab20"].colors[1::2])
+    return [palette[k % len(palette)] for k in range(count)]

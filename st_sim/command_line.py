@@ -26,10 +26,15 @@ def positive_int(text: str) -> int:
 
 
 def check_writable(folder: Path) -> None:
-    """Fail before any work if files cannot be written into ``folder`` (created if missing)."""
+    """Fail before any work if files cannot be written into ``folder``: the folder itself if it exists, else the
+    nearest folder above it that does (nothing is created, so a run refused later leaves no empty folder behind)."""
+    existing = folder
+    while not existing.exists() and existing != existing.parent:
+        existing = existing.parent
+    if not existing.is_dir():
+        raise CliError(f"{folder}: cannot write there ({existing} is not a folder)")
     try:
-        folder.mkdir(parents=True, exist_ok=True)
-        with tempfile.TemporaryFile(dir=folder):  # leaves nothing behind
+        with tempfile.TemporaryFile(dir=existing):  # leaves nothing behind
             pass
     except OSError as err:
         raise CliError(f"{folder}: cannot write there ({err.strerror or err})") from err

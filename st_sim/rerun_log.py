@@ -13,7 +13,10 @@ Timelines: ``step`` (sequence) and ``time`` (seconds, step * 0.4). Entities, all
     world/anchors/prototype      LineStrips2D, anchors before adaptation (M agents x S strips)
     world/anchors/adapted        LineStrips2D, anchors after adaptation to the map
     world/ego, world/ego/goal    Points2D, the ego robot and its goal
+    world/walls                  static LineStrips2D, wall segments (``log_walls``)
+    world/events/<name>          Points2D from the step of an event on, labelled (``log_marker``: a collision)
     metrics/<unit>/<name>        Scalars; <unit> is ``metric_unit(name)``: reward, metres, share or count
+    notes                        static TextDocument (markdown), shown beside the plots (``notes=``)
 
 Entities logged at one step and absent from the next are cleared, so agents that left the scene do not
 linger in the viewer. Colours follow ``st_sim.plot.agent_colors``.
@@ -98,6 +101,9 @@ TRAIL_RADIUS_M = 0.05  # half-width of history lines [m]
 PATH_RADIUS_M = 0.025  # half-width of predicted futures and anchors [m]
 PREDICTION_ALPHA = 110  # opacity (0-255) of predicted futures
 WALKABLE, BLOCKED, OFF_PHOTO = 0, 1, 2  # classes of the logged walkability image
+WALL_RGB = (60, 60, 60)  # colour of logged wall segments
+WALL_RADIUS_M = 0.04  # half-width of logged wall segments [m]
+MARKER_RADIUS_M = 0.5  # drawn radius of an event marker [m]
 
 
 METRIC_VIEWS = {  # unit -> title of its time-series view
@@ -197,6 +203,7 @@ class RerunLogger:
             "spawn" to open a viewer.
         scene: scene whose photo and walkability map are logged once, or None.
         app_id: Rerun application id.
+        notes: markdown logged once as ``notes`` and shown above the plots (what the recording shows), or None.
 
     Attributes:
         path: the file being written (``target``, or a numbered sibling if it existed); None for "spawn".
@@ -207,13 +214,14 @@ class RerunLogger:
         RecordingWriteError: the scene could not be written to the file.
     """
 
-    def __init__(self, target: str | os.PathLike, scene: Scene | None, app_id: str = "stcrowd"):
+    def __init__(self, target: str | os.PathLike, scene: Scene | None, app_id: str = "stcrowd",
+                 notes: str | None = None):
         target = checked_recording_target(target)
         batching = rr.ChunkBatcherConfig(flush_tick=NEVER_S, flush_num_bytes=NEVER_BYTES, flush_num_rows=NEVER_BYTES)
         recording = rr.RecordingStream(app_id, batcher_config=batching)
         recording.set_log_time_enabled(False)  # only the step and time timelines
         recording.set_log_tick_enabled(False)
-        blueprint = _blueprint(scene)
+        blueprint = _blueprint(scene, notes is not None)
         if target == "spawn":
             recording.spawn(default_blueprint=blueprint)
             self._sink = RecordingSink(recording)
@@ -232,6 +240,8 @@ class RerunLogger:
         self._rec.log("world", rr.Transform3D(scale=[1.0, -1.0, 1.0]), static=True)
         if scene is not None:
             self._log_scene(scene)
+        if notes is not None:
+            self._rec.log("notes", rr.TextDocument(notes, media_type=rr.MediaType.MARKDOWN), static=True)
         self._sink.flush()
 
     def __enter__(self) -> RerunLogger:
@@ -297,6 +307,23 @@ class RerunLogger:
         self._live = logged
         if time.monotonic() - self._sink.flushed_at >= FLUSH_EVERY_S:
             self._sink.flush()  # a killed run keeps all but the last second
+
+    def log_walls(self, segments_m: np.ndarray) -> None:
+        """Log wall segments (K, 2, 2) [m], world frame, once for the whole recording (``world/walls``)."""
+        segments_m = _as_points(segments_m, "segments_m", (None, 2, 2))
+        self._rec.log("world/walls", rr.LineStrips2D(segments_m, radii=WALL_RADIUS_M, colors=WALL_RGB,
+                                                     draw_order=6.0), static=True)
+
+    def log_marker(self, step: int, name: str, xy_m: np.ndarray, label: str,
+                   color: tuple[int, int, int]) -> None:
+        """Mark an event at ``xy_m`` (2,) [m] from ``step`` on (``world/events/<name>``, kept in later steps)."""
+        if self._sink.error is not None:
+            raise self._sink.error
+        self._rec.set_time("step", sequence=step)
+        self._rec.set_time("time", duration=step * STEP_S)
+        point = _as_points(np.reshape(xy_m, (1, 2)), "xy_m", (1, 2))
+        self._rec.log(f"world/events/{name}", rr.Points2D(point, radii=MARKER_RADIUS_M, colors=color, labels=label,
+                                                          draw_order=12.0))
 
     def _log_scene(self, scene: Scene) -> None:
         raster = scene_raster(scene)
@@ -372,8 +399,9 @@ def _as_points(array, name: str, shape: tuple[int | None, ...], allow_nan: bool 
     return array
 
 
-def _blueprint(scene: Scene | None) -> rrb.Blueprint:
-    """Default layout: the world (y up, framed on the scene) beside one time-series view per metric unit."""
+def _blueprint(scene: Scene | None, notes: bool = False) -> rrb.Blueprint:
+    """Default layout: the world (y up, framed on the scene) beside one time-series view per metric unit (below the
+    ``notes`` if there are some)."""
     bounds = None
     if scene is not None:
         height, width = scene.walkable.shape
@@ -381,6 +409,8 @@ def _blueprint(scene: Scene | None) -> rrb.Blueprint:
         low, high = corners_m.min(axis=0), corners_m.max(axis=0)
         bounds = rrb.VisualBounds2D(x_range=[low[0], high[0]], y_range=[-high[1], -low[1]])  # y flipped
     plots = [rrb.TimeSeriesView(origin=f"/metrics/{unit}", name=title) for unit, title in METRIC_VIEWS.items()]
+    if notes:
+        plots.insert(0, rrb.TextDocumentView(origin="/notes", name="notes"))
     return rrb.Blueprint(rrb.Horizontal(
         rrb.Spatial2DView(origin="/", contents="/world/**", name="world", visual_bounds=bounds),
         rrb.Vertical(*plots),

@@ -29,6 +29,7 @@ def test_sim_wall_contact_is_a_wall_collision_with_the_collision_weight() -> Non
     _, reward, _, info = run_until_end(env, np.array([0.0, -1.5]), seed=1)  # reverse into the wall behind
     parts = info["reward_parts"]
     assert info["termination"] == "wall_collision"
+    assert info["at_fault"] is True and info["contact_time_s"] is None, "a wall collision is the robot's"
     assert parts["wall_collision"] == 1.0 and parts["pedestrian_collision"] == 0.0
     weights = env.unwrapped.cfg.reward
     assert reward == pytest.approx(weights.collision + weights.time + parts["progress"] + weights.off_map
@@ -62,6 +63,7 @@ def test_replay_collision_is_a_pedestrian_collision() -> None:
     _, _, terminated, _, info = env.step(np.zeros(2))
     assert terminated and info["termination"] == "pedestrian_collision"
     assert info["reward_parts"]["wall_collision"] == 0.0
+    assert info["at_fault"] is False, "the pedestrian walked into a standing robot"
 
 
 def test_sim_ego_velocity_follows_the_command_within_the_exposed_acceleration_limit() -> None:

@@ -7,6 +7,7 @@ from __future__ import annotations
 import copy
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -143,13 +144,16 @@ def test_a_policy_from_outside_the_project_runs_every_scenario_with_a_plain_loop
     assert (summary["suite"], summary["suite_version"], summary["split"]) == (SUITE.name, SUITE.version, "val")
     lines = [json.loads(line) for line in (out / "episodes.jsonl").read_text().splitlines()]
     assert len(lines) == 2 * len(SUITE.scenarios)
+    documented = set(re.findall(r"^\| `(\w+)` \|", (REPO / "docs" / "benchmark-your-policy.md").read_text(), re.M))
+    assert all(set(line) == {"scenario", "episode", "seed", "outcome"} | documented for line in lines), \
+        "an episode line holds exactly the keys the guide lists: scenario, episode, seed, outcome, every metric"
     for scenario in summary["scenarios"]:
         assert scenario["env_kwargs"]["predictor"] == "cvm"
         assert [e["seed"] for e in scenario["episodes"]] == list(SUITE.seeds["val"][:2])
         for episode in scenario["episodes"]:
-            assert {"success", "collision", "at_fault", "time_to_goal_s", "path_length_m", "min_distance_m"} \
-                <= set(episode)
-            assert isinstance(episode["success"], bool) and isinstance(episode["at_fault"], bool)
+            assert {"success", "collision", "collision_at_fault", "time_to_goal_s", "path_length_m",
+                    "min_distance_m"} <= set(episode)
+            assert isinstance(episode["success"], bool) and isinstance(episode["collision_at_fault"], bool)
     # in this process (where --perturb nudges the simulated crowds as it does the plain loop's)
     names = ("sim-corridor", "zara1-reactive", "frontal-approach")
     here = run_benchmark(BenchmarkRun(KEEP_CLEAR, str(tmp_path / "here"), predictor="cvm", split="val", episodes=2,
@@ -213,8 +217,10 @@ def test_the_command_refuses_bad_options_in_one_line(tmp_path: Path, capsys) -> 
                           (["--suite-file", str(tmp_path / "none.json")], "cannot read the suite file")]:
         assert main(["benchmark", "--policy", "straight", "--out", str(tmp_path / "x"), *args]) == 1
         assert message in capsys.readouterr().err
-    assert main(["benchmark", "--policy", "straight", "--list"]) == 0
+    assert main(["benchmark", "--list"]) == 0, "--list alone prints the suite"
     assert "univ-reactive" in capsys.readouterr().out
+    assert main(["benchmark", "--out", str(tmp_path / "y")]) == 1 and "--policy is required" in capsys.readouterr().err
+    assert not (tmp_path / "x").exists() and not (tmp_path / "y").exists(), "a refused run leaves no folder"
 
 
 def test_the_leaderboard_refuses_results_of_other_episodes(tmp_path: Path) -> None:
@@ -278,7 +284,11 @@ def test_the_committed_baselines_load_and_join_a_run_of_the_same_episodes() -> N
     committed = [load_result(folder) for folder in sorted(BASELINES_DIR.iterdir()) if folder.is_dir()]
     assert len(committed) >= 6 and all(r["split"] == "test" and r["episodes_per_scenario"] == 100 for r in committed)
     assert {s["name"] for s in committed[0]["scenarios"]} == {s.name for s in SUITE.scenarios}
-    assert len(baseline_results(committed[0])) == len(committed)
-    assert baseline_results({**committed[0], "split": "val"}) == [], "other episodes never join"
+    joined, note = baseline_results(committed[0])
+    assert len(joined) == len(committed) and note is None
+    joined, note = baseline_results({**committed[0], "split": "val"})
+    assert joined == [] and "--suite test" in note, "other episodes never join, and the note says how to get them"
+    joined, note = baseline_results({**committed[0], "scenario_set": ["sim-crossing"]})
+    assert joined == [] and "--common-scenarios" in note, "another scenario set joins only when asked"
     table = markdown(committed)
     assert all(f"| {name} |" in table for name in ("straight", "orca", "mpc + singular", "ppo + singular"))

@@ -77,7 +77,7 @@ def test_a_grid_job_writes_the_run_with_its_mode_and_at_fault_counts(tmp_path: P
     result = json.loads((tmp_path / "cell.json").read_text())
     assert result["pedestrians"] == "reactive" and result["planner_config"]["risk_limit"] == 0.5
     assert {"collision", "collision_at_fault", "log_ade_m"} <= set(result["summary"])
-    assert all(e["at_fault"] in (True, False) for e in result["episodes"])
+    assert all(e["collision_at_fault"] in (True, False) for e in result["episodes"])
     assert all(np.isfinite(e["log_ade_m"]) for e in result["episodes"]), "a reactive replay reports its price"
 
 

@@ -19,10 +19,11 @@ from st_sim.apps.navigation.metrics import (
 
 
 def straight_episode(steps: int, outcome: Outcome, clearance_m: float = 1.0) -> EpisodeTrace:
-    """The ego walks from (0, 0) along +x at 1 m/s; the goal is where it ends."""
+    """The ego walks from (0, 0) along +x at 1 m/s; it ends on the edge of the goal's disc."""
     xy = np.stack([np.arange(steps + 1) * STEP_S, np.zeros(steps + 1)], axis=1)
     velocity = np.tile([1.0, 0.0], (steps + 1, 1))
-    return EpisodeTrace(xy, velocity, np.full(steps + 1, clearance_m), np.zeros(steps + 1, bool), xy[-1], outcome)
+    goal = xy[-1] + [EpisodeTrace.goal_radius_m, 0.0]
+    return EpisodeTrace(xy, velocity, np.full(steps + 1, clearance_m), np.zeros(steps + 1, bool), goal, outcome)
 
 
 def test_outcome_comes_from_the_envs_termination_and_truncation() -> None:

@@ -63,7 +63,7 @@ def test_a_standing_robot_that_a_person_walks_up_to_suffers_a_person_on_robot_en
 def test_a_robot_driving_straight_past_a_standing_person_enters_its_personal_zone() -> None:
     ego = line((-5.0, 0.0), (0.4, 0.0), 26)  # 1 m/s for 10 m
     person = np.tile([0.0, 1.2], (26, 1))
-    m = episode_metrics(trace_of(ego, person[:, None], outcome=Outcome.GOAL))
+    m = episode_metrics(trace_of(ego, person[:, None], outcome=Outcome.GOAL, goal_m=(5.5, 0.0)))  # its edge at 5 m
     assert (m["personal_entries_robot"], m["personal_entries_person"]) == (1, 0)
     assert m["intimate_entries_robot"] == m["intimate_entries_person"] == 0
     assert m["min_distance_m"] == pytest.approx(math.hypot(0.2, 1.2) - 0.55), "closest at x = +-0.2 m"
@@ -218,13 +218,16 @@ def test_figures_do_not_change_when_the_whole_episode_is_moved_and_turned(seed: 
 @settings(max_examples=60, deadline=None)
 @given(st.integers(0, 2 ** 32 - 1), st.integers(1, 30))
 def test_entries_change_hands_when_the_robot_and_the_person_swap_motions(seed: int, steps: int) -> None:
+    """Swapped, the robot's entries become the person's; the person's become the robot's, except those in which
+    neither closed the gap faster than the floor (drifts), which stay the person's both ways."""
     ego, peds, _ = random_episode(seed, steps + 1, 1)
     person = np.where(np.isnan(peds), ego[:, None] + 1.0, peds)  # always present
     m = episode_metrics(trace_of(ego, person))
     swapped = episode_metrics(trace_of(person[:, 0], ego[:, None]))
     for zone in ("intimate", "personal"):
         robot, person_in = f"{zone}_entries_robot", f"{zone}_entries_person"
-        assert (swapped[robot], swapped[person_in]) == (m[person_in], m[robot]), zone
+        assert swapped[robot] + swapped[person_in] == m[robot] + m[person_in], zone
+        assert swapped[robot] <= m[person_in] and swapped[person_in] >= m[robot], zone
 
 
 def test_summary_gives_every_figure_an_interval_and_reads_former_names() -> None:

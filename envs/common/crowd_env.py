@@ -10,8 +10,9 @@ How an episode ends is in ``info["termination"]``: "goal", "pedestrian_collision
 step that terminated the episode; a collision outranks the goal, a pedestrian outranks a wall) or None
 while it goes on. Contacts are found along the step, not only at its end (``st_sim.sim.sweep``): on a pedestrian
 collision ``info["contact_time_s"]`` is the moment of impact (seconds into the step) and ``info["at_fault"]`` says
-whether the robot was at fault then (``envs.common.fault``: unless it was nearly stopped or every pedestrian it
-touched was behind it); both None otherwise.
+whether the robot was at fault then (``envs.common.fault``: it closed the gap, its velocity toward a pedestrian it
+touched at least that pedestrian's toward it and above 0.1 m/s); a wall collision is always at fault
+(``contact_time_s`` None). Both are None without a collision.
 The env never ends an episode for time: "timeout" is the ``TimeLimit`` wrapper's truncation (``truncated``
 with ``termination`` None), like the end of a replay's recording.
 
@@ -334,7 +335,8 @@ class CrowdEnv(gym.Env):
 
         Default (replays): no walls; the ego and every pedestrian present in both frames move in a straight line
         between them, and they touch when their centres come closer than ``ego_radius_m + pedestrian_radius_m``;
-        a pedestrian who appears this frame is tested where it appears, at the end of the step.
+        a pedestrian who appears this frame is tested where it appears, at the end of the step, with an unknown
+        velocity (it walked in: not the robot's fault, ``envs.common.fault``).
         """
         before, now = self.tracks.frames[-2], self.tracks.now
         if len(now.ids) == 0:
@@ -351,7 +353,7 @@ class CrowdEnv(gym.Env):
             new = ~stayed & (np.linalg.norm(now.xy_m - self.ego_xy_m, axis=1) < reach_m)
             if new.any():
                 contact = Contact(STEP_S, self.ego_xy_m.copy(), self.ego_velocity_mps.copy(), now.ids[new],
-                                  now.xy_m[new])
+                                  now.xy_m[new], np.full((int(new.sum()), 2), np.nan))  # their velocity: unknown
         return contact, False, nearest_m
 
     def _world_ended(self) -> bool:
@@ -451,27 +453,17 @@ class CrowdEnv(gym.Env):
             self._rerun_step = 0
             if self._rerun.path is not None:
                 self.rerun_paths.append(self._rerun.path)
-        obs, present = self._obs, info["agent_ids"] >= 0
-        predicted = obs["futures_mask"]
-        metrics = {name: float(value) for name, value in info["metrics"].items()
-                   if value is not None and np.isfinite(value)}  # nothing logged until there is a value
-        prototype = adapted = None
-        if self.anchors is not None:
-            prototype, adapted = self.anchors[1], self.anchors[2]
-        self._rerun.log_step(
-            self._rerun_step, obs["history"][present, -1], info["agent_ids"][present],
-            trails=obs["history"][present], trail_mask=obs["history_mask"][present],
-            predictions=obs["futures"][predicted], prediction_ids=info["predicted_ids"][predicted],
-            ego_xy_m=obs["ego"][:2] if self.ego else None, ego_goal_m=obs["ego"][4:6] if self.ego else None,
-            metrics={**metrics, "reward": reward}, prototype_anchors=prototype, adapted_anchors=adapted)
+        self._rerun.log_step(self._rerun_step, **rerun_step(self._obs, info, reward, self.ego, self.anchors))
         self._rerun_step += 1
 
     def _info(self, reward_parts: dict[str, float], termination: str | None) -> dict[str, Any]:
         """Fresh info dict; ``agent_ids[i]``/``predicted_ids[i]`` name the agent of observation row i (-1: none);
         ``termination`` is what ended the episode this step (see ``TERMINATIONS``), None otherwise; on a pedestrian
-        collision ``contact_time_s`` is the moment of impact [s into the step] and ``at_fault`` the judgement then."""
+        collision ``contact_time_s`` is the moment of impact [s into the step] and ``at_fault`` the judgement then
+        (``envs.common.fault``), on a wall collision ``at_fault`` is True."""
         row_ids = self.tracks.row_ids.copy()
         hit = self._contact if termination == "pedestrian_collision" else None
+        at_fault = True if termination == "wall_collision" else None if hit is None else robot_at_fault(hit)
         return {
             "frame": int(self.tracks.now.frame),
             "agent_ids": row_ids,
@@ -479,9 +471,27 @@ class CrowdEnv(gym.Env):
             "reward_parts": dict(reward_parts),
             "termination": termination,
             "contact_time_s": None if hit is None else float(hit.time_s),
-            "at_fault": None if hit is None else robot_at_fault(hit),
+            "at_fault": at_fault,
             "metrics": self.metrics.summary(),
         }
+
+
+def rerun_step(obs: dict[str, np.ndarray], info: dict[str, Any], reward: float, ego: bool,
+               anchors: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> dict[str, Any]:
+    """The arguments of ``RerunLogger.log_step`` (after the step index) for one state of an env: the agents present,
+    their trails, the forecasts, the ego and its goal (if ``ego``), the running metrics that have a value and the
+    reward, the anchors (``CrowdEnv.anchors``) if given. Arrays are copies of the present rows only, so a caller may
+    keep them."""
+    present, predicted = info["agent_ids"] >= 0, obs["futures_mask"]
+    metrics = {name: float(value) for name, value in info["metrics"].items()
+               if value is not None and np.isfinite(value)}  # nothing logged until there is a value
+    return {"positions_m": obs["history"][present, -1], "ids": info["agent_ids"][present],
+            "trails": obs["history"][present], "trail_mask": obs["history_mask"][present],
+            "predictions": obs["futures"][predicted], "prediction_ids": info["predicted_ids"][predicted],
+            "ego_xy_m": obs["ego"][:2].copy() if ego else None, "ego_goal_m": obs["ego"][4:6].copy() if ego else None,
+            "metrics": {**metrics, "reward": float(reward)},
+            "prototype_anchors": None if anchors is None else anchors[1],
+            "adapted_anchors": None if anchors is None else anchors[2]}
 
 
 def check_flag(name: str, value: Any) -> None:

@@ -15,10 +15,15 @@ nearest to the robot, in the robot's frame, and always has the same size:
 
 from __future__ import annotations
 
+import hashlib
 import os
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
+
+from st_sim.apps.navigation.sb3_zip import load_sb3_zip
+from st_sim.apps.navigation.world import NavWorld
 
 K_NEAREST = 6  # people in the view [-]
 STEP_S = 0.4  # seconds between observations [s]
@@ -52,18 +57,29 @@ class NearestObservation(gym.ObservationWrapper):
 
 
 class Sb3Nearest:
-    """A stable-baselines3 PPO model trained on ``NearestObservation``, acting deterministically.
+    """A stable-baselines3 model trained on ``NearestObservation``, acting deterministically. The zip is read
+    without running anything stored in it (``load_sb3_zip``), so a model file from anyone is safe to run.
 
     Args:
+        world: the env's facts (``NavWorld``); the model acts in its ``action_space``.
+        use_predictions: unused (the view reads no forecasts).
         path: the model's zip (default: $MY_POLICY_MODEL, else runs/my_policy/nearest.zip).
     """
 
-    def __init__(self, path: str | None = None):
-        from stable_baselines3 import PPO
+    def __init__(self, world: NavWorld, use_predictions: bool = False, path: str | None = None):
+        self.path = Path(path or os.environ.get(MODEL_ENV, DEFAULT_MODEL))
+        if not self.path.is_file():
+            told = f"${MODEL_ENV}" if path is None and MODEL_ENV in os.environ else "the default"
+            raise FileNotFoundError(
+                f"no model at {self.path} ({told}): train one with `python -m examples.my_policy.train_sb3 --out "
+                f"{DEFAULT_MODEL}`, or name yours with {MODEL_ENV}=PATH.zip")
+        self.policy = load_sb3_zip(self.path, world.action_space)
 
-        self.model = PPO.load(path or os.environ.get(MODEL_ENV, DEFAULT_MODEL), device="cpu")
+    def fingerprint(self) -> str:
+        """The model this policy acts with and its SHA-256, so a benchmark run knows which model it scored."""
+        return f"{self.path} sha256 {hashlib.sha256(self.path.read_bytes()).hexdigest()}"
 
     def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
         """(2,) velocity command [m/s]."""
-        action, _ = self.model.predict(nearest_view(obs), deterministic=True)
+        action, _ = self.policy.predict(nearest_view(obs), deterministic=True)
         return action

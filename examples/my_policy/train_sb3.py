@@ -18,10 +18,27 @@ import argparse
 
 import gymnasium as gym
 from stable_baselines3 import PPO
+from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.env_util import make_vec_env
+from tqdm import tqdm
 
 import envs  # noqa: F401  (registers STCrowd's ids)
 from examples.my_policy.nearest import NearestObservation
+
+
+class Progress(BaseCallback):
+    """A progress bar over the env steps of ``learn``."""
+
+    def __init__(self, total: int):
+        super().__init__()
+        self.bar = tqdm(total=total, desc="training", unit="step")
+
+    def _on_step(self) -> bool:
+        self.bar.update(self.training_env.num_envs)
+        return True
+
+    def _on_training_end(self) -> None:
+        self.bar.close()
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -42,7 +59,7 @@ def main(argv: list[str] | None = None) -> None:
     vec = make_vec_env(make, n_envs=4, seed=args.seed)
     model = PPO("MultiInputPolicy" if args.raw else "MlpPolicy", vec, n_steps=128, batch_size=128, seed=args.seed,
                 device="cpu", verbose=0)
-    model.learn(total_timesteps=args.steps, progress_bar=False)
+    model.learn(total_timesteps=args.steps, callback=Progress(args.steps))
     model.save(args.out)
     print(f"wrote {args.out}")
 

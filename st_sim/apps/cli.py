@@ -1,5 +1,6 @@
 """``python -m st_sim <command>`` (or ``stcrowd <command>``): evaluate predictors, plot a window, run the demo,
-navigate, benchmark a navigation policy on the suite and compare results, validate the reactive pedestrians."""
+navigate, benchmark a navigation policy on the suite, replay one of its episodes and compare results, validate the
+reactive pedestrians."""
 
 from __future__ import annotations
 
@@ -11,10 +12,11 @@ from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from replays import strict_json
 from replays.atomic import write_text_atomic
 from replays.constants import TASKS
 from st_sim.apps import reactive_validate
-from st_sim.apps.navigation import benchmark_cli
+from st_sim.apps.navigation import benchmark_cli, episode_replay
 from st_sim.apps.navigation import cli as navigation_cli
 from st_sim.command_line import (
     CliError,
@@ -185,12 +187,13 @@ def run_figures(args: argparse.Namespace) -> int:
 
 def write_json_atomic(path: Path, data: dict) -> None:
     """Write JSON through a temp file and a rename, so a crash never leaves half a file."""
-    write_text_atomic(path, json.dumps(data, indent=1))
+    write_text_atomic(path, strict_json.dumps(data, indent=1))
 
 
 COMMANDS = {"evaluate": run_evaluate, "demo": run_demo, "plot": run_plot, "figures": run_figures,
             "navigate": navigation_cli.run, "reactive-validate": reactive_validate.run,
-            "benchmark": benchmark_cli.run_benchmark_command, "leaderboard": benchmark_cli.run_leaderboard_command}
+            "benchmark": benchmark_cli.run_benchmark_command, "leaderboard": benchmark_cli.run_leaderboard_command,
+            "episode": episode_replay.run}
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -252,6 +255,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     navigation_cli.add_parser(commands)
     benchmark_cli.add_parsers(commands)
+    episode_replay.add_parser(commands)
     reactive_validate.add_parser(commands)
     demo = commands.add_parser("demo", help="simulated crossing with an ego robot and predictions (no data needed)")
     demo.add_argument("--steps", type=positive_int, default=150,

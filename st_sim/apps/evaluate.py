@@ -25,6 +25,7 @@ import numpy as np
 
 from predictor.plugins import PluginError, is_plugin_spec, resolve_factory, takes_seed
 from predictor.protocol import Predictor
+from replays import strict_json
 from replays.atomic import write_text_atomic
 from replays.constants import DOMAIN_TASKS
 from replays.scenes import SCENE_NAMES, scene_info
@@ -215,7 +216,7 @@ def source_label(source: str) -> str:
     from predictor.model import ModelConfig
 
     config = asdict(ModelConfig(**read_checkpoint(path)["model"]["config"]))
-    config_hash = hashlib.sha256(json.dumps(config, sort_keys=True).encode()).hexdigest()[:8]
+    config_hash = hashlib.sha256(strict_json.dumps(config, sort_keys=True).encode()).hexdigest()[:8]
     return f"{prefix}-{hashlib.sha256(path.read_bytes()).hexdigest()[:12]}-{config_hash}"
 
 
@@ -235,7 +236,7 @@ def evaluate_job(source: str, task: str, scene: str, root: str | None, stream: b
     result = evaluate_scene(predictor, task, scene, None, momentary_from_8, root, stream=stream,
                             rerun_path=rerun_path)
     result.checkpoint = None if named else source
-    write_text_atomic(output, json.dumps(asdict(result), separators=(",", ":")))
+    write_text_atomic(output, strict_json.dumps(asdict(result), separators=(",", ":")))
 
 
 def forget_stale_results(plan: Plan, jobs: list[Job], need_samples: bool) -> None:

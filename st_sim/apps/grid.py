@@ -77,7 +77,7 @@ class JobReport:
     cpu_s: float = 0.0
 
 
-def _one_thread() -> None:
+def one_thread() -> None:
     """One thread for this process: the variables cover a later ``import torch``, the call an earlier one."""
     for var in THREAD_VARS:
         os.environ[var] = "1"
@@ -88,7 +88,7 @@ def _one_thread() -> None:
 
 def execute(job: Job) -> JobReport:
     """Run ``job`` here, with one thread; its own exceptions become a failed report (not retried)."""
-    _one_thread()
+    one_thread()
     start, cpu_start = time.perf_counter(), time.process_time()
     status, error = "done", None
     try:
@@ -181,7 +181,7 @@ _started: Any = None  # in a local pool's worker: the driver's queue of started 
 
 def _init_local_worker(started: Any) -> None:
     global _started
-    _one_thread()
+    one_thread()
     _started = started
     threading.Thread(target=_exit_with_parent, args=(os.getppid(),), daemon=True).start()
 

@@ -37,6 +37,7 @@ from tqdm import tqdm
 
 from envs.common.footprint import Body
 from envs.common.reaction import Reaction
+from replays import strict_json
 from replays.atomic import write_text_atomic
 from st_sim.apps.vehicle_cases import Case, score, walk
 
@@ -118,7 +119,7 @@ class Scorer:
         """SHA-256 of the scores of every pedestrian of the folders ``groups`` walked with ``reaction``: how the code
         walks them."""
         rows = [self.rows(case, reaction) for case in self.of(groups)]
-        return hashlib.sha256(json.dumps(rows).encode()).hexdigest()
+        return hashlib.sha256(strict_json.dumps(rows).encode()).hexdigest()
 
 
 def loss(per_group: dict[str, dict[str, Any]]) -> float:
@@ -248,7 +249,7 @@ def fold_fit(scorer: Scorer, training: Sequence[str], procedure: Procedure, fold
             pass  # unreadable or another run's: searched again and written over
     fit = search(scorer, training, procedure, progress)
     if path is not None:
-        write_text_atomic(path, json.dumps({"key": key, **fit.record()}, indent=1) + "\n")
+        write_text_atomic(path, strict_json.dumps({"key": key, **fit.record()}, indent=1) + "\n")
     return fit
 
 

@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Final
 
@@ -38,6 +37,7 @@ from tqdm import tqdm
 from envs.common.errors import ConfigError
 from envs.common.footprint import Body
 from envs.common.reaction import FIT_PATH, Reaction, read_fitted_on, read_reaction
+from replays import strict_json
 from replays.atomic import write_text_atomic
 from replays.citr import CART_LENGTH_M, CART_WIDTH_M, CITR_FPS, Experiment, find_experiments
 from replays.constants import STEP_S
@@ -247,7 +247,7 @@ def run(args: argparse.Namespace) -> int:
             "procedure": None if args.no_refit else procedure.record(),
             "fold_fits": None if args.no_refit else str(args.fold_fits)}
         print(folds_table(result))
-    write_text_atomic(args.json, json.dumps(result, indent=1))
+    write_text_atomic(args.json, strict_json.dumps(result, indent=1))
     print(f"wrote {args.json}")
     if args.chart:
         from st_sim.charts import save_figure

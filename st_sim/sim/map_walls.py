@@ -50,6 +50,12 @@ def map_polygons(scene: Scene, simplify_m: float = 0.1) -> list[np.ndarray]:
     return polygons
 
 
+def map_wall_segments(scene: Scene, simplify_m: float = 0.1) -> np.ndarray:
+    """(K, 2, 2) the edges of ``map_polygons``: every boundary of the walkable region as a line segment [m]."""
+    polygons = map_polygons(scene, simplify_m)
+    return np.concatenate([polygon_edges(p) for p in polygons]) if polygons else np.zeros((0, 2, 2))
+
+
 def _runs(profile: np.ndarray) -> list[tuple[int, int]]:
     """Half-open index intervals [a, b) where the bool profile (L,) is True."""
     edges = np.flatnonzero(np.diff(np.concatenate([[0], profile.astype(np.int8), [0]])))
@@ -142,12 +148,11 @@ def layout_from_scene(scene: Scene, gate_depth_m: float = 1.5, max_gate_m: float
                                 ("max_gate_m", max_gate_m, Bounds(0.5, 1000.0, "m")),
                                 ("simplify_m", simplify_m, Bounds(0.0, 5.0, "m", open_low=True))):
         check_value("layout_from_scene", name, value, bounds)
-    polygons = map_polygons(scene, simplify_m)
+    walls_m = map_wall_segments(scene, simplify_m)
     gates = border_gates(scene, gate_depth_m, max_gate_m)
-    if not polygons or len(gates) < 2:
+    if not len(walls_m) or len(gates) < 2:
         raise ValueError(f"scene {scene.name}: need a walkable region touching the image border in two places "
-                         f"(found {len(polygons)} contours, {len(gates)} border openings)")
-    walls_m = np.concatenate([polygon_edges(p) for p in polygons])
+                         f"(found {len(walls_m)} wall segments, {len(gates)} border openings)")
     lo = walls_m.reshape(-1, 2).min(axis=0) - MARGIN_M
     hi = walls_m.reshape(-1, 2).max(axis=0) + MARGIN_M
     start, goal = ego_route(scene, gates)

@@ -22,13 +22,13 @@ An ego that drives into pedestrians is outside these bounds: it never gives way,
 
 from __future__ import annotations
 
-import json
 import os
 from dataclasses import asdict, dataclass, replace
 from typing import Final
 
 import numpy as np
 
+from replays import strict_json
 from replays.atomic import write_text_atomic
 from st_sim.sim.config import CrowdConfig, EgoConfig, PopulationConfig
 from st_sim.sim.crowd import CrowdSim
@@ -129,4 +129,4 @@ def soundness_job(layout: str, n: int, seeds: list[int], steps: int, output: str
         os.environ["STCROWD_DATA"] = data_root
     shape = make_layout(layout)
     runs = [asdict(measure(shape, VARIANTS[seed % len(VARIANTS)], n, seed, steps)) for seed in seeds]
-    write_text_atomic(output, json.dumps(runs, indent=1))
+    write_text_atomic(output, strict_json.dumps(runs, indent=1))

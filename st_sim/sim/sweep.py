@@ -67,6 +67,8 @@ class Contact:
         robot_xy_m: (2,) robot position at the impact [m].  robot_velocity_mps: (2,) its velocity then [m/s].
         pedestrian_ids: (P,) ids of the pedestrians touching it then (P >= 1).
         pedestrians_xy_m: (P, 2) their positions at the impact [m].
+        pedestrians_velocity_mps: (P, 2) their velocities then [m/s]; NaN rows: unknown (a replay's pedestrian who
+            appears inside the contact distance).
     """
 
     time_s: float
@@ -74,6 +76,7 @@ class Contact:
     robot_velocity_mps: np.ndarray
     pedestrian_ids: np.ndarray
     pedestrians_xy_m: np.ndarray
+    pedestrians_velocity_mps: np.ndarray
 
 
 def first_contact(robot_from_m: np.ndarray, robot_to_m: np.ndarray, peds_from_m: np.ndarray, peds_to_m: np.ndarray,
@@ -99,4 +102,4 @@ def first_contact(robot_from_m: np.ndarray, robot_to_m: np.ndarray, peds_from_m:
     near = np.linalg.norm(peds_m - robot_m, axis=1) < reach_m + TOUCH_SLACK_M
     near |= touch == t  # the first one touches by definition, whatever the rounding
     return Contact(start_s + t * duration_s, robot_m, (robot_to_m - robot_from_m) / duration_s,
-                   np.asarray(ids)[near], peds_m[near])
+                   np.asarray(ids)[near], peds_m[near], (peds_to_m[near] - peds_from_m[near]) / duration_s)

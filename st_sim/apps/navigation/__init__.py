@@ -5,7 +5,8 @@
 
 Modules, one concept each:
 - ``planners``: the registry (straight, orca, mpc, ppo, ppo-reactive) and the ``Planner`` interface (``reset``,
-  ``act``); ``policies``: any policy by spec (a shipped name, package.module:name, sb3:PATH.zip);
+  ``act``); ``policies``: any policy by spec (a shipped name, package.module:name, sb3:PATH.zip); ``sb3_zip``: a
+  stable-baselines3 model file read without running anything stored in it;
   ``straight``, ``orca``, ``mpc``, ``ppo``: one planner class each;
 - ``predictors``: the predictor names (none, cvm, cvm-s, singular) and "none" (nobody moves);
 - ``world``, ``terrain``, ``pedestrians``: what a planner knows (limits, radii, map grid, cost-to-go) and sees;

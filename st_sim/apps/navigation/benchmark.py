@@ -9,12 +9,20 @@ pool or a Ray cluster (``st_sim.apps.grid``). A chunk appends one JSON line per 
 so a run that is killed keeps every finished episode, and the same command resumes it.
 
 Layout of the output folder:
-    run.json                            what was asked (a different run into the same folder is refused)
+    run.json                            what was asked, and the policy's fingerprint (``fingerprint``): a different
+                                        run, or the same spec pointing at another model or other code, is refused
     parts/<scenario>/<first>.jsonl      one chunk's episodes, appended as they finish
     parts/<scenario>/<first>.json       the chunk's timing, written when it is complete
+    recordings/<scenario>/<episode>.rrd a Rerun recording of each episode ``--record`` chose (``episode_recording``)
     episodes.jsonl                      every episode, one JSON line each, in suite order
-    summary.json                        policy, suite, version, split; per scenario its env, keywords, episodes and
-                                        summary; the pooled summary (``RESULT_FORMAT``); one line per top-level key
+    summary.json                        policy, its fingerprint, suite, version, split, the scenario set; per
+                                        scenario its env, keywords, episodes, summary and timing; the pooled summary
+                                        and timing (``RESULT_FORMAT``); one line per top-level key
+
+Timing, in ``summary.json``: ``wall_s`` is the run's wall-clock time (the invocation that finished it, resumed parts
+not included), ``worker_s`` the chunks' wall times summed over the workers (with two workers about twice
+``wall_s``), ``policy_s`` the time spent in the policy's ``act``, ``steps`` the env steps; a scenario's timing holds
+the last three over its chunks.
 """
 
 from __future__ import annotations
@@ -30,19 +38,23 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
+from gymnasium import spaces
 
+from replays import strict_json
 from replays.atomic import write_text_atomic
 from st_sim.apps.grid import Job, run_jobs
+from st_sim.apps.navigation.episode_recording import BenchmarkRecorder
 from st_sim.apps.navigation.episodes import run_episode
+from st_sim.apps.navigation.fingerprint import fingerprint_changes, policy_fingerprint
 from st_sim.apps.navigation.metrics import episode_metrics, summarize
-from st_sim.apps.navigation.policies import SB3_PREFIX, PolicyError, load_policy
+from st_sim.apps.navigation.policies import SB3_PREFIX, PolicyError, load_policy, observation_fits
 from st_sim.apps.navigation.suite import Scenario, Suite, load_suite
 from st_sim.apps.navigation.world import world_of
 
 CHUNK_EPISODES = 25  # episodes of one scenario per grid job [-]
 SIGNIFICANT_DIGITS = 6  # figures are written with this many significant digits [-]
 RESULT_FORMAT = "stcrowd-nav-benchmark/1"
-RUN_IDENTITY = ("policy", "predictor", "suite", "suite_version", "split", "episodes")
+RUN_IDENTITY = ("policy", "fingerprint", "predictor", "suite", "suite_version", "split", "scenarios", "episodes")
 """settings that must match for a rerun to resume the runs already in an output folder"""
 
 
@@ -70,6 +82,11 @@ class BenchmarkRun:
     """a suite file (None: the shipped suite)"""
     data_root: str | None = None
     """ETH/UCY data root for the replays (default: $STCROWD_DATA or the cache); not part of the results"""
+    record: str = "none"
+    """Rerun recordings of the episodes run now: none, failures (not at the goal) or all; not part of the results"""
+    trust_policy_file: bool = False
+    """load an sb3: model with stable-baselines3's own loader, which runs code stored in the file (``policies``); not
+    part of the results"""
 
 
 def env_kwargs_of(scenario: Scenario, predictor: str) -> dict[str, Any]:
@@ -100,10 +117,12 @@ def episode_record(scenario: str, episode: int, seed: int, metrics: dict[str, An
 
 
 def run_chunk(suite_file: str | None, scenario: str, split: str, first: int, count: int, policy: str,
-              predictor: str, part: str, data_root: str | None = None) -> None:
+              predictor: str, part: str, data_root: str | None = None, record: str = "none",
+              trust_policy_file: bool = False) -> None:
     """Grid job: episodes ``first .. first + count - 1`` of ``scenario``, appended to ``part`` (.jsonl) one line each
     as they finish; then the chunk's timing into ``part`` with suffix .json. Episodes already in ``part`` are kept
-    and skipped (a torn last line, from a killed run, is dropped).
+    and skipped (a torn last line, from a killed run, is dropped). ``record`` chooses the episodes recorded into
+    ``recordings/<scenario>/`` beside ``parts`` (``episode_recording.BenchmarkRecorder``).
 
     Raises:
         PolicyError: the policy failed; the message names it, the scenario, the episode and the seed.
@@ -118,26 +137,29 @@ def run_chunk(suite_file: str | None, scenario: str, split: str, first: int, cou
     env = make_scenario_env(entry, predictor, data_root)
     try:
         world = world_of(env)
-        checked = load_policy(policy, world, predictor)
+        checked = load_policy(policy, world, predictor, trust_file=trust_policy_file)
         checked.check_fits(env.observation_space, scenario)
+        recorder = BenchmarkRecorder(env, record, lines_path.parents[2] / "recordings" / scenario, policy, predictor)
         with lines_path.open("a") as lines:
             for i, seed in enumerate(seeds, start=first):
                 if i in done:
                     continue
                 try:
-                    trace, thinking_s = run_episode(env, checked, world, seed)
+                    trace, thinking_s = run_episode(recorder.env, checked, world, seed)
                 except PolicyError as err:
                     raise PolicyError(f"{err} (scenario {scenario!r}, episode {i}, seed {seed})") from err
                 policy_s += thinking_s
                 steps += len(trace.ego_xy_m) - 1
-                lines.write(json.dumps(episode_record(scenario, i, seed, episode_metrics(trace))) + "\n")
+                line = episode_record(scenario, i, seed, episode_metrics(trace))
+                recorder.keep(line)
+                lines.write(strict_json.dumps(line) + "\n")
                 lines.flush()
                 os.fsync(lines.fileno())
     finally:
         env.close()
-    timing = {"episodes": count - len(done), "steps": steps, "wall_s": time.perf_counter() - start,
+    timing = {"episodes": count - len(done), "steps": steps, "worker_s": time.perf_counter() - start,
               "policy_s": policy_s}
-    write_text_atomic(lines_path.with_suffix(".json"), json.dumps(timing))
+    write_text_atomic(lines_path.with_suffix(".json"), strict_json.dumps(timing))
 
 
 def _finished_lines(path: Path, seeds: dict[int, int]) -> set[int]:
@@ -173,7 +195,8 @@ def plan(run: BenchmarkRun, suite: Suite) -> list[Job]:
                       "scenario": scenario.name, "split": run.split, "first": first,
                       "count": min(CHUNK_EPISODES, count - first), "policy": _portable(run.policy),
                       "predictor": run.predictor,
-                      "part": str(part), "data_root": data_root}
+                      "part": str(part), "data_root": data_root, "record": run.record,
+                      "trust_policy_file": run.trust_policy_file}
             jobs.append(Job(f"{scenario.name}/{first}", "st_sim.apps.navigation.benchmark:run_chunk", kwargs,
                             str(part.with_suffix(".json"))))
     return jobs
@@ -187,37 +210,70 @@ def _portable(policy: str) -> str:
     return policy
 
 
-def check_run(run: BenchmarkRun, suite: Suite) -> None:
-    """Every check that can fail before any episode: the split, episodes and scenarios exist, the output folder holds
-    no other run, the policy builds, and a policy that declares its observation space fits every scenario's env
-    (``PolicyError`` naming the scenario and both spaces)."""
+def check_run(run: BenchmarkRun, suite: Suite) -> dict[str, Any]:
+    """Every check that can fail before any episode: the split, episodes and scenarios exist, the policy builds, a
+    policy that declares its observation space fits every scenario's env (else ``PolicyError`` naming the scenarios
+    that fit, if any), and the output folder holds no other run, nor this spec pointing at another model or other
+    code (``BenchmarkError`` naming what changed). Returns the run's identity (``run.json``)."""
     suite.seeds_of(run.split, run.episodes)
     scenarios = suite.select(run.scenarios)
-    identity = _identity(run, suite)
+    env = make_scenario_env(scenarios[0], "none", run.data_root)
+    try:
+        policy = load_policy(run.policy, world_of(env), run.predictor, trust_file=run.trust_policy_file)
+    finally:
+        env.close()
+    if policy.observation_space is not None:
+        _check_fits(policy.spec, policy.observation_space, scenarios, suite, run.data_root)
+    identity = _identity(run, suite, policy_fingerprint(run.policy, policy.policy))
     marker = Path(run.out) / "run.json"
     if marker.is_file():
         held = json.loads(marker.read_text())
         if held != identity:
-            differ = ", ".join(f"{key} {held.get(key)!r} there, {identity[key]!r} now" for key in RUN_IDENTITY
-                               if held.get(key) != identity[key])
-            raise BenchmarkError(f"{run.out} holds another run ({differ}); give another --out")
-    env = make_scenario_env(scenarios[0], "none", run.data_root)
-    try:
-        policy = load_policy(run.policy, world_of(env), run.predictor)
-    finally:
+            raise BenchmarkError(f"{run.out} holds another run ({'; '.join(_differences(held, identity))}): give "
+                                 "another --out, or delete the folder to score this one there")
+    return identity
+
+
+def _check_fits(spec: str, own: spaces.Space, scenarios: tuple[Scenario, ...], suite: Suite,
+                data_root: str | None) -> None:
+    """Refuse a policy whose observation space does not fit every asked scenario: ``PolicyError`` naming the first
+    that does not and the suite's scenarios that fit (or saying none does, and why)."""
+    env_spaces = {}
+    for scenario in suite.scenarios:
+        env = make_scenario_env(scenario, "none", data_root)
+        env_spaces[scenario.name] = env.observation_space
         env.close()
-    if policy.observation_space is not None:
-        for scenario in scenarios:
-            env = make_scenario_env(scenario, "none", run.data_root)
-            try:
-                policy.check_fits(env.observation_space, scenario.name)
-            finally:
-                env.close()
+    misfits = [scenario.name for scenario in scenarios if not observation_fits(own, env_spaces[scenario.name])]
+    if not misfits:
+        return
+    fitting = [name for name, space in env_spaces.items() if observation_fits(own, space)]
+    where = (f"It fits {', '.join(fitting)}: run it there with --scenarios {' '.join(fitting)}" if fitting else
+             "It fits none of the suite's scenarios (their pedestrian slots or keys differ from its own)")
+    more = f" (nor {len(misfits) - 1} more)" if len(misfits) > 1 else ""
+    raise PolicyError(
+        f"policy {spec!r} does not fit scenario {misfits[0]!r}{more}: it reads observations of {own}, the scenario's "
+        f"env gives {env_spaces[misfits[0]]}. {where}; or train it on a fixed-size view of the observation, or wrap "
+        "it in a class (package.module:name) that turns any STCrowd observation into its input, for instance the "
+        "nearest pedestrians (docs: Benchmark your policy)")
 
 
-def _identity(run: BenchmarkRun, suite: Suite) -> dict[str, Any]:
-    return {"policy": run.policy, "predictor": run.predictor, "suite": suite.name, "suite_version": suite.version,
-            "split": run.split, "episodes": len(suite.seeds_of(run.split, run.episodes))}
+def _differences(held: dict[str, Any], identity: dict[str, Any]) -> list[str]:
+    """What differs between a folder's ``run.json`` and this run's identity, in words."""
+    if "fingerprint" not in held:
+        return ["it was written before runs recorded what their policy is"]
+    differ = [f"{key} {held.get(key)!r} there, {identity[key]!r} now" for key in RUN_IDENTITY
+              if key != "fingerprint" and held.get(key) != identity[key]]
+    changes = fingerprint_changes(held["fingerprint"], identity["fingerprint"])
+    if changes:
+        differ.append(f"what policy {identity['policy']!r} is has changed: {', '.join(changes)}")
+    return differ
+
+
+def _identity(run: BenchmarkRun, suite: Suite, fingerprint: dict[str, str]) -> dict[str, Any]:
+    return {"policy": run.policy, "fingerprint": fingerprint, "predictor": run.predictor, "suite": suite.name,
+            "suite_version": suite.version, "split": run.split,
+            "scenarios": [scenario.name for scenario in suite.select(run.scenarios)],
+            "episodes": len(suite.seeds_of(run.split, run.episodes))}
 
 
 def run_benchmark(run: BenchmarkRun, executor: str = "local", workers: int | None = None,
@@ -227,10 +283,11 @@ def run_benchmark(run: BenchmarkRun, executor: str = "local", workers: int | Non
     ``workers=1`` with the local executor runs the chunks in this process (a policy's error then surfaces as
     itself); otherwise on a process pool of ``workers`` (default: one per core) or on Ray.
     """
+    start = time.perf_counter()
     suite = load_suite(run.suite_file)
-    check_run(run, suite)
+    identity = check_run(run, suite)
     out = Path(run.out)
-    write_text_atomic(out / "run.json", json.dumps(_identity(run, suite), indent=1))
+    write_text_atomic(out / "run.json", strict_json.dumps(identity, indent=1))
     jobs = plan(run, suite)
     if executor == "local" and workers == 1:
         from tqdm import tqdm
@@ -245,11 +302,13 @@ def run_benchmark(run: BenchmarkRun, executor: str = "local", workers: int | Non
             raise BenchmarkError(f"{len(failed)} of {len(jobs)} chunks failed; the first, {failed[0].name}: "
                                  f"{failed[0].error}. Finished episodes are kept in {out}/parts: fix the cause and "
                                  "run the same command again to resume")
-    return collect(run, suite, jobs)
+    return collect(run, suite, jobs, identity, time.perf_counter() - start)
 
 
-def collect(run: BenchmarkRun, suite: Suite, jobs: list[Job]) -> dict[str, Any]:
-    """Gather the chunks of a finished run into ``episodes.jsonl`` and ``summary.json``; returns the summary."""
+def collect(run: BenchmarkRun, suite: Suite, jobs: list[Job], identity: dict[str, Any],
+            wall_s: float) -> dict[str, Any]:
+    """Gather the chunks of a finished run into ``episodes.jsonl`` and ``summary.json``; returns the summary.
+    ``identity`` is the run's (``check_run``), ``wall_s`` the run's wall-clock time [s]."""
     by_scenario: dict[str, list[dict]] = {}
     timing: dict[str, dict[str, float]] = {}
     for job in jobs:
@@ -257,7 +316,7 @@ def collect(run: BenchmarkRun, suite: Suite, jobs: list[Job]) -> dict[str, Any]:
         part = Path(job.kwargs["part"])
         by_scenario.setdefault(name, []).extend(json.loads(line) for line in part.read_text().splitlines())
         spent = json.loads(part.with_suffix(".json").read_text())
-        cell = timing.setdefault(name, {"wall_s": 0.0, "policy_s": 0.0, "steps": 0})
+        cell = timing.setdefault(name, {"worker_s": 0.0, "policy_s": 0.0, "steps": 0})
         for key in cell:
             cell[key] += spent[key]
     scenarios, every = [], []
@@ -268,15 +327,17 @@ def collect(run: BenchmarkRun, suite: Suite, jobs: list[Job]) -> dict[str, Any]:
                           "env_kwargs": env_kwargs_of(scenario, run.predictor), "description": scenario.description,
                           "episodes": [{k: v for k, v in e.items() if k != "scenario"} for e in episodes],
                           "summary": _summary(episodes), "timing": timing[scenario.name]})
-    identity = _identity(run, suite)
-    summary = {"format": RESULT_FORMAT, **{k: v for k, v in identity.items() if k != "episodes"},
-               "episodes_per_scenario": identity["episodes"], "stcrowd_version": _stcrowd_version(),
+    summary = {"format": RESULT_FORMAT, **{k: v for k, v in identity.items() if k not in ("episodes", "scenarios")},
+               "episodes_per_scenario": identity["episodes"], "scenario_set": identity["scenarios"],
+               "suite_scenarios": len(suite.scenarios), "stcrowd_version": _stcrowd_version(),
                "scenarios": scenarios, "summary": _summary(every),
-               "timing": {key: sum(cell[key] for cell in timing.values()) for key in ("wall_s", "policy_s", "steps")}}
+               "timing": {"wall_s": wall_s, **{key: sum(cell[key] for cell in timing.values())
+                                               for key in ("worker_s", "policy_s", "steps")}}}
     out = Path(run.out)
-    write_text_atomic(out / "episodes.jsonl", "".join(json.dumps(e) + "\n" for e in every))
+    write_text_atomic(out / "episodes.jsonl", "".join(strict_json.dumps(e) + "\n" for e in every))
     write_text_atomic(out / "summary.json", "{\n" + ",\n".join(
-        f"{json.dumps(key)}: {json.dumps(value, separators=(',', ':'))}" for key, value in summary.items()) + "\n}\n")
+        f"{strict_json.dumps(key)}: {strict_json.dumps(value, separators=(',', ':'))}"
+        for key, value in summary.items()) + "\n}\n")
     return summary
 
 

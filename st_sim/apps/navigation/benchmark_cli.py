@@ -2,8 +2,10 @@
 side).
 
     python -m st_sim benchmark --policy mypkg.policy:MyPolicy [--suite val|test] [--episodes N] \\
-        [--scenarios NAME ...] [--predictor singular] --out DIR
-    python -m st_sim leaderboard DIR [DIR ...] [--out board.md] [--chart board.png] [--no-baselines]
+        [--scenarios NAME ...] [--predictor singular] [--record failures] [--trust-policy-file] --out DIR
+    python -m st_sim leaderboard DIR [DIR ...] [--out board.md] [--chart board.png] [--no-baselines] \\
+        [--common-scenarios]
+    python -m st_sim leaderboard --paired DIR_A DIR_B [--scenarios PATTERN ...]
 """
 
 from __future__ import annotations
@@ -12,7 +14,8 @@ import argparse
 from pathlib import Path
 
 from replays.atomic import write_text_atomic
-from st_sim.apps.navigation.policies import SPEC_HELP
+from st_sim.apps.navigation.episode_recording import RECORD_CHOICES
+from st_sim.apps.navigation.policies import SPEC_HELP, TRUST_HELP
 from st_sim.apps.navigation.predictors import predictor_argument
 from st_sim.command_line import CliError, add_grid_arguments, check_writable, positive_int
 
@@ -21,7 +24,8 @@ def add_parsers(subparsers: argparse._SubParsersAction) -> None:
     """Register the ``benchmark`` and ``leaderboard`` subcommands."""
     bench = subparsers.add_parser("benchmark", help="navigation benchmark: a policy through the suite's scenarios on "
                                                     "its published seeds, the field's metrics per episode")
-    bench.add_argument("--policy", required=True, help=f"the policy: {SPEC_HELP}")
+    bench.add_argument("--policy", default=None, help=f"the policy (required unless --list): {SPEC_HELP}")
+    bench.add_argument("--trust-policy-file", action="store_true", help=TRUST_HELP)
     bench.add_argument("--suite", choices=["val", "test"], default="test", dest="split",
                        help="seed list: val to tune on, test for the figures you report (default: test)")
     bench.add_argument("--suite-file", default=None, metavar="PATH",
@@ -36,13 +40,26 @@ def add_parsers(subparsers: argparse._SubParsersAction) -> None:
                             "them) (default: singular)")
     bench.add_argument("--out", default=None, metavar="DIR", help="output folder (required unless --list)")
     bench.add_argument("--list", action="store_true", help="print the suite's scenarios and exit")
+    bench.add_argument("--record", choices=list(RECORD_CHOICES), default="none",
+                       help="write a Rerun recording of these episodes into DIR/recordings/<scenario>/<episode>.rrd: "
+                            "failures (every episode that did not reach the goal), all, or none (default: none)")
     add_grid_arguments(bench)
     bench.add_argument("--data-root", default=None, help="ETH/UCY folder (default: $STCROWD_DATA or the cache)")
     bench.add_argument("--quiet", action="store_true", help="no progress bar")
 
     board = subparsers.add_parser("leaderboard", help="benchmark results side by side: a table per metric group, "
-                                                      "success per scenario, a chart")
-    board.add_argument("results", nargs="+", metavar="DIR", help="benchmark output folders")
+                                                      "outcomes and success per scenario, a chart; or two runs "
+                                                      "paired episode by episode (--paired)")
+    board.add_argument("results", nargs="*", metavar="DIR", help="benchmark output folders")
+    board.add_argument("--paired", nargs=2, default=None, metavar=("A", "B"),
+                       help="instead of the tables: two runs on the same episodes (benchmark folders, or navigate "
+                            "--json files) paired, successes and at-fault collisions with one-sided exact McNemar "
+                            "tests both ways")
+    board.add_argument("--scenarios", nargs="+", default=["*"], metavar="PATTERN",
+                       help="--paired: pool only the scenarios matching these glob patterns (default: all)")
+    board.add_argument("--common-scenarios", action="store_true",
+                       help="pool every result over the scenarios they all ran (default: refuse results over "
+                            "different scenario sets, whose pooled figures do not compare)")
     board.add_argument("--no-baselines", action="store_true",
                        help="leave out the shipped planners' committed results (default: include those measured "
                             "on the same suite version, split and episode count)")
@@ -63,12 +80,15 @@ def run_benchmark_command(args: argparse.Namespace) -> int:
         for scenario in suite.scenarios:
             print(f"  {scenario.name:<18} {scenario.env} {scenario.env_kwargs or ''}  {scenario.description}")
         return 0
+    if args.policy is None:
+        raise CliError(f"--policy is required (unless --list): {SPEC_HELP}")
     if args.out is None:
         raise CliError("--out DIR is required: the folder that keeps the episodes (and resumes them)")
     check_writable(Path(args.out))
     run = BenchmarkRun(policy=args.policy, out=args.out, predictor=args.predictor, split=args.split,
                        episodes=args.episodes, scenarios=None if args.scenarios is None else tuple(args.scenarios),
-                       suite_file=args.suite_file, data_root=args.data_root)
+                       suite_file=args.suite_file, data_root=args.data_root, record=args.record,
+                       trust_policy_file=args.trust_policy_file)
     summary = run_benchmark(run, executor=args.executor, workers=args.workers, address=args.ray_address,
                             progress=not args.quiet)
     print(markdown([summary]))
@@ -78,14 +98,26 @@ def run_benchmark_command(args: argparse.Namespace) -> int:
 
 
 def run_leaderboard_command(args: argparse.Namespace) -> int:
-    """Print the tables (and write them, and the chart); exit code 0."""
-    from st_sim.apps.navigation.leaderboard import baseline_results, chart, label, load_result, markdown
+    """Print the tables (and write them, and the chart), or the paired comparison; exit code 0."""
+    from st_sim.apps.navigation.leaderboard import baseline_results, chart, comparable, label, load_result, markdown
 
+    if args.paired:
+        if args.results:
+            raise CliError("--paired A B compares two runs; give no other folder")
+        from st_sim.apps.navigation.paired import paired_text
+
+        print(paired_text(*args.paired, tuple(args.scenarios)))
+        return 0
+    if not args.results:
+        raise CliError("give benchmark output folders (DIR ...), or --paired A B")
     results = [load_result(folder) for folder in args.results]
+    note = None
     if not args.no_baselines:
         own = {label(result) for result in results}
-        results += [r for r in baseline_results(results[0]) if label(r) not in own]
-    text = markdown(results)
+        baselines, note = baseline_results(results[0], common_scenarios=args.common_scenarios)
+        results += [r for r in baselines if label(r) not in own]
+    results = comparable(results, args.common_scenarios)
+    text = markdown(results, note)
     print(text)
     if args.out:
         write_text_atomic(Path(args.out), text)

@@ -7,11 +7,11 @@
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
+from replays import strict_json
 from replays.atomic import write_text_atomic
-from st_sim.apps.navigation.policies import SPEC_HELP, check_policy_spec
+from st_sim.apps.navigation.policies import SPEC_HELP, TRUST_HELP, check_policy_spec
 from st_sim.apps.navigation.predictors import predictor_argument
 
 SEE_EGO_CHOICES = {"yes": True, "no": False, "default": None}
@@ -23,6 +23,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
                                                  "95 %% confidence intervals")
     nav.add_argument("--env", default="STCrowd-SimCrossing-v1", help="env id (default: STCrowd-SimCrossing-v1)")
     nav.add_argument("--policy", default="mpc", help=f"the policy: {SPEC_HELP} (default: mpc)")
+    nav.add_argument("--trust-policy-file", action="store_true", help=TRUST_HELP)
     nav.add_argument("--predictor", type=predictor_argument, default="singular",
                      help="predictor in the observation: none (pedestrians assumed to stand still), cvm, cvm-s, "
                           "singular, or a plug-in package.module:name, called with task=stochastic, the replay's "
@@ -61,11 +62,12 @@ def run(args: argparse.Namespace) -> int:
     nav_run = NavRun(env_id=args.env, policy=args.policy, predictor=args.predictor, episodes=args.episodes,
                      seed=args.seed, pedestrians_see_ego=SEE_EGO_CHOICES[args.pedestrians_see_ego],
                      pedestrians=args.pedestrians, sensor_range_m=args.sensor_range,
-                     rerun_dir=args.rerun, data_root=args.data_root, policy_file=args.policy_file)
+                     rerun_dir=args.rerun, data_root=args.data_root, policy_file=args.policy_file,
+                     trust_policy_file=args.trust_policy_file)
     result = run_navigation(nav_run, progress=not args.quiet)
     print(summary_text(result))
     if args.json:
-        write_text_atomic(Path(args.json), json.dumps(result, indent=1))
+        write_text_atomic(Path(args.json), strict_json.dumps(result, indent=1))
         print(f"wrote {args.json}")
     if args.rerun:
         print(f"wrote {args.episodes} recording(s) into {args.rerun}/")

@@ -27,6 +27,7 @@ import numpy as np
 from tqdm import tqdm
 
 from envs.common.config import EnvConfig, RewardWeights
+from replays import strict_json
 from replays.atomic import atomic_path
 from st_sim.apps.navigation.features import FeatureConfig, drop_predictions, encode, path_frame, to_velocity
 from st_sim.apps.navigation.ppo import load_policy
@@ -191,7 +192,7 @@ def load_student(spec: DemoSpec) -> tuple[Any, FeatureConfig]:
 def save(demos: Demos, spec: DemoSpec, path: str | Path) -> None:
     """Write the demonstrations and their spec atomically (.npz)."""
     with atomic_path(path) as tmp, open(tmp, "wb") as file:
-        np.savez_compressed(file, spec=json.dumps({"format": FORMAT, **asdict(spec)}),
+        np.savez_compressed(file, spec=strict_json.dumps({"format": FORMAT, **asdict(spec)}),
                             **{name: getattr(demos, name) for name in ARRAYS}, wall_time_s=demos.wall_time_s)
 
 

@@ -7,7 +7,6 @@ episodes (same crowd, start and goal) and runs can be compared pair by pair.
 from __future__ import annotations
 
 import inspect
-import json
 import re
 import time
 from dataclasses import asdict, dataclass, is_dataclass
@@ -20,6 +19,7 @@ from tqdm import tqdm
 
 import envs  # noqa: F401  (registers the ids)
 from envs.common.config import EnvConfig
+from replays import strict_json
 from replays.atomic import write_text_atomic
 from st_sim.apps.grid import Job
 from st_sim.apps.navigation.metrics import EpisodeTrace, Outcome, episode_metrics, outcome_of, summarize
@@ -63,6 +63,8 @@ class NavRun:
     """tunables of the MPC planner (None: the defaults); other planners take none"""
     policy_file: str | None = None
     """the PPO planner: a policy file (``train_ppo``'s policy.pt) instead of the shipped policy"""
+    trust_policy_file: bool = False
+    """an sb3: model: load it with stable-baselines3's own loader, which runs code stored in the file"""
 
 
 def accepts_keyword(env_id: str, name: str) -> bool:
@@ -152,7 +154,7 @@ class TraceRecorder:
                             at_fault=at_fault, log_deviation_m=np.array(self.deviation, np.float64),
                             pedestrians_xy_m=pedestrians, pedestrian_groups=groups,
                             ego_radius_m=self.world.ego_radius_m, pedestrian_radius_m=self.world.pedestrian_radius_m,
-                            step_s=self.world.step_s)
+                            goal_radius_m=self.world.goal_radius_m, step_s=self.world.step_s)
 
 
 def run_episode(env: gym.Env, planner: Planner, world: NavWorld, seed: int) -> tuple[EpisodeTrace, float]:
@@ -198,7 +200,8 @@ def run_navigation(run: NavRun, progress: bool = True) -> dict[str, Any]:
     see_ego = run.pedestrians_see_ego if accepts_keyword(run.env_id, SEE_EGO_KWARG) else None
     env = make_nav_env(run)
     world = world_of(env)
-    planner = load_policy(run.policy, world, run.predictor, **planner_options(run))
+    planner = load_policy(run.policy, world, run.predictor, trust_file=run.trust_policy_file, **planner_options(run))
+    planner.check_fits(env.observation_space, run.env_id)
     episodes, thinking_s, decisions = [], 0.0, 0
     start = time.perf_counter()
     for i in tqdm(range(run.episodes), desc=f"{run.policy}/{run.predictor} {run.env_id}", disable=not progress,
@@ -228,7 +231,7 @@ def navigation_job(output: str, mpc: dict[str, Any] | None = None, **run: Any) -
     written as JSON to ``output``."""
     cfg = None if mpc is None else MpcConfig(**{k: tuple(v) if isinstance(v, list) else v for k, v in mpc.items()})
     result = run_navigation(NavRun(**run, mpc=cfg), progress=False)
-    write_text_atomic(output, json.dumps(result, indent=1))
+    write_text_atomic(output, strict_json.dumps(result, indent=1))
 
 
 def grid_job(name: str, run: NavRun, output: Path) -> Job:

@@ -3,12 +3,16 @@
 Each figure of one episode is defined in ``METRICS`` with its group, unit and the benchmarks that report it
 (``docs``: ``metrics_table``); the groups follow SEANavBench's safety / efficiency / socialness split, which Francis
 et al. 2023 recommend. Distances between people are body gaps (``social_metrics``). Rates (success, collisions,
-timeout) get Wilson score intervals; means get Student-t intervals over the episodes where the figure exists (time
-to goal and path ratio: successful episodes only). Two planners run on the same seeds are compared with McNemar's
-exact test on the episodes where only one of them collided.
+timeout) get Wilson score intervals; means get seeded bootstrap percentile intervals over the episodes where the
+figure exists (time to goal and path ratio: successful episodes only), which stay inside the figure's range. Two
+planners run on the same seeds are compared with McNemar's exact test on the episodes where only one of them
+collided.
 
-A collision is at fault (``collision_at_fault``) when the robot hit a wall, or hit a pedestrian while it was not
-stopped and the pedestrian was not behind it (the env's ``info["at_fault"]``, ``envs.common.fault``).
+A collision is at fault (``collision_at_fault``) when the robot hit a wall, or hit a pedestrian by closing the gap
+itself: at the impact its velocity toward the pedestrian was at least the pedestrian's toward it and above 0.1 m/s
+(the env's ``info["at_fault"]``, ``envs.common.fault``). Pedestrian collisions are also counted apart by that rule,
+robot-on-person and person-on-robot (``collision_robot_on_person``, ``collision_person_on_robot``), as SEANavBench
+and HuNavSim count them; the zone entries are split by the same rule.
 
 Choices where the sources differ: intimate-zone entries are near misses, so they count as safety, personal-zone
 entries as comfort (SEANavBench counts both, split by who moved in); off-map steps are the replays' stand-in for
@@ -30,6 +34,7 @@ import numpy as np
 from scipy import stats
 
 from envs.common.config import EnvConfig
+from envs.common.fault import APPROACH_FLOOR_MPS
 from replays.constants import STEP_S
 from st_sim.apps.navigation.social_metrics import (
     INTIMATE_M,
@@ -50,6 +55,9 @@ from st_sim.sim import CrowdConfig
 
 DISCOMFORT_M = 0.2  # the ego is uncomfortably close when its body is this near a pedestrian's [m]
 CONFIDENCE = 0.95
+BOOTSTRAP_RESAMPLES = 2000  # resamples of a mean's bootstrap interval [-]
+BOOTSTRAP_SEED = 0  # the bootstrap's generator seed: the same episodes always give the same interval
+BOOTSTRAP_BATCH = 200  # resamples drawn at once [-]
 NAN = float("nan")
 
 
@@ -88,14 +96,16 @@ class EpisodeTrace:
             nearest gap when ``pedestrians_xy_m`` is None (else the gaps come from the positions).
         off_map: (T + 1,) bool, the ego stood on non-walkable ground.
         goal_m: (2,) [m].  outcome: how it ended.
-        at_fault: on a pedestrian collision, whether the robot was at fault (the env's ``info["at_fault"]``).
+        at_fault: on a pedestrian collision, whether the robot was at fault (the env's ``info["at_fault"]``; None:
+            not judged, counted as the robot's).
         log_deviation_m: (T,) mean distance of the pedestrians from their recorded paths after each step [m]
             (reactive replays; empty elsewhere).
         pedestrians_xy_m: (T + 1, N, 2) float64 positions of every pedestrian seen, one column per pedestrian id,
             NaN where absent [m]; None: not recorded (time to collision and zone entries are then NaN).
         pedestrian_groups: (N,) int64 group id of each column (-1: alone); None: the env has no groups (the group
             figures are then NaN).
-        ego_radius_m, pedestrian_radius_m: body radii [m].  step_s: seconds per step.
+        ego_radius_m, pedestrian_radius_m: body radii [m].  goal_radius_m: the goal is reached this close to its
+            centre [m].  step_s: seconds per step.
     """
 
     ego_xy_m: np.ndarray
@@ -110,6 +120,7 @@ class EpisodeTrace:
     pedestrian_groups: np.ndarray | None = None
     ego_radius_m: float = EnvConfig.ego_radius_m
     pedestrian_radius_m: float = EnvConfig.pedestrian_radius_m
+    goal_radius_m: float = EnvConfig.goal_radius_m
     step_s: float = STEP_S
 
     def __post_init__(self) -> None:
@@ -129,7 +140,8 @@ class EpisodeTrace:
 
 
 def episode_metrics(trace: EpisodeTrace) -> dict[str, float | int | str | bool]:
-    """Every figure of ``METRICS`` for one episode (NaN where it does not exist), plus its outcome.
+    """Every figure of ``METRICS`` for one episode under its name (rates as bools, NaN where a figure does not
+    exist), after its outcome.
 
     Per-step figures are taken at the steps' ends (states 1..T; the reset state alone when T = 0).
     """
@@ -141,12 +153,18 @@ def episode_metrics(trace: EpisodeTrace) -> dict[str, float | int | str | bool]:
 
 
 def _safety(trace: EpisodeTrace, gaps: np.ndarray | None, nearest: np.ndarray) -> dict[str, float | int | bool]:
-    """Collision, at fault, least gap and time to collision, intimate-zone entries, off-map share."""
-    at_fault = trace.outcome is Outcome.WALL or (trace.outcome is Outcome.PEDESTRIAN and trace.at_fault is not False)
+    """Collision, at fault, who moved into whom, least gap and time to collision, intimate-zone entries, off-map
+    share."""
+    pedestrian = trace.outcome is Outcome.PEDESTRIAN
+    robot_on_person = pedestrian and trace.at_fault is not False
     finite = nearest[np.isfinite(nearest)]
     ttc = NAN if gaps is None else min_time_to_collision_s(trace.ego_xy_m, trace.ego_velocity_mps,
                                                            trace.pedestrians_xy_m, trace.contact_m, trace.step_s)
-    return {"collision": trace.outcome in (Outcome.PEDESTRIAN, Outcome.WALL), "at_fault": bool(at_fault),
+    return {"collision": trace.outcome in (Outcome.PEDESTRIAN, Outcome.WALL),
+            "collision_at_fault": trace.outcome is Outcome.WALL or robot_on_person,
+            "collision_robot_on_person": robot_on_person,
+            "collision_person_on_robot": pedestrian and not robot_on_person,
+            "pedestrian_collision": pedestrian, "wall_collision": trace.outcome is Outcome.WALL,
             "min_distance_m": float(finite.min()) if finite.size else NAN, "min_ttc_s": ttc,
             **_entries(trace, gaps, INTIMATE_M, "intimate"), "off_map": float(np.mean(_step_ends(trace.off_map)))}
 
@@ -158,10 +176,11 @@ def _efficiency(trace: EpisodeTrace) -> dict[str, float | int | bool]:
     step_m = np.linalg.norm(np.diff(trace.ego_xy_m, axis=0), axis=1)
     path_m = float(step_m.sum())
     straight_m = float(np.linalg.norm(trace.goal_m - trace.ego_xy_m[0]))
+    to_edge_m = straight_m - trace.goal_radius_m  # the straight way into the goal's disc [m]
     spl = straight_m / max(path_m, straight_m) if path_m + straight_m > 0 else 1.0  # 1: nothing to cover
     return {"success": success, "timeout": trace.outcome is Outcome.TIMEOUT, "steps": steps,
             "time_to_goal_s": steps * trace.step_s if success else NAN, "path_length_m": path_m,
-            "path_ratio": path_m / straight_m if success and straight_m > 0 else NAN, "spl": spl * success,
+            "path_ratio": path_m / to_edge_m if success and to_edge_m > 0 else NAN, "spl": spl * success,
             "time_not_moving_s": float(np.sum(step_m < STOPPED_MPS * trace.step_s) * trace.step_s)}
 
 
@@ -182,7 +201,7 @@ def _entries(trace: EpisodeTrace, gaps: np.ndarray | None, limit_m: float, zone:
     """``{zone}_entries_robot`` and ``{zone}_entries_person`` (``social_metrics.zone_entries``); NaN without
     pedestrian positions."""
     robot, person = (NAN, NAN) if gaps is None else zone_entries(trace.ego_xy_m, trace.pedestrians_xy_m, gaps,
-                                                                 limit_m)
+                                                                 limit_m, trace.step_s)
     return {f"{zone}_entries_robot": robot, f"{zone}_entries_person": person}
 
 
@@ -215,7 +234,8 @@ class Metric:
 
     group: Group
     kind: Literal["rate", "mean"]
-    """rate: share of episodes (Wilson interval); mean: mean over the episodes where it is finite (t interval)"""
+    """rate: share of episodes (Wilson score interval); mean: mean over the episodes where it is finite (seeded
+    bootstrap percentile interval, which stays inside the values' range)"""
     unit: str
     definition: str
     source: str
@@ -234,9 +254,10 @@ def _zone_share(band: str) -> Metric:
 
 
 def _zone_entries(zone: str, limit_m: float, mover: str) -> Metric:
-    who = {"robot": "the robot's displacement toward the person over that step is at least the person's toward the "
-                    "robot",
-           "person": "the person's displacement toward the robot is greater, or the person appeared inside"}[mover]
+    who = {"robot": "the robot closed the gap over that step (the rule of collision_robot_on_person on the step's "
+                    "displacements / step, along the line at its start)",
+           "person": "the robot did not close it (the person came faster, or neither above the floor), or the person "
+                     "appeared inside"}[mover]
     return Metric("safety" if zone == "intimate" else "comfort", "mean", "count",
                   f"{mover}-made entries into a person's {zone} zone: the body gap falls below {limit_m} m between "
                   f"two states and {who}", "SEANavBench")
@@ -247,10 +268,20 @@ METRICS: dict[str, Metric] = {
     "collision": _rate("safety", "the episode ended in a collision with a pedestrian or a wall", "SEANavBench, "
                        "SocNavBench, HuNavSim, CrowdNav++", lambda e: e["outcome"] in (Outcome.PEDESTRIAN.value,
                                                                                       Outcome.WALL.value)),
-    "collision_at_fault": _rate("safety", "a wall collision, or a pedestrian collision while the robot moved and "
-                                "the pedestrian was not behind it (episode key at_fault)",
-                                "ours (SEANavBench, HuNavSim: robot-on-person vs person-on-robot)",
-                                lambda e: bool(e.get("at_fault"))),  # older result files lack the field
+    "collision_at_fault": _rate("safety", "a wall collision or a robot-on-person collision (result files of before "
+                                "2026-11-28, key at_fault, judged by the former rule: the robot moved at 0.2 m/s or "
+                                "more and the person was not behind it)",
+                                "ours (SEANavBench, HuNavSim count the two kinds apart)",
+                                lambda e: bool(e.get("collision_at_fault", e.get("at_fault")))),
+    "collision_robot_on_person": _rate("safety", "a pedestrian collision the robot made: at the impact (the first "
+                                       "instant the bodies touch within the step) its velocity component toward a "
+                                       "person it touched, along the line between their centres, was at least that "
+                                       f"person's toward it and above {APPROACH_FLOOR_MPS} m/s (a robot standing, "
+                                       "creeping or backing away never makes one; a person who appeared inside made "
+                                       "it)", "SEANavBench, HuNavSim",
+                                       lambda e: bool(e.get("collision_robot_on_person"))),  # older files lack it
+    "collision_person_on_robot": _rate("safety", "a pedestrian collision the person made: every other one",
+                                       "SEANavBench, HuNavSim", lambda e: bool(e.get("collision_person_on_robot"))),
     "pedestrian_collision": _rate("safety", "the episode ended in a collision with a pedestrian",
                                   "SEANavBench, HuNavSim", lambda e: e["outcome"] == Outcome.PEDESTRIAN.value),
     "wall_collision": _rate("safety", "the episode ended with the robot touching a wall", "SEANavBench",
@@ -273,7 +304,8 @@ METRICS: dict[str, Metric] = {
     "time_to_goal_s": Metric("efficiency", "mean", "s", "episode duration, successes only", "HuNavSim, CrowdNav++"),
     "path_length_m": Metric("efficiency", "mean", "m", "distance the robot travelled",
                             "SEANavBench, SocNavBench, HuNavSim"),
-    "path_ratio": Metric("efficiency", "mean", "ratio", "path length / straight start-goal distance, successes only "
+    "path_ratio": Metric("efficiency", "mean", "ratio", "path length / straight distance from the start to the goal's "
+                         "edge (a straight drive into the goal radius is 1), successes that started outside it only "
                          "(the straight line, not a search-based path)", "SEANavBench, SocNavBench, CrowdNav++"),
     "spl": Metric("efficiency", "mean", "share", "success weighted by path length: success x straight / "
                   "max(path, straight); 0 on failure", "SocNavGym, CrowdNav++ (path efficiency)"),
@@ -311,9 +343,13 @@ MEANS: tuple[str, ...] = tuple(name for name, m in METRICS.items() if m.kind == 
 """every mean of ``METRICS``"""
 
 
+INTERVALS: dict[str, str] = {"rate": "Wilson score", "mean": "bootstrap percentile"}
+"""how ``summarize`` bounds each kind of figure (``rate_interval``, ``mean_interval``)"""
+
+
 def metrics_table() -> str:
-    """``METRICS`` as markdown: a note on distances, then a table (metric, group, unit, definition, source) group by
-    group."""
+    """``METRICS`` as markdown: a note on distances, then a table (metric, group, unit, interval, definition,
+    source) group by group."""
     rows = [f"Distances between the robot and people are body gaps: centre distance minus both radii (the env's: "
             f"robot {EnvConfig.ego_radius_m} m; pedestrians {EnvConfig.pedestrian_radius_m} m in the replays, "
             f"{CrowdConfig.radius_m} m in the simulated crowds). Hall's zones (intimate < "
@@ -321,8 +357,8 @@ def metrics_table() -> str:
             "they are gaps here, since bodies touch at a centre distance of "
             f"{EnvConfig.ego_radius_m + CrowdConfig.radius_m:.2f} to "
             f"{EnvConfig.ego_radius_m + EnvConfig.pedestrian_radius_m:.2f} m, which would swallow the intimate zone.",
-            "", "| metric | group | unit | definition | source |", "|---|---|---|---|---|"]
-    rows += [f"| `{name}` | {m.group} | {m.unit} | {m.definition} | {m.source} |"
+            "", "| metric | group | unit | 95 % interval | definition | source |", "|---|---|---|---|---|---|"]
+    rows += [f"| `{name}` | {m.group} | {m.unit} | {INTERVALS[m.kind]} | {m.definition} | {m.source} |"
              for group in GROUPS for name, m in METRICS.items() if m.group == group]
     return "\n".join(rows)
 
@@ -335,25 +371,37 @@ def rate_interval(hits: int, n: int) -> tuple[float, float]:
     return float(ci.low), float(ci.high)
 
 
-def mean_interval(values: np.ndarray) -> tuple[float, float, float]:
-    """(mean, low, high): Student-t 95 % interval of the mean of the finite values (NaN if none)."""
+def mean_interval(values: np.ndarray, resamples: int = BOOTSTRAP_RESAMPLES) -> tuple[float, float, float]:
+    """(mean, low, high): seeded bootstrap percentile 95 % interval of the mean of the finite values (NaN if none).
+
+    The interval's ends are means of resampled values, so they never leave the values' range (a share stays in
+    [0, 1], a time or a count stays >= 0, however skewed the values); they are widened to hold the mean itself if
+    the percentiles miss it. The same values always give the same interval (``BOOTSTRAP_SEED``).
+    """
     values = np.asarray(values, np.float64)
     values = values[np.isfinite(values)]
     if values.size == 0:
-        return float("nan"), float("nan"), float("nan")
+        return NAN, NAN, NAN
     mean = float(values.mean())
-    if values.size == 1:
+    if values.size == 1 or values.min() == values.max():
         return mean, mean, mean
-    half = float(stats.t.ppf(0.5 + CONFIDENCE / 2, values.size - 1) * stats.sem(values))
-    return mean, mean - half, mean + half
+    rng = np.random.default_rng(BOOTSTRAP_SEED)
+    means = np.empty(resamples)
+    for start in range(0, resamples, BOOTSTRAP_BATCH):  # bounded memory: a batch of resamples at a time
+        stop = min(start + BOOTSTRAP_BATCH, resamples)
+        means[start:stop] = values[rng.integers(0, values.size, (stop - start, values.size))].mean(axis=1)
+    low, high = np.quantile(means, [(1 - CONFIDENCE) / 2, (1 + CONFIDENCE) / 2])
+    low, high = np.clip([low, high], values.min(), values.max())  # rounding of the resampled means aside
+    return mean, float(min(low, mean)), float(max(high, mean))
 
 
 def summarize(episodes: list[dict]) -> dict[str, dict[str, float]]:
     """Every figure of ``METRICS`` over ``episodes`` (dicts of ``episode_metrics``, older result files included):
     {name: {value, low, high, n}}.
 
-    Rates count every episode (Wilson interval); means pool the finite values (t interval, n of them; a figure an
-    older file lacks has n = 0). The former names of ``FORMER_NAMES`` are read where the current one is missing.
+    Rates count every episode (Wilson interval); means pool the finite values (bootstrap interval, ``mean_interval``;
+    n of them; a figure an older file lacks has n = 0). The former names of ``FORMER_NAMES`` are read where the
+    current one is missing.
     """
     n = len(episodes)
     summary = {}

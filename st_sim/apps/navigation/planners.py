@@ -4,8 +4,8 @@
     planner.reset()                        # at every episode start
     action = planner.act(obs)              # (2,) velocity command [m/s], world frame
 
-Planner modules are imported on first use, so a planner's optional dependency (pyrvo for ORCA) is only
-needed when that planner runs.
+Planner modules are imported on first use, so a planner's optional dependency (pyrvo for ORCA, navground or
+PySocialForce for a peer) is only needed when that planner runs.
 """
 
 from __future__ import annotations
@@ -29,7 +29,18 @@ PLANNERS: dict[str, str] = {
     "ppo-reactive": "st_sim.apps.navigation.ppo:ReactivePpoPlanner",
 }
 """planner name -> "module:class"; every class is built as ``cls(world, use_predictions, **options)``"""
-USES_PREDICTIONS: dict[str, bool] = {"straight": False, "orca": False, "mpc": True, "ppo": True, "ppo-reactive": True}
+PEERS: dict[str, str] = {
+    "navground-hl": "st_sim.apps.navigation.peers:NavgroundHL",
+    "navground-orca": "st_sim.apps.navigation.peers:NavgroundOrca",
+    "navground-hrvo": "st_sim.apps.navigation.peers:NavgroundHrvo",
+    "navground-sf": "st_sim.apps.navigation.peers:NavgroundSocialForce",
+    "pysocialforce": "st_sim.apps.navigation.peers:PySocialForcePlanner",
+}
+"""planners of other projects (``peers``, the optional extra ``peers``) by name, built like the shipped ones"""
+NAMED: dict[str, str] = {**PLANNERS, **PEERS}
+"""every planner a policy spec can name: the shipped ones and the peers"""
+USES_PREDICTIONS: dict[str, bool] = {"straight": False, "orca": False, "mpc": True, "ppo": True, "ppo-reactive": True,
+                                     **dict.fromkeys(PEERS, False)}
 """planners whose actions depend on the predicted futures (the others give the same episodes for any predictor)"""
 
 
@@ -44,15 +55,15 @@ class Planner(Protocol):
 
 
 def make_planner(name: str, world: NavWorld, predictor: str = "singular", **options: Any) -> Planner:
-    """Build planner ``name`` for an env's ``world``; ``predictor`` is a name of ``NAMES`` or a plug-in
-    ``package.module:name`` (the env runs it), and "none" means the futures are not used.
+    """Build planner ``name`` (shipped or a peer) for an env's ``world``; ``predictor`` is a name of ``NAMES`` or a
+    plug-in ``package.module:name`` (the env runs it), and "none" means the futures are not used.
 
     ``options`` go to the planner's class (the MPC takes ``cfg=MpcConfig(...)``).
     """
-    if name not in PLANNERS:
-        raise ValueError(f"planner={name!r}: expected one of {', '.join(PLANNERS)}")
+    if name not in NAMED:
+        raise ValueError(f"planner={name!r}: expected one of {', '.join(NAMED)}")
     if predictor not in NAMES and not is_plugin_spec(predictor):
         raise ValueError(f"predictor={predictor!r}: expected one of {', '.join(NAMES)} or a plug-in "
                          "package.module:name")
-    module, cls = PLANNERS[name].split(":")
+    module, cls = NAMED[name].split(":")
     return getattr(import_module(module), cls)(world, predictor != "none", **options)

@@ -5,13 +5,17 @@
     action = policy.act(obs)             # (2,) velocity command [m/s], world frame, checked
 
 A spec is one of:
-- a shipped planner name (``planners.PLANNERS``: straight, orca, mpc, ppo, ppo-reactive);
+- a shipped planner name (``planners.PLANNERS``: straight, orca, mpc, ppo, ppo-reactive) or a peer's
+  (``planners.PEERS``: navground-hl, navground-orca, navground-hrvo, navground-sf, pysocialforce; ``peers``);
 - ``package.module:name``: a class or factory following the planner protocol (``act(obs) -> (2,)`` velocity,
   optionally ``reset()``), built as ``name(world, use_predictions)`` like the shipped planners when its signature
   takes two arguments, else as ``name()``;
-- ``sb3:PATH.zip``: a stable-baselines3 model (PPO, A2C, SAC, TD3 or DDPG) saved after training on an STCrowd env's
-  own observations; it acts with ``model.predict(obs, deterministic=True)``. A model whose observation space is a
-  ``Dict`` holding some of the env's keys (trained behind ``FilterObservation``) gets only those.
+- ``sb3:PATH.zip``: a stable-baselines3 model (the MlpPolicy or MultiInputPolicy of PPO, A2C, SAC, TD3 or DDPG)
+  saved after training on an STCrowd env's own observations; it acts with ``predict(obs, deterministic=True)``. A
+  model whose observation space is a ``Dict`` holding some of the env's keys (trained behind ``FilterObservation``)
+  gets only those. The file is read without running anything stored in it (``sb3_zip``), so a file from anyone is
+  safe to score; ``trust_file=True`` (``--trust-policy-file``) loads it with SB3's own loader instead, which
+  unpickles the objects the file holds (running their code) and so reads custom policy classes and extractors.
 
 What is built is wrapped in ``CheckedPolicy``: an action that is not 2 finite numbers, or an exception inside the
 policy, becomes a ``PolicyError`` naming the policy.
@@ -20,8 +24,6 @@ policy, becomes a ``PolicyError`` naming the policy.
 from __future__ import annotations
 
 import inspect
-import json
-import zipfile
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -30,19 +32,19 @@ import numpy as np
 from gymnasium import spaces
 
 from predictor.plugins import PluginError, describe_error, resolve_factory
-from st_sim.apps.navigation.planners import PLANNERS, make_planner
+from st_sim.apps.navigation.planners import NAMED, make_planner
 from st_sim.apps.navigation.world import NavWorld
 
 SB3_PREFIX = "sb3:"
-SB3_ALGORITHMS: dict[str, tuple[str, ...]] = {
-    "stable_baselines3.common.policies": ("PPO", "A2C"),
-    "stable_baselines3.sac.policies": ("SAC",),
-    "stable_baselines3.td3.policies": ("TD3", "DDPG"),
-}
-"""module of a saved model's policy class -> the algorithms that load it (the first is used; any of them predicts
-the same)"""
-SPEC_HELP = ("a shipped planner (straight, orca, mpc, ppo, ppo-reactive), package.module:name (a class or factory "
-             "with act(obs) -> (2,) velocity), or sb3:PATH.zip (a stable-baselines3 model)")
+TRUST_HELP = ("an sb3: policy file: load it with stable-baselines3's own loader, which runs code stored in the file "
+              "(custom policy classes and feature extractors need it); only for a file you trust. Without it nothing "
+              "in the file runs")
+TRUST_HINT = ("--trust-policy-file loads a file you trust with stable-baselines3's own loader, which runs code "
+              "stored in it")
+SPEC_HELP = ("a shipped planner (straight, orca, mpc, ppo, ppo-reactive), another project's (navground-hl, "
+             "navground-orca, navground-hrvo, navground-sf, pysocialforce: pip install -e \".[peers]\"), "
+             "package.module:name (a class or factory with act(obs) -> (2,) velocity), or sb3:PATH.zip (a "
+             "stable-baselines3 model)")
 
 
 class PolicyError(ValueError):
@@ -52,7 +54,7 @@ class PolicyError(ValueError):
 def check_policy_spec(spec: str) -> None:
     """Refuse a spec that cannot name a policy, before any work: an unknown name, a plug-in that does not import or
     names nothing callable, a model file that is missing (``PolicyError``)."""
-    if spec in PLANNERS:
+    if spec in NAMED:
         return
     if spec.startswith(SB3_PREFIX):
         path = Path(spec.removeprefix(SB3_PREFIX)).expanduser()
@@ -64,17 +66,22 @@ def check_policy_spec(spec: str) -> None:
     _factory(spec)
 
 
-def load_policy(spec: str, world: NavWorld, predictor: str = "singular", **options: Any) -> CheckedPolicy:
+def load_policy(spec: str, world: NavWorld, predictor: str = "singular", *, trust_file: bool = False,
+                **options: Any) -> CheckedPolicy:
     """The policy ``spec`` names, built for an env's ``world`` whose forecasts come from ``predictor`` ("none": the
-    policy is told that no forecasts are there); ``options`` go to a shipped planner (the MPC's ``cfg``, PPO's
-    ``policy`` file). Raises ``PolicyError`` if it cannot be built."""
+    policy is told that no forecasts are there); ``trust_file``: an ``sb3:`` file is loaded by SB3's own loader,
+    which runs code stored in it; ``options`` go to a shipped planner (the MPC's ``cfg``, PPO's ``policy`` file).
+    Raises ``PolicyError`` if it cannot be built."""
     check_policy_spec(spec)
-    if options and spec not in PLANNERS:
+    if options and spec not in NAMED:
         raise PolicyError(f"policy {spec!r}: options {', '.join(options)} are for the shipped planners only")
-    if spec in PLANNERS:
+    if trust_file and not spec.startswith(SB3_PREFIX):
+        raise PolicyError(f"policy {spec!r}: --trust-policy-file is for an sb3:PATH.zip model file (a package."
+                          "module:name policy is your own code, run as it is)")
+    if spec in NAMED:
         policy = make_planner(spec, world, predictor, **options)
     elif spec.startswith(SB3_PREFIX):
-        policy = Sb3Policy(Path(spec.removeprefix(SB3_PREFIX)).expanduser())
+        policy = Sb3Policy(Path(spec.removeprefix(SB3_PREFIX)).expanduser(), world, trust_file)
     else:
         policy = _build(spec, _factory(spec), world, predictor != "none")
     return CheckedPolicy(spec, policy)
@@ -183,11 +190,13 @@ class Sb3Policy:
 
     Args:
         path: the model's ``.zip`` (``model.save``).
+        world: the env's facts; the model must act in its ``action_space``.
+        trust_file: load with SB3's own loader, which runs code stored in the file (else nothing in it runs).
     """
 
-    def __init__(self, path: Path):
+    def __init__(self, path: Path, world: NavWorld, trust_file: bool = False):
         self.path = path
-        self.model = _load_sb3(path)
+        self.model = _load_with_sb3(path) if trust_file else _load_safely(path, world)
         self.observation_space = self.model.observation_space
 
     def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
@@ -198,22 +207,37 @@ class Sb3Policy:
         return action
 
 
-def _load_sb3(path: Path) -> Any:
-    """The model saved at ``path``, loaded on the CPU by the algorithm its policy class belongs to."""
+def _load_safely(path: Path, world: NavWorld) -> Any:
+    """The policy saved at ``path``, read without running anything stored in it (``sb3_zip``)."""
+    from st_sim.apps.navigation.sb3_zip import Sb3ZipError, load_sb3_zip
+
+    try:
+        return load_sb3_zip(path, world.action_space)
+    except Sb3ZipError as err:
+        raise PolicyError(f"policy {f'{SB3_PREFIX}{path}'!r}: {err.problem}; {TRUST_HINT}") from None
+
+
+def _load_with_sb3(path: Path) -> Any:
+    """The model saved at ``path``, loaded on the CPU by SB3's own ``load`` (it unpickles the objects the file holds)
+    of the algorithm whose policies its policy class derives from (PPO for A2C's, TD3 for DDPG's: they act alike)."""
+    import stable_baselines3
+    from stable_baselines3.common.policies import ActorCriticPolicy
+    from stable_baselines3.common.save_util import load_from_zip_file
+    from stable_baselines3.sac.policies import SACPolicy
+    from stable_baselines3.td3.policies import TD3Policy
+
     spec = f"{SB3_PREFIX}{path}"
     try:
-        with zipfile.ZipFile(path) as archive:
-            data = json.loads(archive.read("data"))
-        module = data["policy_class"]["__module__"]
-    except (OSError, KeyError, TypeError, ValueError, zipfile.BadZipFile) as err:
-        raise PolicyError(f"policy {spec!r}: not a stable-baselines3 model file ({describe_error(err)})") from err
-    if module not in SB3_ALGORITHMS:
-        raise PolicyError(f"policy {spec!r}: its policy class comes from {module}; supported are the policies of "
-                          f"{', '.join(name for names in SB3_ALGORITHMS.values() for name in names)}")
-    import stable_baselines3
-
-    algorithm = getattr(stable_baselines3, SB3_ALGORITHMS[module][0])
+        data, _, _ = load_from_zip_file(path, device="cpu")
+        policy_class = data["policy_class"]
+    except Exception as err:  # whatever the file's objects raise as they are unpickled
+        raise PolicyError(f"policy {spec!r}: stable-baselines3's loader failed: {describe_error(err)}") from err
+    bases = {ActorCriticPolicy: "PPO", SACPolicy: "SAC", TD3Policy: "TD3"}
+    names = [name for base, name in bases.items() if isinstance(policy_class, type) and issubclass(policy_class, base)]
+    if not names:
+        raise PolicyError(f"policy {spec!r}: its policy class {policy_class!r} derives from none of SB3's "
+                          "actor-critic, SAC and TD3 policies")
     try:
-        return algorithm.load(path, device="cpu")
+        return getattr(stable_baselines3, names[0]).load(path, device="cpu")
     except Exception as err:
-        raise PolicyError(f"policy {spec!r}: {algorithm.__name__}.load failed: {describe_error(err)}") from err
+        raise PolicyError(f"policy {spec!r}: {names[0]}.load failed: {describe_error(err)}") from err

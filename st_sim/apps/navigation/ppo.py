@@ -81,16 +81,21 @@ def shipped_manifest() -> dict:
     return json.loads(resources.files(__package__).joinpath(PRETRAINED_DIR, "manifest.json").read_text())
 
 
+def policy_file(name_or_path: str | Path) -> tuple[Path, str | None]:
+    """(the file, the SHA-256 the manifest expects of it or None) of a shipped name (see ``SHIPPED``) or a path."""
+    manifest = shipped_manifest()["policies"]
+    if str(name_or_path) in manifest:
+        entry = manifest[str(name_or_path)]
+        return Path(str(resources.files(__package__).joinpath(PRETRAINED_DIR, entry["file"]))), entry["sha256"]
+    return Path(name_or_path), None
+
+
 def load_policy(name_or_path: str | Path) -> tuple[Any, FeatureConfig]:
     """(actor-critic in eval mode, its FeatureConfig) from a shipped name (see ``SHIPPED``) or a file path."""
     import torch
 
-    path, expected_sha = Path(name_or_path), None
+    path, expected_sha = policy_file(name_or_path)
     manifest = shipped_manifest()["policies"]
-    if str(name_or_path) in manifest:
-        entry = manifest[str(name_or_path)]
-        path, expected_sha = Path(str(resources.files(__package__).joinpath(PRETRAINED_DIR, entry["file"]))), \
-            entry["sha256"]
     if not path.is_file():
         raise PolicyFileError(f"{path}: no such policy file; shipped policies: {', '.join(manifest)}")
     if expected_sha is not None and hashlib.sha256(path.read_bytes()).hexdigest() != expected_sha:
@@ -125,7 +130,13 @@ class PpoPlanner:
 
     def __init__(self, world: NavWorld, use_predictions: bool = True, policy: str | Path | None = None):
         self.world = world
-        self.policy, self.features = load_policy(policy or self.shipped[use_predictions])
+        self.source = policy or self.shipped[use_predictions]
+        self.policy, self.features = load_policy(self.source)
+
+    def fingerprint(self) -> str:
+        """The policy file this planner acts with and its SHA-256 (``benchmark`` run identity)."""
+        path = policy_file(self.source)[0]
+        return f"{path.name} sha256 {hashlib.sha256(path.read_bytes()).hexdigest()}"
 
     def reset(self) -> None:
         """Nothing to forget: the policy is a function of the current observation."""

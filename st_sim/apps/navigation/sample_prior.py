@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from replays import strict_json
 from replays.atomic import write_text_atomic
 from replays.constants import TASKS
 
@@ -103,7 +104,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{name}: {prior['agents']} agents in {prior['windows']} windows; sample 0 {prior['weights'][0]:.3f}, "
               f"top 5 {top[4]:.3f}, top 10 {top[9]:.3f}", flush=True)
     out = Path(args.out) if args.out else Path(str(resources.files(__package__).joinpath("pretrained", PRIOR_FILE)))
-    write_text_atomic(out, json.dumps(table, indent=1, sort_keys=True) + "\n")
+    write_text_atomic(out, strict_json.dumps(table, indent=1, sort_keys=True) + "\n")
     print(f"wrote {out}")
     return 0
 

@@ -16,6 +16,8 @@ from typing import Final
 
 import numpy as np
 
+from envs.common.fault import approach_speeds, robot_closed_gap
+
 INTIMATE_M: Final[float] = 0.45  # Hall's intimate zone ends at this body gap [m]
 PERSONAL_M: Final[float] = 1.2  # ... the personal zone [m]
 SOCIAL_M: Final[float] = 3.6  # ... the social zone; beyond it lies the public zone [m]
@@ -81,29 +83,31 @@ def min_time_to_collision_s(ego_xy_m: np.ndarray, ego_velocity_mps: np.ndarray, 
     return least if np.isfinite(least) else float("nan")
 
 
-def zone_entries(ego_xy_m: np.ndarray, pedestrians_xy_m: np.ndarray, gaps_m: np.ndarray,
-                 limit_m: float) -> tuple[int, int]:
+def zone_entries(ego_xy_m: np.ndarray, pedestrians_xy_m: np.ndarray, gaps_m: np.ndarray, limit_m: float,
+                 step_s: float) -> tuple[int, int]:
     """Entries into the zone of gaps under ``limit_m``, split by who moved in.
 
     An entry is a pedestrian's gap going from >= limit_m at one state to < limit_m at the next. It is the robot's
-    when, over that step, the robot's displacement toward the pedestrian (along the line between them at the
-    step's start) is at least the pedestrian's displacement toward the robot; else the pedestrian's. A pedestrian
-    who appears already inside has walked in: the pedestrian's entry. At the reset nobody has entered.
+    when the robot closed the gap over that step by the at-fault rule of collisions (``envs.common.fault``): its
+    approach speed toward the pedestrian (displacement / step, along the line between them at the step's start) is
+    at least the pedestrian's toward the robot and above ``APPROACH_FLOOR_MPS`` (0.1 m/s); else it is the
+    pedestrian's. So an entry in which neither closed faster than the floor (a gap that drifted across the limit) is
+    the pedestrian's, as such a collision is. A pedestrian who appears already inside has walked in: the
+    pedestrian's entry. At the reset nobody has entered.
 
     Args:
         ego_xy_m: (T + 1, 2) [m].  pedestrians_xy_m: (T + 1, N, 2) [m], NaN where absent.
-        gaps_m: (T + 1, N) their ``body_gaps_m``.  limit_m: the zone's outer gap [m].
+        gaps_m: (T + 1, N) their ``body_gaps_m``.  limit_m: the zone's outer gap [m].  step_s: seconds per step.
 
     Returns:
         (robot-on-person entries, person-on-robot entries).
     """
     inside = gaps_m < limit_m  # False where absent
     entered = inside[1:] & ~inside[:-1]  # (T, N), appearances inside included
-    crossed = entered & np.isfinite(gaps_m[:-1])
-    toward = pedestrians_xy_m[:-1] - ego_xy_m[:-1, None]  # robot -> pedestrian at each step's start, (T, N, 2)
-    robot_in = np.sum(np.diff(ego_xy_m, axis=0)[:, None] * toward, axis=-1)
-    person_in = -np.sum(np.diff(pedestrians_xy_m, axis=0) * toward, axis=-1)
-    by_robot = crossed & (robot_in >= person_in)
+    offset = pedestrians_xy_m[:-1] - ego_xy_m[:-1, None]  # robot -> pedestrian at each step's start, (T, N, 2)
+    robot_in, person_in = approach_speeds(offset, np.diff(ego_xy_m, axis=0)[:, None] / step_s,
+                                          np.diff(pedestrians_xy_m, axis=0) / step_s)  # NaN for who just appeared
+    by_robot = entered & robot_closed_gap(robot_in, person_in)
     return int(by_robot.sum()), int((entered & ~by_robot).sum())
 
 

@@ -49,6 +49,7 @@ from tqdm import tqdm
 
 from envs.common.config import EnvConfig, RewardWeights
 from predictor.devices import DEVICE_HELP, DeviceError, resolve_device
+from replays import strict_json
 from replays.atomic import atomic_path, write_text_atomic
 from st_sim.apps.navigation.demonstrations import DemoSpec, behaviour_clone, concatenate, load_or_collect
 from st_sim.apps.navigation.features import FeatureConfig
@@ -209,8 +210,8 @@ def save_resumable(model: Any, cfg: TrainConfig, curve: list[dict]) -> None:
     out = Path(cfg.out)
     with atomic_path(out / "resume.zip") as tmp, open(tmp, "wb") as file:
         model.save(file)
-    write_text_atomic(out / "resume.json", json.dumps({k: asdict(cfg)[k] for k in RESUMABLE}, default=str))
-    write_text_atomic(out / "curve.json", json.dumps(curve, indent=1))
+    write_text_atomic(out / "resume.json", strict_json.dumps({k: asdict(cfg)[k] for k in RESUMABLE}, default=str))
+    write_text_atomic(out / "curve.json", strict_json.dumps(curve, indent=1))
 
 
 def resumable_state(cfg: TrainConfig) -> tuple[Path, list[dict]] | None:
@@ -232,7 +233,7 @@ def resumable_state(cfg: TrainConfig) -> tuple[Path, list[dict]] | None:
                          "or delete resume.zip and resume.json to start afresh") from None
     if not isinstance(saved, dict):
         raise ValueError(f"{out}/resume.json: expected the saved run's settings as a JSON object")
-    wanted = json.loads(json.dumps({k: asdict(cfg)[k] for k in RESUMABLE}, default=str))
+    wanted = json.loads(strict_json.dumps({k: asdict(cfg)[k] for k in RESUMABLE}, default=str))
     differing = sorted(k for k in RESUMABLE if saved.get(k) != wanted[k])
     if differing:
         raise ValueError(f"{out}/resume.zip: saved by a run with other settings ({', '.join(differing)}); "
@@ -327,7 +328,7 @@ def main(cfg: TrainConfig) -> Path:
     out = Path(cfg.out)
     variant = "predictions" if cfg.use_predictions else "no-predictions"
     run_name = f"{'+'.join(cfg.env_ids)}__ppo-{variant}__seed{cfg.seed}"
-    print(f"{run_name}: {json.dumps(asdict(cfg), default=str)}")
+    print(f"{run_name}: {strict_json.dumps(asdict(cfg), default=str)}")
 
     # envs: num_envs sub-envs as native vector envs in cfg.shards processes (one batched forecast per step in each),
     # seen through the features
@@ -371,7 +372,7 @@ def main(cfg: TrainConfig) -> Path:
         save_resumable(model, cfg, curve)
     elif cfg.demo_steps > 0:
         cloning = clone_teacher(model.policy, cfg, net_arch)
-        write_text_atomic(out / "cloning.json", json.dumps(cloning, indent=1))
+        write_text_atomic(out / "cloning.json", strict_json.dumps(cloning, indent=1))
         save_resumable(model, cfg, curve)  # a run killed during PPO restarts from the clone
     else:
         with torch.no_grad():  # exploration then learns when to deviate from the path
@@ -395,13 +396,13 @@ def main(cfg: TrainConfig) -> Path:
     policy = build_policy(cfg.features, net_arch, cfg.extractor)
     policy.load_state_dict(model.policy.state_dict())
     sha256 = save_policy(policy, cfg.features, net_arch, out / "policy.pt", cfg.extractor)
-    write_text_atomic(out / "curve.json", json.dumps(curve, indent=1))
+    write_text_atomic(out / "curve.json", strict_json.dumps(curve, indent=1))
     plot_curve({run_name: curve}, out / "curve.png", run_name)
     record = {"run": run_name, "config": asdict(cfg), "wall_time_s": wall_time_s, "cloning": cloning,
               "resumed_from": resumed_from, "sha256": sha256, "env_steps_per_s": steps_per_s, "time_shares": shares,
               "final": curve[-1] if curve else None, "command": "python -m st_sim.apps.navigation.train_ppo "
               + " ".join(sys.argv[1:])}
-    write_text_atomic(out / "training.json", json.dumps(record, indent=1, default=str))
+    write_text_atomic(out / "training.json", strict_json.dumps(record, indent=1, default=str))
     if cfg.ship_as:
         ship(out / "policy.pt", cfg.ship_as, record)
     print(f"wrote {out}/policy.pt, curve.png, curve.json, training.json ({wall_time_s / 60:.1f} min)")
@@ -420,7 +421,7 @@ def ship(policy_path: Path, name: str, record: dict) -> Path:
                                   "env_ids": record["config"]["env_ids"], "timesteps": record["config"]["timesteps"],
                                   "wall_time_s": round(record["wall_time_s"], 1), "final_training": record["final"],
                                   "cloning": record["cloning"]}
-    write_text_atomic(manifest_path, json.dumps(manifest, indent=1, sort_keys=True) + "\n")
+    write_text_atomic(manifest_path, strict_json.dumps(manifest, indent=1, sort_keys=True) + "\n")
     return target
 
 

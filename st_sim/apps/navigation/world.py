@@ -49,6 +49,11 @@ class NavWorld:
         return f"NavWorld({self.scene.name}, ego {self.ego_radius_m} m, {self.max_speed_mps} m/s)"
 
     @property
+    def action_space(self) -> gym.spaces.Box:
+        """The env's action space: a (2,) velocity command, each axis within +-``max_speed_mps`` [m/s]."""
+        return gym.spaces.Box(-self.max_speed_mps, self.max_speed_mps, (2,), np.float32)
+
+    @property
     def contact_m(self) -> float:
         """Centre distance at which the ego touches a pedestrian [m]."""
         return self.ego_radius_m + self.pedestrian_radius_m

@@ -1,0 +1,159 @@
+"""The peers (other projects' planners, ``st_sim.apps.navigation.peers``): commands in the world frame, walls seen,
+pedestrians avoided, a real env's observation taken, and the libraries imported only when a peer is built."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import envs  # noqa: F401  (registers the ids)
+from replays.constants import STEP_S, T_OBS
+from replays.scenes import Scene
+from st_sim.apps.navigation.peers import near_walls, wall_points
+from st_sim.apps.navigation.planners import PEERS, make_planner
+from st_sim.apps.navigation.policies import load_policy
+from st_sim.apps.navigation.world import NavWorld, world_of
+
+REPO = Path(__file__).resolve().parents[1]
+H = np.array([[0.1, 0.0, -10.0], [0.0, 0.1, -10.0], [0.0, 0.0, 1.0]])  # world = 0.1 * pixel - 10 m
+WALL_X_M = (4.8, 5.2)  # the hand-made wall's columns [m]
+
+
+@pytest.fixture(scope="module")
+def open_world() -> NavWorld:
+    """A 30 m x 30 m walkable square; the robot starts near its middle."""
+    return NavWorld(Scene("open", H, np.ones((300, 300), bool)), (-10.0, -10.0, 20.0, 20.0))
+
+
+@pytest.fixture(scope="module")
+def walled_world() -> NavWorld:
+    """The open square cut in two by a wall from its south edge to its north edge at x = 4.8 .. 5.2 m."""
+    walkable = np.ones((300, 300), bool)
+    walkable[:, 148:152] = False
+    return NavWorld(Scene("walled", H, walkable), (-10.0, -10.0, 20.0, 20.0), wall_clearance_m=0.3)
+
+
+def observation(ego_xy: np.ndarray, ego_v: np.ndarray, goal: np.ndarray,
+                people: list[tuple[np.ndarray, np.ndarray]] = ()) -> dict[str, np.ndarray]:
+    """An STCrowd observation: the robot, its goal, and each (position, velocity) person with T_obs frames."""
+    rows = max(2, len(people))
+    obs = {"ego": np.array([*ego_xy, *ego_v, *goal], np.float32),
+           "history": np.zeros((rows, T_OBS, 2), np.float32), "history_mask": np.zeros((rows, T_OBS), bool),
+           "futures": np.zeros((rows, 1, 12, 2), np.float32), "futures_mask": np.zeros(rows, bool)}
+    for row, (xy, velocity) in enumerate(people):
+        obs["history"][row] = xy + STEP_S * np.arange(-T_OBS + 1, 1)[:, None] * velocity
+        obs["history_mask"][row] = True
+    return obs
+
+
+def drive(planner, world: NavWorld, start: np.ndarray, goal: np.ndarray, steps: int,
+          people: list[tuple[np.ndarray, np.ndarray]] = ()) -> tuple[np.ndarray, float]:
+    """(robot positions (steps + 1, 2) [m], least centre distance to a person [m]) of ``steps`` env steps: the
+    robot moves at its (speed-limited) command, people at their constant velocities."""
+    xy, velocity, path, closest = np.array(start, float), np.zeros(2), [np.array(start, float)], np.inf
+    for step in range(steps):
+        now = [(p + step * STEP_S * v, v) for p, v in people]
+        command = np.asarray(planner.act(observation(xy, velocity, goal, now)), np.float64)
+        speed = np.linalg.norm(command)
+        velocity = command * min(1.0, world.max_speed_mps / speed) if speed > 0 else command
+        for fraction in np.linspace(0.1, 1.0, 10):
+            for p, v in people:
+                where = p + (step + fraction) * STEP_S * v
+                closest = min(closest, float(np.linalg.norm(xy + fraction * STEP_S * velocity - where)))
+        xy = xy + STEP_S * velocity
+        path.append(xy)
+    return np.array(path), closest
+
+
+@pytest.mark.parametrize("name", sorted(PEERS))
+@pytest.mark.parametrize("heading_deg", [45.0, 135.0, -100.0])
+def test_a_peers_command_is_in_the_world_frame(open_world: NavWorld, name: str, heading_deg: float) -> None:
+    """The robot moves along ``heading_deg`` at 1 m/s, its goal 2.5 m east: the command points at the goal, whatever
+    the heading (a command in the robot's own frame would be turned by the heading)."""
+    heading = np.radians(heading_deg)
+    planner = make_planner(name, open_world, "none")
+    command = np.asarray(planner.act(observation(np.zeros(2), np.array([np.cos(heading), np.sin(heading)]),
+                                                 np.array([2.5, 0.0]))), np.float64)
+    speed = float(np.linalg.norm(command))
+    assert command.shape == (2,) and speed > 0.3, f"{name} should move toward the goal ({command})"
+    if heading_deg == 45.0:  # the reachable turn in one step: the command leans east of the current velocity
+        assert command[0] > 0.5 * speed, f"{name}: {command} does not point east"
+    else:
+        assert command[0] > np.cos(heading) * speed + 0.1, f"{name}: {command} did not turn toward the goal"
+
+
+@pytest.mark.parametrize("name", sorted(PEERS))
+def test_a_peer_sees_the_wall_between_robot_and_goal(walled_world: NavWorld, name: str) -> None:
+    """A wall from edge to edge stands between the robot (x = 2 m) and its goal (x = 8 m): the robot never reaches
+    the wall; with the walls taken away the same planner walks through where it stood."""
+    start, goal = np.array([2.0, 0.0]), np.array([8.0, 0.0])
+    planner = make_planner(name, walled_world, "none")
+    path, _ = drive(planner, walled_world, start, goal, 25)
+    assert path[:, 0].max() < WALL_X_M[0] - 0.1, f"{name} walked into the wall (x up to {path[:, 0].max():.2f} m)"
+    planner.walls_m = planner.walls_m[:0]
+    blind, _ = drive(planner, walled_world, start, goal, 25)
+    assert blind[:, 0].max() > WALL_X_M[1], f"{name} without walls should cross (x up to {blind[:, 0].max():.2f} m)"
+
+
+SOCIAL_FORCES = ("navground-sf", "pysocialforce")
+"""peers whose repulsion acts on centre distances, not on the bodies' gap: they swerve but may brush a body"""
+
+
+@pytest.mark.parametrize("name", sorted(PEERS))
+def test_a_peer_steps_round_a_pedestrian_standing_in_its_way(open_world: NavWorld, name: str) -> None:
+    """Someone stands on the straight line 4 m ahead (a straight walk passes 0.05 m from their centre): the robot
+    swerves and gets past; the velocity-obstacle and HL planners without touching them."""
+    person = (np.array([4.0, 0.05]), np.zeros(2))
+    path, closest = drive(make_planner(name, open_world, "none"), open_world, np.zeros(2), np.array([8.0, 0.0]), 30,
+                          [person])
+    least_m = 0.3 if name in SOCIAL_FORCES else open_world.contact_m
+    assert closest >= least_m, f"{name} came {closest:.2f} m near the pedestrian's centre"
+    assert path[-1, 0] > 4.5, f"{name} did not get past the pedestrian (x = {path[-1, 0]:.2f} m)"
+
+
+@pytest.mark.parametrize("name", sorted(PEERS))
+def test_every_peer_runs_from_a_real_envs_observation_as_a_policy(name: str) -> None:
+    env = gym.make("STCrowd-SimCrossing-v1", predictor="none")
+    policy = load_policy(name, world_of(env), "none")
+    obs, _ = env.reset(seed=3)
+    policy.reset()
+    for _ in range(3):
+        obs, *_ = env.step(policy.act(obs))
+    env.close()
+
+
+def test_walls_are_picked_by_distance_and_sampled_along(walled_world: NavWorld) -> None:
+    walls = np.array([[[0.0, -1.0], [0.0, 1.0]], [[10.0, 0.0], [12.0, 0.0]], [[-3.0, 3.0], [3.0, 3.0]]])
+    np.testing.assert_array_equal(near_walls(walls, np.array([1.0, 0.0]), 2.5), walls[[0]])
+    np.testing.assert_array_equal(near_walls(walls, np.array([1.0, 0.0]), 3.0), walls[[0, 2]])
+    points = wall_points(walls[:1])
+    assert np.allclose(points[[0, -1]], walls[0]) and np.allclose(points[:, 0], 0.0)
+    assert np.diff(points[:, 1]).max() <= 0.2 + 1e-9
+
+
+def test_the_peers_need_their_extra_only_when_built(open_world: NavWorld, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setitem(sys.modules, "navground", None)  # import navground now raises ImportError
+    monkeypatch.setitem(sys.modules, "navground.core", None)
+    with pytest.raises(ImportError, match=r'pip install -e "\.\[peers\]"'):
+        make_planner("navground-orca", open_world, "none")
+    monkeypatch.setitem(sys.modules, "pysocialforce", None)
+    with pytest.raises(ImportError, match=r'pip install -e "\.\[peers\]"'):
+        make_planner("pysocialforce", open_world, "none")
+
+
+def test_pysocialforce_is_imported_without_its_log_file_and_debug_logging(tmp_path: Path) -> None:
+    """PySocialForce's import sets the root logger to DEBUG and opens ``file.log`` where it runs; the adapter undoes
+    both (in a fresh interpreter, where the import really happens)."""
+    code = ("import logging; from st_sim.apps.navigation import peers; root = logging.getLogger(); "
+            "before = (root.level, list(root.handlers)); peers._pysocialforce(); "
+            "assert (root.level, list(root.handlers)) == before, (root.level, root.handlers); print('ok')")
+    result = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True, timeout=300,
+                            env={"PYTHONPATH": str(REPO), "PATH": "/usr/bin:/bin", "OMP_NUM_THREADS": "1"})
+    assert result.returncode == 0 and result.stdout.strip() == "ok", result.stderr[-2000:]
+    assert "DEBUG" not in result.stderr, result.stderr[-2000:]
+    assert not (tmp_path / "file.log").exists(), "the import left file.log behind"
