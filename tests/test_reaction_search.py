@@ -6,7 +6,9 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import runpy
 import shutil
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -72,13 +74,13 @@ def test_a_fold_fit_never_sees_the_folder_it_leaves_out(scorer: Scorer, tmp_path
         alone = search(blind_to_it, training, TINY, progress=False, log=False)
         assert alone.reaction == fit.reaction and alone.loss == pytest.approx(fit.loss)
         assert fit.loss <= loss(blind_to_it.figures(training, TINY.first)) + 1e-12
-        assert (tmp_path / f"reactive-on-{'+'.join(training)}.json").is_file()
+        assert (tmp_path / f"reactive-clearance-tolerance-0-on-{'+'.join(training)}.json").is_file()
 
 
 def test_fold_fits_are_reused_for_the_same_procedure_and_data_only(scorer: Scorer, tmp_path: Path) -> None:
     training = ["vci_back"]
     fit = fold_fit(scorer, training, TINY, tmp_path, progress=False)
-    path = tmp_path / "reactive-on-vci_back.json"
+    path = tmp_path / "reactive-clearance-tolerance-0-on-vci_back.json"
 
     def mark() -> None:  # a mark in the kept fit: read back if reused, gone if searched again
         kept = json.loads(path.read_text())
@@ -96,6 +98,65 @@ def test_fold_fits_are_reused_for_the_same_procedure_and_data_only(scorer: Score
                     progress=False).reaction.clearance_m != 9.0
     path.write_text("{ not json")  # a damaged file: searched again
     assert fold_fit(scorer, training, TINY, tmp_path, progress=False).reaction == fit.reaction
+
+
+@settings(max_examples=100, deadline=None)
+@given(ratios=st.lists(st.floats(0.1, 3.0), min_size=1, max_size=4), errors=st.data(),
+       tolerance=st.floats(0.0, 1.0), collisions=st.integers(0, 3))
+def test_the_loss_charges_clearance_errors_beyond_the_tolerance_only(ratios: list[float], errors: st.DataObject,
+                                                                    tolerance: float, collisions: int) -> None:
+    """Per folder, the ADE ratio plus the relative clearance error beyond the tolerance; a larger tolerance never
+    costs more; errors within it cost nothing; collisions cost alike whatever the tolerance."""
+    relative = errors.draw(st.lists(st.floats(-0.9, 2.0), min_size=len(ratios), max_size=len(ratios)))
+    per_group = {f"f{i}": {"ade_ratio": r, "clearance_m": 2.0 * (1.0 + e), "recorded_clearance_m": 2.0,
+                           "collisions": collisions if i == 0 else 0, "pedestrians": 10}
+                 for i, (r, e) in enumerate(zip(ratios, relative, strict=True))}
+    crashes = 10.0 * collisions / (10 * len(ratios))
+    expected = np.mean([r + max(abs(e) - tolerance, 0.0) for r, e in zip(ratios, relative, strict=True)]) + crashes
+    assert loss(per_group, tolerance) == pytest.approx(expected)
+    assert loss(per_group, tolerance) <= loss(per_group) + 1e-12
+    assert loss(per_group, tolerance + 0.1) <= loss(per_group, tolerance) + 1e-12
+    within = max(abs(e) for e in relative)
+    assert loss(per_group, within) == pytest.approx(np.mean(ratios) + crashes)
+
+
+def test_the_clearance_tolerance_is_part_of_the_procedure_its_fold_fits_and_their_files(scorer: Scorer,
+                                                                                         tmp_path: Path) -> None:
+    """Fits of two tolerances are kept apart (file and key); a fit's loss is its procedure's; a tolerance that is
+    negative or not finite is refused."""
+    tolerant = dataclasses.replace(TINY, clearance_tolerance=0.25)
+    assert tolerant.name == "reactive-clearance-tolerance-0.25" and tolerant.record()["clearance_tolerance"] == 0.25
+    fits = {procedure: fold_fit(scorer, ["vci_back"], procedure, tmp_path, progress=False)
+            for procedure in (TINY, tolerant)}
+    assert sorted(path.name for path in tmp_path.iterdir()) == [
+        "reactive-clearance-tolerance-0-on-vci_back.json", "reactive-clearance-tolerance-0.25-on-vci_back.json"]
+    for procedure, fit in fits.items():
+        assert fit.loss == pytest.approx(loss(scorer.figures(["vci_back"], fit.reaction),
+                                              procedure.clearance_tolerance))
+    for bad in (-0.1, float("inf"), float("nan")):
+        with pytest.raises(ValueError, match="clearance tolerance"):
+            dataclasses.replace(TINY, clearance_tolerance=bad)
+
+
+def test_fit_reaction_chooses_the_candidate_of_the_lowest_cv_criterion_and_fits_it_on_every_folder(
+        two_folders: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """``benchmarks/fit_reaction.py --cross-validate`` over two clearance tolerances: both candidates' CV scores are
+    written, the one chosen has the lowest criterion (ties: mean), and the fit written is its procedure's on every
+    folder."""
+    out = tmp_path / "fit.json"
+    monkeypatch.setattr(sys, "argv", ["fit_reaction.py", "--data", str(two_folders), "--cross-validate",
+                                      "--clearance-tolerances", "0", "0.25", "--search", "clearance_m",
+                                      "--fold-fits", str(tmp_path / "folds"), "--out", str(out)])
+    runpy.run_path(str(Path(__file__).resolve().parents[1] / "benchmarks" / "fit_reaction.py"), run_name="__main__")
+    table = json.loads(out.read_text())
+    scores = table["cross_validation"]
+    assert set(scores) == {"reactive-clearance-tolerance-0", "reactive-clearance-tolerance-0.25"}
+    assert table["chosen"] == min(scores, key=lambda name: (scores[name]["criterion"], scores[name]["mean_ade_ratio"]))
+    assert table["procedure"]["clearance_tolerance"] == scores[table["chosen"]]["clearance_tolerance"]
+    assert table["fitted_on"] == ["vci_back", "vci_front"] and table["held_out"] == []
+    for score in scores.values():
+        assert set(score["folds"]) == {"vci_back", "vci_front"}
+        assert score["criterion"] == pytest.approx(cv_criterion(score["mean_ade_ratio"], score["worst_ade_ratio"]))
 
 
 def test_a_fit_reads_back_as_written() -> None:
@@ -143,7 +204,7 @@ def test_reactive_validate_cross_validates_and_scores_realism(two_folders: Path,
                "start_walks": scorer.walks_digest(training, CV_PROCEDURE.first)}
         record = Fit(reaction, {}, 1.0, 1, tuple(training)).record()
         fits.mkdir(exist_ok=True)
-        (fits / f"reactive-on-{'+'.join(training)}.json").write_text(json.dumps({"key": key, **record}))
+        (fits / f"{CV_PROCEDURE.name}-on-{'+'.join(training)}.json").write_text(json.dumps({"key": key, **record}))
         planted[held_out] = reaction
     for refit in (True, False):  # the realism score with one rollout, refitted only: the plumbing, not the figures
         out = tmp_path / f"cv-{refit}.json"
@@ -185,6 +246,19 @@ def test_bad_cross_validation_and_realism_flags_give_one_error_line(two_folders:
     assert main(["reactive-validate", "--data", str(two_folders), "--json", str(tmp_path / "v.json"), *flags]) == 1
     err = capsys.readouterr().err
     assert err.startswith(f"error: {message}") and err.count("\n") == 1, err
+
+
+@pytest.mark.parametrize("tolerance", ["-0.25", "inf", "a quarter"])
+def test_a_bad_clearance_tolerance_is_refused_by_the_parser_naming_the_flag(two_folders: Path, tmp_path: Path,
+                                                                           capsys: pytest.CaptureFixture,
+                                                                           tolerance: str) -> None:
+    with pytest.raises(SystemExit) as exit_:
+        main(["reactive-validate", "--data", str(two_folders), "--json", str(tmp_path / "v.json"), "--cross-validate",
+              "--clearance-tolerance", tolerance])
+    assert exit_.value.code == 2
+    last = capsys.readouterr().err.strip().splitlines()[-1]
+    assert "argument --clearance-tolerance" in last and tolerance in last, last
+    assert not (tmp_path / "v.json").exists()
 
 
 def test_cross_validating_one_folder_is_one_error_line(two_folders: Path, tmp_path: Path,

@@ -14,10 +14,10 @@ clearance, collisions, onset of the reaction). The models:
 The folders a fit was fitted on are those its file names (``fitted_on``); every other folder is marked held out.
 
 ``--cross-validate``: leave one folder out (``st_sim.apps.reaction_search``). For each folder, the reactive
-pedestrians take the fit that the fitting procedure (``CV_PROCEDURE``, ``--variant``) ends at on the other folders
-only, and are scored on the folder left out: how the fitting carries over to people it never saw. Fold fits are kept
-in ``--fold-fits`` and reused. ``--no-refit`` instead scores the ``--reaction`` fit on every folder (cheap; on a
-folder that fit saw it measures nothing held out).
+pedestrians take the fit that the fitting procedure (``CV_PROCEDURE``, ``--variant``, ``--clearance-tolerance``)
+ends at on the other folders only, and are scored on the folder left out: how the fitting carries over to people it
+never saw. Fold fits are kept in ``--fold-fits`` and reused. ``--no-refit`` instead scores the ``--reaction`` fit on
+every folder (cheap; on a folder that fit saw it measures nothing held out).
 
 ``--realism``: the realism score of the blind and the reactive pedestrians (``st_sim.apps.sim_agents``: ``--rollouts``
 seeded rollouts each, paces and reactions drawn per ``vehicle_cases.Variety``), over every case and, with
@@ -45,7 +45,7 @@ from replays.data_root import CITR, data_root
 from st_sim.apps.reaction_search import CV_PROCEDURE, VARIANTS, Scorer, cv_score, fold_fit
 from st_sim.apps.sim_agents import WEIGHTS, case_realism
 from st_sim.apps.vehicle_cases import INTENT_GAP_M, INTENT_STEPS, NEAR_M, ONSET_M, POST_STEPS, Case, Variety, cases
-from st_sim.command_line import CliError, check_writable, positive_int
+from st_sim.command_line import CliError, check_writable, non_negative_float, positive_int
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -232,7 +232,8 @@ def run(args: argparse.Namespace) -> int:
         result["realism"] = realism_of(found, body, reaction, args)
         print(realism_table(result["realism"]))
     if args.cross_validate:
-        procedure = dataclasses.replace(CV_PROCEDURE, variant=args.variant)
+        procedure = dataclasses.replace(CV_PROCEDURE, variant=args.variant,
+                                        clearance_tolerance=args.clearance_tolerance)
         fold_fits = {}
         for held_out in scorer.groups:
             if args.no_refit:
@@ -329,6 +330,11 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
                         help="with --cross-validate: score --reaction on every folder instead of refitting (cheap)")
     parser.add_argument("--variant", choices=list(VARIANTS), default="reactive",
                         help="with --cross-validate: the variant of the reaction refitted per fold (default: reactive)")
+    parser.add_argument("--clearance-tolerance", type=non_negative_float,
+                        default=CV_PROCEDURE.clearance_tolerance, metavar="T",
+                        help=f"with --cross-validate: the refit's loss lets the median least clearance miss the "
+                             f"recorded one by up to this share at no cost (default: "
+                             f"{CV_PROCEDURE.clearance_tolerance:g})")
     parser.add_argument("--fold-fits", default="runs/reaction_cv", metavar="DIR",
                         help="with --cross-validate: each fold's fit is kept here and reused by a later run of the "
                              "same procedure on the same data (default: runs/reaction_cv)")
