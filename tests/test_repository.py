@@ -3,6 +3,8 @@ machine that wrote it."""
 
 from __future__ import annotations
 
+import gzip
+import json
 import re
 import subprocess
 from pathlib import Path
@@ -70,3 +72,22 @@ def test_no_tracked_text_file_names_an_absolute_folder_of_a_build_machine() -> N
             found += [f"{path.relative_to(REPO)}:{number}: {hit}" for hit in hits]
     assert not found, ("files name folders of the machine that wrote them (use paths relative to the repository "
                        "or a run folder):\n" + "\n".join(found[:20]))
+
+
+def _refuse_constant(token: str) -> None:
+    raise ValueError(f"{token} is not JSON (write null)")
+
+
+def test_every_tracked_json_file_is_strict_json() -> None:
+    """Committed figures are read by strict parsers (a browser's, jq's): no NaN or Infinity, in plain or gzipped
+    JSON (``replays.strict_json`` writes null for them)."""
+    loose = []
+    for path in tracked_files():
+        if not path.name.endswith((".json", ".json.gz")) or not path.is_file():
+            continue
+        raw = gzip.decompress(path.read_bytes()) if path.suffix == ".gz" else path.read_bytes()
+        try:
+            json.loads(raw, parse_constant=_refuse_constant)
+        except ValueError as err:
+            loose.append(f"{path.relative_to(REPO)}: {err}")
+    assert not loose, "tracked JSON files that are not strict JSON:\n" + "\n".join(loose)
