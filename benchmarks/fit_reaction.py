@@ -1,26 +1,35 @@
 """Fit the reactive pedestrians' reaction (``envs.common.reaction.Reaction``) to CITR's pedestrians reacting to a cart.
 
     export OMP_NUM_THREADS=1 STCROWD_CITR=$PWD/../shared/datasets/citr
-    python benchmarks/fit_reaction.py --sweeps 4 --out envs/common/reaction_fit.json
+    python benchmarks/fit_reaction.py --cross-validate --out runs/reaction_cv/fit.json
+    python benchmarks/fit_reaction.py --cross-validate --variants reactive attentive --out runs/reaction_cv/fit.json
+    python benchmarks/fit_reaction.py --cross-validate --clearance-tolerances 0 0.25 --out runs/reaction_cv/fit.json
+    python benchmarks/fit_reaction.py --sweeps 4 --out runs/reaction/fit.json
 
-Fitted on CITR's ``vci_front``, ``vci_back`` and ``vci_lat_uni`` only (the cart head-on, from behind, across a one-way
-group); ``vci_lat_bi`` is held out and never looked at here. The cases are those of ``python -m st_sim
-reactive-validate`` (the same intents, the same scores). The loss, per fitted folder averaged over the three:
-the reactive pedestrians' ADE as a share of the blind ones' plus the relative error of their median least clearance to
-the cart against the recorded one; plus ``COLLISION_WEIGHT`` times the share of simulated pedestrians inside the cart.
+**Cross-validated** (``--cross-validate``; how a fit is chosen): the fitting procedure of each candidate, every
+``--variants`` entry with every ``--clearance-tolerances`` entry (``st_sim.apps.reaction_search``: the loss and its
+clearance tolerance, the coordinate descent over fixed grids, the variants), runs once per CITR vehicle folder
+(``vci_back``, ``vci_front``, ``vci_lat_bi``, ``vci_lat_uni``) on the three others and is scored on the one left
+out: its held-out ADE ratio (reactive / blind). The candidate chosen is the one whose held-out ratios have the
+lowest ``cv_criterion``: max(mean / 0.8, worst / 0.9) (ties: the lower mean, then the order given); that criterion
+and nothing else chooses. The chosen procedure then runs on all four folders, and that fit is written to ``--out``
+with every candidate's CV score. Each fold's fit is written to ``--fold-fits`` as it ends and reused by a later run
+of the same procedure on the same data, so an interrupted run resumes. Unless given, the procedure is
+``CV_PROCEDURE``: from ``FIRST_GUESS`` (guesses made before any data was looked at: a start fitted on some folders
+would carry them into the folds that hold them out), every grid but the joint ``delay_cost+aside_cost+crossing_s``
+at coarse values, one sweep.
 
-The search is a coordinate descent over fixed grids (``GRIDS``): each sweep tries every value of one parameter with
-the others held (every pair of values of the field of view and the hearing distance, and of the costs of delay and
-of standing aside, which trade off), keeps the best, and goes on to the next; it stops after a sweep that improves
-nothing (or after ``--sweeps``). ``--search NAME ...`` searches only those grids, in that order:
+**One fit** (without ``--cross-validate``): the same search on ``--fit-on`` only (default: ``vci_back``,
+``vci_front`` and ``vci_lat_uni``, the folders of the shipped fit, ``vci_lat_bi`` left out), from ``--start``
+(default: the shipped fit), every grid at full resolution, every clearance error counted (the first
+``--clearance-tolerances`` entry, default 0):
 
     python benchmarks/fit_reaction.py --search delay_cost+aside_cost+crossing_s clearance_m --sweeps 1 \
         --out runs/reaction/joint.json
     python -m st_sim reactive-validate --reaction runs/reaction/joint.json --json runs/reaction/joint-citr.json
-    python benchmarks/fit_reaction.py --start runs/reaction/joint.json --sweeps 2 --out runs/reaction/full.json
 
 Deterministic: the same data gives the same fit. Writes the parameters, the fitted figures, the number of
-evaluations, the parameters it started from (the shipped ones, or ``--start FIT``) and this command into ``--out``.
+evaluations, the parameters it started from, the folders fitted on and this command into ``--out``.
 """
 
 from __future__ import annotations
@@ -32,101 +41,111 @@ import itertools
 import sys
 from pathlib import Path
 
-import numpy as np
-from tqdm import tqdm
-
 from envs.common.footprint import Body
-from envs.common.reaction import FIT_PATH, Reaction, read_reaction
+from envs.common.reaction import FIT_PATH, read_reaction
 from replays import strict_json
 from replays.atomic import write_text_atomic
 from replays.citr import CART_LENGTH_M, CART_WIDTH_M, find_experiments
 from replays.data_root import CITR, data_root
-from st_sim.apps.reactive_validate import HELD_OUT, Case, cases, score, walk
+from st_sim.apps.reaction_search import (
+    CV_PROCEDURE,
+    GRIDS,
+    VARIANTS,
+    Fit,
+    Procedure,
+    Scorer,
+    cross_validate,
+    cv_score,
+    fold_fit,
+    held_out_ratios,
+)
+from st_sim.apps.vehicle_cases import cases
+from st_sim.command_line import non_negative_float
 
-FITTED_ON = ("vci_back", "vci_front", "vci_lat_uni")
-COLLISION_WEIGHT = 10.0  # loss of simulated pedestrians inside the cart, per share of them [-]
-PER_MPS = (0.0, 0.1, 0.2, 0.3, 0.45, 0.6, 0.8, 1.0, 1.3, 1.6, 2.0)  # room per m/s of the robot's speed [s]
-GRIDS: dict[str, tuple[tuple[float, ...], ...]] = {  # parameters joined by "+" are searched together
-    "fov_deg+hearing_m": ((30.0, 45.0, 60.0, 75.0, 90.0, 105.0, 120.0, 150.0, 180.0),
-                          (0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 8.0)),
-    "reaction_s": ((0.0, 0.2, 0.4, 0.6, 0.8, 1.0, 1.2, 1.6, 2.0),),
-    "anticipation_s": ((0.4, 0.8, 1.2, 1.6, 2.0, 2.4, 3.2, 4.0),),
-    "clearance_m": ((0.0, 0.15, 0.3, 0.5, 0.75, 1.0, 1.5),),
-    "head_on_s": (PER_MPS,),
-    "behind_s": (PER_MPS,),
-    "crossing_s": (PER_MPS,),
-    "delay_cost+aside_cost": ((0.25, 0.5, 1.0), (0.5, 1.0, 2.0)),  # aside at least half a frame's delay a metre, so
-    # that they rejoin their logs (tests/test_envs_reactive.py's draws); with the crossing room, which they trade with:
-    "delay_cost+aside_cost+crossing_s": ((0.25, 0.5, 1.0), (0.5, 1.0, 2.0), PER_MPS),
-}
+FITTED_ON = ("vci_back", "vci_front", "vci_lat_uni")  # the shipped fit's folders (one fit, without --cross-validate)
 
 
-def figures(fit_cases: list[Case], body: Body, reaction: Reaction | None, blind: dict[str, float]) -> dict[str, dict]:
-    """Per fitted folder: the reactive ADE as a share of the blind one, the median least clearance simulated and
-    recorded [m], the collisions and the pedestrians."""
-    rows: dict[str, list[tuple[dict, dict]]] = {}
-    for case in fit_cases:
-        simulated = score(case.grid, case.intent, walk(case.grid, case.intent, body, reaction), body)
-        rows.setdefault(case.group, []).extend(zip(simulated, case.recorded, strict=True))
-    return {group: {"ade_ratio": float(np.mean([s["ade_m"] for s, _ in pairs])) / blind[group],
-                    "clearance_m": float(np.median([s["min_clearance_m"] for s, _ in pairs])),
-                    "recorded_clearance_m": float(np.median([r["min_clearance_m"] for _, r in pairs])),
-                    "collisions": int(sum(s["collision"] for s, _ in pairs)), "pedestrians": len(pairs)}
-            for group, pairs in sorted(rows.items())}
+def procedure(args: argparse.Namespace, variant: str, clearance_tolerance: float) -> Procedure:
+    """The fitting procedure the flags ask for: ``CV_PROCEDURE``'s with ``--cross-validate``, the full grids from the
+    shipped fit without; ``--start``, ``--search``, ``--sweeps`` and ``--coarse`` override."""
+    base = CV_PROCEDURE if args.cross_validate else Procedure(variant, read_reaction(FIT_PATH), tuple(GRIDS), 4)
+    return Procedure(variant, base.start if args.start is None else read_reaction(Path(args.start)),
+                     base.search if args.search is None else tuple(args.search),
+                     base.sweeps if args.sweeps is None else args.sweeps, base.coarse or args.coarse,
+                     clearance_tolerance)
 
 
-def loss(per_group: dict[str, dict]) -> float:
-    """The fit's loss (module docstring)."""
-    terms = [g["ade_ratio"] + abs(g["clearance_m"] - g["recorded_clearance_m"]) / g["recorded_clearance_m"]
-             for g in per_group.values()]
-    collisions = sum(g["collisions"] for g in per_group.values()) / sum(g["pedestrians"] for g in per_group.values())
-    return float(np.mean(terms)) + COLLISION_WEIGHT * collisions
+def fit_table(fit: Fit, scorer: Scorer, chosen: Procedure) -> dict:
+    """What ``--out`` holds of one fit: its parameters and figures, where it started, the blind ADE per folder, the
+    folders fitted on and left out, and how it was fitted."""
+    return {**fit.record(), "started_from": dataclasses.asdict(chosen.first), "blind_ade_m": scorer.blind_ade_m,
+            "held_out": [group for group in scorer.groups if group not in fit.fitted_on],
+            "procedure": chosen.record(), "fitted_by": "benchmarks/fit_reaction.py " + " ".join(sys.argv[1:]),
+            "date": datetime.date.today().isoformat()}
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", default=None, help="CITR folder (default: $STCROWD_CITR or the cache)")
-    parser.add_argument("--sweeps", type=int, default=4, help="most sweeps over the parameters (default: 4)")
-    parser.add_argument("--out", default="envs/common/reaction_fit.json", help="where the fit is written")
-    parser.add_argument("--start", default=FIT_PATH, metavar="FIT",
-                        help="the fit the search starts from (default: the shipped one)")
-    parser.add_argument("--search", nargs="+", choices=list(GRIDS), default=list(GRIDS), metavar="NAME",
-                        help=f"the grids searched, in this order (default: all, {' '.join(GRIDS)})")
+    parser.add_argument("--out", required=True, help="where the fit is written (the shipped one: "
+                                                     "envs/common/reaction_fit.json)")
+    parser.add_argument("--cross-validate", action="store_true",
+                        help="choose among --variants by leave-one-folder-out, then fit the chosen one on every folder")
+    parser.add_argument("--variants", nargs="+", choices=list(VARIANTS), default=["reactive"],
+                        help="with --cross-validate: the variants compared (default: reactive); without: the first "
+                             "is fitted")
+    parser.add_argument("--clearance-tolerances", nargs="+", type=non_negative_float, default=None, metavar="T",
+                        help=f"the loss's clearance tolerance (relative errors of the median least clearance up to T "
+                             f"cost nothing); with --cross-validate: the tolerances compared, each with every variant "
+                             f"(default: {CV_PROCEDURE.clearance_tolerance:g}); without: the first is fitted (default: "
+                             f"0, every error counts, as the shipped fit was fitted)")
+    parser.add_argument("--fold-fits", default="runs/reaction_cv", metavar="DIR",
+                        help="with --cross-validate: each fold's fit is kept here and reused (default: "
+                             "runs/reaction_cv)")
+    parser.add_argument("--fit-on", nargs="+", default=list(FITTED_ON), metavar="FOLDER",
+                        help=f"without --cross-validate: the folders fitted on (default: {' '.join(FITTED_ON)})")
+    parser.add_argument("--sweeps", type=int, default=None,
+                        help="most sweeps over the grids (default: 1 with --cross-validate, else 4)")
+    parser.add_argument("--start", default=None, metavar="FIT",
+                        help="the fit the search starts from (default: FIRST_GUESS with --cross-validate, else the "
+                             "shipped one)")
+    parser.add_argument("--search", nargs="+", choices=list(GRIDS), default=None, metavar="NAME",
+                        help=f"the grids searched, in this order (default with --cross-validate: all but the joint "
+                             f"delay_cost+aside_cost+crossing_s; without: all, {' '.join(GRIDS)})")
+    parser.add_argument("--coarse", action="store_true",
+                        help="every other value of each grid (always with --cross-validate's default procedure)")
     args = parser.parse_args()
+    if args.clearance_tolerances is None:
+        args.clearance_tolerances = [CV_PROCEDURE.clearance_tolerance if args.cross_validate else 0.0]
     root = data_root(dataset=CITR) if args.data is None else Path(args.data)
     body = Body(CART_LENGTH_M, CART_WIDTH_M)
-    fit_cases = [case for case in cases(find_experiments(root), body) if case.group in FITTED_ON]
-    assert not any(case.group in HELD_OUT for case in fit_cases)
-    unit = dict.fromkeys(FITTED_ON, 1.0)  # the blind pedestrians' ADE as a share of 1 m: their ADE
-    blind = {group: g["ade_ratio"] for group, g in figures(fit_cases, body, None, unit).items()}
-    best = start = read_reaction(Path(args.start))
-    best_figures = figures(fit_cases, body, best, blind)
-    best_loss, evaluations = loss(best_figures), 1
-    print(f"start {dataclasses.asdict(best)}: loss {best_loss:.4f}")
-    for sweep in range(args.sweeps):
-        improved = False
-        for name in args.search:
-            grid = GRIDS[name]
-            for values in tqdm(list(itertools.product(*grid)), desc=f"sweep {sweep + 1} {name}", leave=False):
-                change = dict(zip(name.split("+"), values, strict=True))
-                if all(getattr(best, key) == value for key, value in change.items()):
-                    continue
-                trial = dataclasses.replace(best, **change)
-                trial_figures = figures(fit_cases, body, trial, blind)
-                trial_loss, evaluations = loss(trial_figures), evaluations + 1
-                if trial_loss < best_loss - 1e-9:
-                    best, best_figures, best_loss, improved = trial, trial_figures, trial_loss, True
-            chosen = ", ".join(f"{key} = {getattr(best, key)}" for key in name.split("+"))
-            print(f"sweep {sweep + 1} {chosen}: loss {best_loss:.4f}", flush=True)
-        if not improved:
-            break
-    table = {"params": dataclasses.asdict(best), "started_from": dataclasses.asdict(start),
-             "figures": {**best_figures, "loss": best_loss},
-             "blind_ade_m": blind, "evaluations": evaluations, "fitted_on": list(FITTED_ON),
-             "held_out": list(HELD_OUT), "fitted_by": "benchmarks/fit_reaction.py " + " ".join(sys.argv[1:]),
-             "date": datetime.date.today().isoformat()}
+    scorer = Scorer(cases(find_experiments(root), body), body)
+    if not args.cross_validate:
+        chosen = procedure(args, args.variants[0], args.clearance_tolerances[0])
+        unknown = sorted(set(args.fit_on) - set(scorer.groups))
+        if unknown:
+            sys.exit(f"error: --fit-on {unknown[0]}: no such folder with a vehicle (found {', '.join(scorer.groups)})")
+        table = fit_table(fold_fit(scorer, args.fit_on, chosen, None), scorer, chosen)
+    else:
+        folder = Path(args.fold_fits)
+        candidates = [procedure(args, variant, tolerance)
+                      for variant, tolerance in itertools.product(args.variants, args.clearance_tolerances)]
+        scores = {}
+        for candidate in candidates:
+            fits = cross_validate(scorer, candidate, folder)
+            score = cv_score(held_out_ratios(scorer, {g: fit.reaction for g, fit in fits.items()}))
+            scores[candidate.name] = {"variant": candidate.variant,
+                                      "clearance_tolerance": candidate.clearance_tolerance, **score,
+                                      "folds": {g: fit.record() for g, fit in fits.items()}}
+            print(f"{candidate.name}: held-out ADE ratios {score['held_out_ade_ratios']}, mean "
+                  f"{score['mean_ade_ratio']:.3f}, worst {score['worst_ade_ratio']:.3f}, "
+                  f"criterion {score['criterion']:.3f}", flush=True)
+        chosen = min(candidates, key=lambda c: (scores[c.name]["criterion"], scores[c.name]["mean_ade_ratio"]))
+        table = {**fit_table(fold_fit(scorer, scorer.groups, chosen, folder), scorer, chosen),
+                 "chosen": chosen.name, "cross_validation": scores,
+                 "selected_by": "the lowest max(mean / 0.8, worst / 0.9) of the held-out ADE ratios (ties: mean)"}
     write_text_atomic(args.out, strict_json.dumps(table, indent=2) + "\n")
-    print(strict_json.dumps(table, indent=2))
+    print(strict_json.dumps({key: table[key] for key in ("params", "figures", "evaluations", "fitted_on")}, indent=2))
 
 
 if __name__ == "__main__":

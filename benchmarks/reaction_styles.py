@@ -19,7 +19,7 @@ import dataclasses
 import itertools
 
 import numpy as np
-from fit_reaction import FITTED_ON, figures, loss  # benchmarks/ is the script's folder, first on sys.path
+from fit_reaction import FITTED_ON  # benchmarks/ is the script's folder, first on sys.path
 from tqdm import tqdm
 
 from envs.common.footprint import Body
@@ -28,7 +28,10 @@ from replays import strict_json
 from replays.atomic import write_text_atomic
 from replays.citr import CART_LENGTH_M, CART_WIDTH_M, find_experiments
 from replays.data_root import CITR, data_root
-from st_sim.apps.reactive_validate import HELD_OUT, cases
+from st_sim.apps.reaction_search import Scorer, loss
+from st_sim.apps.vehicle_cases import cases
+
+HELD_OUT = ("vci_lat_bi",)  # the shipped fit's folder left out
 
 
 def main() -> None:
@@ -39,17 +42,13 @@ def main() -> None:
     parser.add_argument("--json", default=None, help="also write the rows here (JSON)")
     args = parser.parse_args()
     body = Body(CART_LENGTH_M, CART_WIDTH_M)
-    every = cases(find_experiments(data_root(dataset=CITR)), body)
-    fitted = [case for case in every if case.group in FITTED_ON]
-    held = [case for case in every if case.group in HELD_OUT]
-    unit = dict.fromkeys([*FITTED_ON, *HELD_OUT], 1.0)  # the blind pedestrians' ADE as a share of 1 m: their ADE
-    blind = {group: g["ade_ratio"] for group, g in figures(fitted + held, body, None, unit).items()}
+    scorer = Scorer(cases(find_experiments(data_root(dataset=CITR)), body), body)
     shipped = fitted_reaction()
     rows = []
     grid = list(itertools.product(args.delay, args.aside, args.crossing))
     for delay, aside, crossing in tqdm(grid, desc="reactions"):
         reaction = dataclasses.replace(shipped, delay_cost=delay, aside_cost=aside, crossing_s=crossing)
-        on_fitted, on_held = figures(fitted, body, reaction, blind), figures(held, body, reaction, blind)
+        on_fitted, on_held = scorer.figures(FITTED_ON, reaction), scorer.figures(HELD_OUT, reaction)
         rows.append({"delay_cost": delay, "aside_cost": aside, "crossing_s": crossing, "fit_loss": loss(on_fitted),
                      "fitted_ade_ratio": float(np.mean([g["ade_ratio"] for g in on_fitted.values()])),
                      **{f"held_out_{key}": value for key, value in on_held[HELD_OUT[0]].items()}})

@@ -1,5 +1,6 @@
 """Charts with axes, drawn with matplotlib: learning curves over seeds, scatter plots whose points carry their
-intervals and labels that do not overlap, and measured points against a reference curve with its band.
+intervals and labels that do not overlap, measured points against a reference curve with its band, measured against
+reference values round the diagonal, and bars side by side.
 
 Each chart function returns a ``matplotlib.figure.Figure`` (on its own Agg canvas: no pyplot state, no window)
 with labelled axes and ticks; ``save_figure`` writes it as a PNG, atomically. matplotlib is an optional
@@ -298,6 +299,37 @@ def identity_scatter(x_label: str, y_label: str, panels: Mapping[str, Mapping[st
         ax.set_ylabel(y_label)
         ax.set_aspect("equal", adjustable="datalim")
         ax.grid(alpha=0.3)
+        ax.legend(loc="best", fontsize="small")
+    if title:
+        figure.suptitle(title)
+    return figure
+
+
+def grouped_bars(y_label: str, panels: Mapping[str, tuple[Sequence[str], Mapping[str, Sequence[float]]]],
+                 title: str = "") -> Figure:
+    """Bars side by side, one panel per entry of ``panels`` (panel title -> (category labels (C,), {series label:
+    values (C,)})), each series a colour, its value written over each bar.
+
+    Raises:
+        ValueError: a series has not one value per category, or a panel has no category.
+    """
+    figure = new_figure(figsize=(PANEL_IN[0] * 1.2, PANEL_IN[1] * 1.1 * len(panels)))
+    axes = figure.subplots(len(panels), 1, squeeze=False)
+    for ax, (panel, (categories, series)) in zip(axes[:, 0], panels.items(), strict=True):
+        if not categories:
+            raise ValueError(f"grouped_bars: panel {panel!r} has no category")
+        width = 0.8 / max(len(series), 1)
+        for index, (label, values) in enumerate(series.items()):
+            if len(values) != len(categories):
+                raise ValueError(f"grouped_bars: panel {panel!r}, series {label!r}: {len(values)} values for "
+                                 f"{len(categories)} categories")
+            x = np.arange(len(categories)) + (index - (len(series) - 1) / 2) * width
+            bars = ax.bar(x, values, width, label=label)
+            ax.bar_label(bars, fmt="%.2f", fontsize="x-small")
+        ax.set_xticks(np.arange(len(categories)), categories, rotation=20, ha="right", fontsize="small")
+        ax.set_ylabel(y_label)
+        ax.set_title(panel)
+        ax.grid(alpha=0.3, axis="y")
         ax.legend(loc="best", fontsize="small")
     if title:
         figure.suptitle(title)

@@ -25,6 +25,17 @@ def positive_int(text: str) -> int:
     return value
 
 
+def non_negative_float(text: str) -> float:
+    """argparse type: a finite number >= 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not 0.0 <= value < float("inf"):
+        raise argparse.ArgumentTypeError(f"{value} must be a finite number >= 0")
+    return value
+
+
 def check_writable(folder: Path) -> None:
     """Fail before any work if files cannot be written into ``folder``: the folder itself if it exists, else the
     nearest folder above it that does (nothing is created, so a run refused later leaves no empty folder behind)."""

@@ -15,7 +15,7 @@ from matplotlib.collections import PolyCollection
 from matplotlib.text import Annotation, Text
 
 from st_sim import charts
-from st_sim.charts import ScatterPoint, band_chart, interval_scatter, learning_curves, save_figure
+from st_sim.charts import ScatterPoint, band_chart, grouped_bars, interval_scatter, learning_curves, save_figure
 
 STUDY = Path(__file__).resolve().parents[1] / "results" / "study" / "study.json"
 
@@ -125,3 +125,16 @@ def test_missing_matplotlib_gives_the_install_command(monkeypatch: pytest.Monkey
         monkeypatch.setitem(sys.modules, name, None)  # makes `import matplotlib...` fail
     with pytest.raises(ImportError, match=r'pip install -e "\.\[plots\]"'):
         charts.new_figure()
+
+
+def test_grouped_bars_draws_every_series_in_every_panel_and_refuses_a_short_series() -> None:
+    figure = grouped_bars("score", {"realism": (["speed", "meta"], {"blind": [0.2, 0.5], "reactive": [0.3, 0.6]}),
+                                    "folds": (["a", "b", "c"], {"blind": [1.0, 0.9, 0.8]})})
+    top, bottom = figure.axes
+    assert [t.get_text() for t in top.get_legend().get_texts()] == ["blind", "reactive"]
+    assert [round(bar.get_height(), 2) for bar in top.patches] == [0.2, 0.5, 0.3, 0.6] and len(bottom.patches) == 3
+    assert [t.get_text() for t in bottom.get_xticklabels()] == ["a", "b", "c"]
+    with pytest.raises(ValueError, match="'folds', series 'blind': 2 values for 3 categories"):
+        grouped_bars("", {"folds": (["a", "b", "c"], {"blind": [1.0, 0.9]})})
+    with pytest.raises(ValueError, match="panel 'empty' has no category"):
+        grouped_bars("", {"empty": ([], {})})

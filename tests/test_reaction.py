@@ -13,7 +13,16 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from envs.common.errors import ConfigError
-from envs.common.reaction import FIT_PATH, MEMORY_S, Reaction, attend, fitted_reaction, notices, read_reaction
+from envs.common.reaction import (
+    FIT_PATH,
+    MEMORY_S,
+    Reaction,
+    attend,
+    fitted_reaction,
+    notices,
+    read_fitted_on,
+    read_reaction,
+)
 
 DRAWS = settings(max_examples=50, deadline=None)
 reactions = st.builds(Reaction, fov_deg=st.floats(0.0, 180.0), hearing_m=st.floats(0.0, 10.0),
@@ -112,3 +121,23 @@ def test_a_fit_file_round_trips_and_a_missing_one_is_named(tmp_path: Path) -> No
     assert read_reaction(FIT_PATH) == fitted_reaction()
     with pytest.raises(ConfigError, match="no such reaction fit file"):
         read_reaction(tmp_path / "absent.json")
+
+
+@pytest.mark.parametrize("folders, expected", [(["a", "b"], ("a", "b")), (None, None), ("absent", None),
+                                               ("vci_front", ConfigError), ([1, 2], ConfigError)],
+                         ids=["list", "null", "absent", "string", "numbers"])
+def test_a_fit_file_names_the_folders_it_was_fitted_on_or_is_refused(tmp_path: Path, folders: object,
+                                                                     expected: object) -> None:
+    table = json.loads(FIT_PATH.read_text())
+    if folders == "absent":
+        del table["fitted_on"]
+    else:
+        table["fitted_on"] = folders
+    path = tmp_path / "fit.json"
+    path.write_text(json.dumps(table))
+    if expected is ConfigError:
+        with pytest.raises(ConfigError, match=f"{path}: fitted_on"):
+            read_fitted_on(path)
+    else:
+        assert read_fitted_on(path) == expected
+    assert read_fitted_on(FIT_PATH) == ("vci_back", "vci_front", "vci_lat_uni")

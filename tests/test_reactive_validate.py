@@ -1,6 +1,6 @@
 """``python -m st_sim reactive-validate``: the JSON the issue asks for, the same intents for every model, blind
-pedestrians walking exactly their intents, reactive ones never walking into a vehicle's body, and one error line for
-bad flags and data."""
+pedestrians walking exactly their intents, reactive ones never walking into a vehicle's body, seeded rollouts that
+differ by pace and reaction, and one error line for bad flags and data."""
 
 from __future__ import annotations
 
@@ -18,7 +18,8 @@ from envs.common.reaction import fitted_reaction
 from replays.citr import PED_SUFFIX, VEH_SUFFIX, find_experiments, on_grid
 from replays.data_root import CITR, data_root
 from st_sim.apps.cli import main
-from st_sim.apps.reactive_validate import INTENT_STEPS, intents, validate, walk
+from st_sim.apps.reactive_validate import validate
+from st_sim.apps.vehicle_cases import INTENT_STEPS, PACE_RANGE, Case, Variety, intents, rollout, score, walk
 
 CITR_ROOT = data_root(dataset=CITR)  # $STCROWD_CITR in CI; missing: a failure
 CART = Body(2.4, 1.2)
@@ -147,3 +148,33 @@ def test_another_reaction_fit_is_validated_and_a_bad_one_is_one_error_line(tmp_p
                  "--json", str(tmp_path / "w.json")]) == 1
     err = capsys.readouterr().err
     assert err.startswith("error: --reaction") and "bad.json" in err and "params.fov_deg" in err, err
+
+
+@DRAWS
+@given(seed=st.integers(0, 2**31), walkers=st.integers(1, 5), rollout_seed=st.integers(0, 2**31))
+def test_rollouts_walk_the_same_paces_for_every_model_seeded_and_the_deterministic_walk_without_variety(
+        tmp_path_factory, seed: int, walkers: int, rollout_seed: int) -> None:
+    """A blind rollout walks each intent from its start at a pace within ``PACE_RANGE``; the same seed and index give
+    the same rollout; another index other paces; zero sigmas give ``walk`` itself, blind and reactive."""
+    folder = tmp_path_factory.mktemp("exp")
+    people = crossing(seed, walkers)
+    write_experiment(folder, "run", people, np.c_[np.linspace(20.0, -20.0, len(people)), np.zeros(len(people))],
+                     np.pi, 40.0 / 15.0)
+    grid = on_grid(find_experiments(folder, fps=10.0)[0], 0.4)
+    intent = intents(grid, CART)
+    case = Case("run", ".", grid, intent, score(grid, intent, grid.xy_m[:, intent.columns], CART))
+    variety = Variety(0.2, 0.3)
+    first, again = (rollout(case, CART, None, 0, rollout_seed, variety) for _ in range(2))
+    assert np.array_equal(first, again, equal_nan=True)
+    steps = np.arange(len(grid.times_s))
+    for n, begin in enumerate(intent.start):
+        later = steps > begin
+        walked = np.linalg.norm(first[later, n] - first[begin, n], axis=-1)
+        meant = np.linalg.norm(intent.xy_m[later, n] - intent.xy_m[begin, n], axis=-1)
+        pace = walked[-1] / meant[-1]
+        assert PACE_RANGE[0] - 1e-9 <= pace <= PACE_RANGE[1] + 1e-9 and np.allclose(walked, pace * meant)
+        assert np.array_equal(first[begin, n], grid.xy_m[begin, intent.columns[n]])
+    assert not np.allclose(np.nan_to_num(rollout(case, CART, None, 1, rollout_seed, variety)), np.nan_to_num(first))
+    for reaction in (None, fitted_reaction()):
+        assert np.array_equal(rollout(case, CART, reaction, 3, rollout_seed, Variety(0.0, 0.0)),
+                              walk(grid, intent, CART, reaction), equal_nan=True)

@@ -107,6 +107,18 @@ def read_reaction(path: Path) -> Reaction:
     return Reaction(**values)
 
 
+def read_fitted_on(path: Path) -> tuple[str, ...] | None:
+    """The folders of experiments a fit file says it was fitted on (its ``fitted_on``), None where it does not say;
+    ``ConfigError`` naming the file when that is not a list of names."""
+    try:
+        folders = json.loads(Path(path).read_text()).get("fitted_on")
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError, AttributeError) as err:
+        raise ConfigError(f"{path}: not a readable JSON reaction fit ({err})") from err
+    if folders is not None and not (isinstance(folders, list) and all(isinstance(f, str) for f in folders)):
+        raise ConfigError(f"{path}: fitted_on = {folders!r}: expected a list of folder names")
+    return None if folders is None else tuple(folders)
+
+
 @cache
 def fitted_reaction() -> Reaction:
     """The shipped fitted reaction (``reaction_fit.json``), read once per process."""

@@ -1,30 +1,33 @@
 """``python -m st_sim reactive-validate``: reactive pedestrians against people who reacted to a real vehicle.
 
-Every experiment with a vehicle under ``--data`` (CITR's layout, ``replays.citr``) is resampled at the env's 0.4 s
-step. The vehicle is the robot: a ``--vehicle-length`` x ``--vehicle-width`` box driven along its recorded path.
-Each pedestrian that came within ``NEAR_M`` of the vehicle's body gets its **intent**, the same for every model: the
-straight line on from where it was, at its mean velocity over the ``INTENT_STEPS`` before, when the vehicle first
-came within ``INTENT_GAP_M`` of it (at the earliest ``INTENT_STEPS`` into its track). From there each model walks it
-with the vehicle present:
+Every experiment with a vehicle under ``--data`` (CITR's layout) becomes a case (``st_sim.apps.vehicle_cases``: the
+vehicle is a ``--vehicle-length`` x ``--vehicle-width`` box driven along its recorded path; each pedestrian that came
+within ``NEAR_M`` of it gets its intent, the same for every model, and is scored against the recording: ADE, least
+clearance, collisions, onset of the reaction). The models:
 
 - ``blind``: it walks its intent and ignores the vehicle;
 - ``reactive``: STCrowd's reactive pedestrian (``envs.common.reactive``) with its intent as its log and the fitted
-  reaction (``envs.common.reaction``), the pedestrians seeing the vehicle's body, position and velocity at the start
-  of each step;
+  reaction (``envs.common.reaction``, or ``--reaction FIT``);
 - ``attentive``: the same pedestrian noticing the vehicle everywhere and reacting at once (the fitted room, no field
   of view, hearing or reaction time): what attention and reaction time change.
 
-Scored against the recording, per pedestrian: ADE [m] over the interaction window (from its intent to ``POST_STEPS``
-after its recorded closest approach), the least gap between its centre and the vehicle's body [m] along every step,
-whether the simulated pedestrian's centre entered the body (a collision), and the onset of its reaction: the gap to
-the vehicle's body when it first strays ``ONSET_M`` from its intent (none if it never does).
+The folders a fit was fitted on are those its file names (``fitted_on``); every other folder is marked held out.
+
+``--cross-validate``: leave one folder out (``st_sim.apps.reaction_search``). For each folder, the reactive
+pedestrians take the fit that the fitting procedure (``CV_PROCEDURE``, ``--variant``, ``--clearance-tolerance``)
+ends at on the other folders only, and are scored on the folder left out: how the fitting carries over to people it
+never saw. Fold fits are kept in ``--fold-fits`` and reused. ``--no-refit`` instead scores the ``--reaction`` fit on
+every folder (cheap; on a folder that fit saw it measures nothing held out).
+
+``--realism``: the realism score of the blind and the reactive pedestrians (``st_sim.apps.sim_agents``: ``--rollouts``
+seeded rollouts each, paces and reactions drawn per ``vehicle_cases.Variety``), over every case and, with
+``--cross-validate``, per fold.
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
-from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Final
 
@@ -32,159 +35,67 @@ import numpy as np
 from tqdm import tqdm
 
 from envs.common.errors import ConfigError
-from envs.common.footprint import BODY_RADIUS_M, Body
-from envs.common.reaction import FIT_PATH, Reaction, read_reaction
-from envs.common.reactive import ReactiveCrowd
-from envs.common.routes import OpenGround
+from envs.common.footprint import Body
+from envs.common.reaction import FIT_PATH, Reaction, read_fitted_on, read_reaction
 from replays import strict_json
 from replays.atomic import write_text_atomic
-from replays.citr import CART_LENGTH_M, CART_WIDTH_M, CITR_FPS, Experiment, Grid, find_experiments, on_grid
+from replays.citr import CART_LENGTH_M, CART_WIDTH_M, CITR_FPS, Experiment, find_experiments
 from replays.constants import STEP_S
 from replays.data_root import CITR, data_root
-from st_sim.command_line import CliError, check_writable
+from st_sim.apps.reaction_search import CV_PROCEDURE, VARIANTS, Scorer, cv_score, fold_fit
+from st_sim.apps.sim_agents import WEIGHTS, case_realism
+from st_sim.apps.vehicle_cases import INTENT_GAP_M, INTENT_STEPS, NEAR_M, ONSET_M, POST_STEPS, Case, Variety, cases
+from st_sim.command_line import CliError, check_writable, non_negative_float, positive_int
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-NEAR_M: Final[float] = 5.0  # pedestrians that come this close to the vehicle's body are scored [m]
-INTENT_GAP_M: Final[float] = 15.0  # an intent is taken when the vehicle's body first comes this close [m] ...
-INTENT_STEPS: Final[int] = 3  # ... from the mean velocity over this many 0.4 s steps before
-POST_STEPS: Final[int] = 5  # the interaction window ends this many steps (2 s) after the recorded closest approach
-ONSET_M: Final[float] = 0.5  # a reaction shows once a pedestrian strays this far from its intent [m]
 MODELS: Final[tuple[str, ...]] = ("blind", "reactive", "attentive")
-HELD_OUT: Final[tuple[str, ...]] = ("vci_lat_bi",)  # CITR folders never fitted on (benchmarks/fit_reaction.py)
+CV_MODELS: Final[tuple[str, ...]] = ("blind", "reactive")  # the models of a fold
+ROLLOUTS: Final[int] = 32  # seeded rollouts per pedestrian and model of the realism score (WOSAC's)
 
 
-@dataclass(frozen=True, eq=False)
-class Intents:
-    """The scored pedestrians of one experiment and what they meant to do.
-
-    Attributes:
-        columns: (N,) their columns in the grid.  start: (N,) the step each intent is taken at.
-        last: (N,) each one's last recorded step.  xy_m: (T, N, 2) the intents [m], NaN before their start.
-    """
-
-    columns: np.ndarray
-    start: np.ndarray
-    last: np.ndarray
-    xy_m: np.ndarray
+def model_reactions(reaction: Reaction, models: tuple[str, ...] = MODELS) -> dict[str, Reaction | None]:
+    """The reaction of each of ``models`` (None: blind)."""
+    every = {"blind": None, "reactive": reaction,
+             "attentive": dataclasses.replace(reaction, fov_deg=180.0, reaction_s=0.0)}
+    return {model: every[model] for model in models}
 
 
-def recorded_gap_m(grid: Grid, body: Body) -> np.ndarray:
-    """(T, N) gap [m] between each recorded pedestrian and the vehicle's body at every step (NaN where absent)."""
-    return body.gap_m(grid.xy_m - grid.vehicle_xy_m[:, None], grid.vehicle_heading_rad[:, None])
-
-
-def intents(grid: Grid, body: Body) -> Intents:
-    """The intents of the pedestrians of ``grid`` that came within ``NEAR_M`` of the vehicle (module docstring)."""
-    gap = recorded_gap_m(grid, body)
-    steps = np.arange(len(grid.times_s))
-    columns, start, last = [], [], []
-    for column in np.flatnonzero(np.nanmin(np.where(grid.present, gap, np.inf), axis=0) <= NEAR_M):
-        seen = np.flatnonzero(grid.present[:, column])
-        inside = seen[gap[seen, column] < INTENT_GAP_M]
-        begin = min(max(int(inside[0]), seen[0] + INTENT_STEPS), seen[-1] - 1)
-        if begin >= seen[0] + INTENT_STEPS:  # long enough to take a velocity and to walk one step
-            columns.append(column)
-            start.append(begin)
-            last.append(int(seen[-1]))
-    columns, start = np.array(columns, int), np.array(start, int)
-    velocity = (grid.xy_m[start, columns] - grid.xy_m[start - INTENT_STEPS, columns]) / (INTENT_STEPS * STEP_S)
-    since_s = (steps[:, None] - start[None]) * STEP_S  # (T, N)
-    xy = grid.xy_m[start, columns][None] + since_s[..., None] * velocity[None]
-    return Intents(columns, start, np.array(last, int), np.where((since_s >= 0)[..., None], xy, np.nan))
-
-
-def walk(grid: Grid, intent: Intents, body: Body, reaction: Reaction | None) -> np.ndarray:
-    """(T, N, 2) positions [m] of the scored pedestrians walking their intents with the vehicle driving its recorded
-    path (``reaction`` None: blind, the intents themselves)."""
-    if reaction is None:
-        return intent.xy_m.copy()
-    present = ~np.isnan(intent.xy_m[..., 0])
-    crowd = ReactiveCrowd(intent.xy_m, present, OpenGround(), body, BODY_RADIUS_M, reaction)
-    path = [crowd.reset(0).copy()]
-    for index in range(1, len(grid.times_s)):
-        heading = grid.vehicle_heading_rad[index - 1]
-        here = grid.vehicle_xy_m[index - 1]
-        expected = here + STEP_S * grid.vehicle_speed_mps[index - 1] * np.array([np.cos(heading), np.sin(heading)])
-        path.append(crowd.step(index, here, expected, heading).copy())
-    return np.array(path)
-
-
-def score(grid: Grid, intent: Intents, xy_m: np.ndarray, body: Body) -> list[dict[str, Any]]:
-    """Per scored pedestrian of one experiment, how ``xy_m`` (T, N, 2) walked: ``ade_m`` against the recording over
-    the interaction window, ``min_clearance_m`` (least gap to the vehicle's body along the steps), ``collision``
-    (its centre inside the body) and ``onset_gap_m`` (gap when it first strayed ``ONSET_M`` from its intent, or
-    None)."""
-    recorded = grid.xy_m[:, intent.columns]
-    closest = recorded_gap_m(grid, body)[:, intent.columns]
-    vehicle, heading = grid.vehicle_xy_m, grid.vehicle_heading_rad
+def pedestrian_rows(scorer: Scorer, found: list[Case], reactions: dict[str, Reaction | None],
+                    progress: bool = True) -> list[dict[str, Any]]:
+    """One row per scored pedestrian of ``found``: its experiment, folder (``group``) and id, its recorded scores
+    and those of every model of ``reactions`` (``vehicle_cases.score``)."""
     rows = []
-    for n, (begin, end) in enumerate(zip(intent.start, intent.last, strict=True)):
-        span = slice(begin, end + 1)
-        stop = min(begin + int(np.nanargmin(closest[span, n])) + POST_STEPS, end)
-        ade = float(np.linalg.norm(xy_m[begin:stop + 1, n] - recorded[begin:stop + 1, n], axis=-1).mean())
-        swept = body.swept_gap_m(xy_m[begin:end, n] - vehicle[begin:end], xy_m[begin + 1:end + 1, n]
-                                 - vehicle[begin + 1:end + 1], heading[begin:end])
-        clearance = float(swept.min())
-        strayed = np.flatnonzero(np.linalg.norm(xy_m[span, n] - intent.xy_m[span, n], axis=-1) > ONSET_M)
-        onset = float(body.gap_m(xy_m[begin + strayed[0], n] - vehicle[begin + strayed[0]],
-                                 heading[begin + strayed[0]])) if strayed.size else None
-        rows.append({"ade_m": ade, "min_clearance_m": clearance, "collision": bool(clearance <= 0.0),
-                     "onset_gap_m": onset})
+    for case in tqdm(found, desc="reactive-validate", unit="experiment", disable=not progress):
+        scored = {model: scorer.rows(case, reaction) for model, reaction in reactions.items()}
+        for n, column in enumerate(case.intent.columns):
+            rows.append({"experiment": case.name, "group": case.group, "id": int(case.grid.pedestrian_ids[column]),
+                         "recorded": case.recorded[n], **{model: scored[model][n] for model in reactions}})
     return rows
 
 
-@dataclass(frozen=True, eq=False)
-class Case:
-    """One experiment ready to simulate: its grid, its scored pedestrians' intents and how they really walked."""
-
-    name: str
-    group: str
-    """the experiment's top folder (``vci_front``), "." for an experiment at the top"""
-    grid: Grid
-    intent: Intents
-    recorded: list[dict[str, Any]]
-
-
-def cases(experiments: list[Experiment], body: Body) -> list[Case]:
-    """The experiments with at least one scored pedestrian, resampled at 0.4 s, with their intents and recorded
-    scores."""
-    found = []
-    for experiment in experiments:
-        grid = on_grid(experiment, STEP_S)
-        intent = intents(grid, body)
-        if len(intent.columns):
-            group = experiment.name.split("/")[0] if "/" in experiment.name else "."
-            found.append(Case(experiment.name, group, grid, intent,
-                              score(grid, intent, grid.xy_m[:, intent.columns], body)))
-    return found
-
-
-def model_reactions(reaction: Reaction) -> dict[str, Reaction | None]:
-    """The reaction of each model of ``MODELS`` (None: blind)."""
-    return {"blind": None, "reactive": reaction,
-            "attentive": dataclasses.replace(reaction, fov_deg=180.0, reaction_s=0.0)}
+def report(rows: list[dict[str, Any]], models: tuple[str, ...]) -> dict[str, Any]:
+    """``summary`` of ``rows``, the same per group, and the rows."""
+    groups = sorted({row["group"] for row in rows})
+    return {**summary(rows, models), "groups": {group: summary([r for r in rows if r["group"] == group], models)
+                                                for group in groups}, "pedestrian_rows": rows}
 
 
 def validate(experiments: list[Experiment], body: Body, reaction: Reaction, models: tuple[str, ...] = MODELS,
              progress: bool = True) -> dict[str, Any]:
     """Score the recorded pedestrians and every model on ``experiments``; returns the summary over all of them, per
     group (the experiment's top folder), and one row per scored pedestrian (see ``summary``)."""
-    reactions = model_reactions(reaction)
-    rows = []
+    found = found_cases(experiments, body)
+    return report(pedestrian_rows(Scorer(found, body), found, model_reactions(reaction, models), progress), models)
+
+
+def found_cases(experiments: list[Experiment], body: Body) -> list[Case]:
+    """``vehicle_cases.cases``, or one error line when nobody came near a vehicle."""
     found = cases(experiments, body)
     if not found:
         raise CliError(f"no pedestrian came within {NEAR_M:g} m of a vehicle in {len(experiments)} experiment(s)")
-    for case in tqdm(found, desc="reactive-validate", unit="experiment", disable=not progress):
-        scored = {model: score(case.grid, case.intent, walk(case.grid, case.intent, body, reactions[model]), body)
-                  for model in models}
-        for n, column in enumerate(case.intent.columns):
-            rows.append({"experiment": case.name, "group": case.group, "id": int(case.grid.pedestrian_ids[column]),
-                         "recorded": case.recorded[n], **{model: scored[model][n] for model in models}})
-    groups = sorted({row["group"] for row in rows})
-    return {**summary(rows, models), "groups": {group: summary([r for r in rows if r["group"] == group], models)
-                                                for group in groups}, "pedestrian_rows": rows}
+    return found
 
 
 def summary(rows: list[dict[str, Any]], models: tuple[str, ...]) -> dict[str, Any]:
@@ -202,6 +113,34 @@ def summary(rows: list[dict[str, Any]], models: tuple[str, ...]) -> dict[str, An
                                "collisions": int(sum(row[model]["collision"] for row in rows))} for model in models}}
 
 
+def realism_of(found: list[Case], body: Body, reaction: Reaction, args: argparse.Namespace) -> dict[str, Any]:
+    """``{"blind": ..., "reactive": ...}``: ``sim_agents.case_realism`` of both models on ``found``."""
+    variety = Variety(args.pace_sigma, args.reaction_sigma)
+    return {model: case_realism(found, body, model_reaction, args.rollouts, args.seed, variety,
+                                progress=not args.quiet)
+            for model, model_reaction in model_reactions(reaction, CV_MODELS).items()}
+
+
+def cross_validation(scorer: Scorer, fold_fits: dict[str, tuple[Reaction, tuple[str, ...] | None]],
+                     args: argparse.Namespace) -> list[dict[str, Any]]:
+    """One entry per folder left out (``fold_fits``: folder -> the reaction scored there and the folders it was
+    fitted on, None where unknown): ``held_out``, ``fitted_on``, ``unseen`` (the fit never saw the folder), the
+    reaction, ``summary`` of blind and reactive on the folder, their ``ade_ratio`` and, with ``--realism``,
+    ``realism``."""
+    folds = []
+    for held_out, (reaction, fitted_on) in fold_fits.items():
+        found = scorer.of([held_out])
+        fold = {"held_out": held_out, "fitted_on": None if fitted_on is None else list(fitted_on),
+                "unseen": None if fitted_on is None else held_out not in fitted_on,
+                "reaction": dataclasses.asdict(reaction),
+                **summary(pedestrian_rows(scorer, found, model_reactions(reaction, CV_MODELS), False), CV_MODELS)}
+        fold["ade_ratio"] = fold["models"]["reactive"]["ade_m"] / fold["models"]["blind"]["ade_m"]
+        if args.realism:
+            fold["realism"] = realism_of(found, scorer.body, reaction, args)
+        folds.append(fold)
+    return folds
+
+
 def markdown_table(result: dict[str, Any]) -> str:
     """One row per group and model, and the totals: pedestrians, ADE, median least clearance (recorded and
     simulated), collisions, median onset gap, share that reacted."""
@@ -213,7 +152,7 @@ def markdown_table(result: dict[str, Any]) -> str:
         for model, fig in part["models"].items():
             onset = "–" if fig["onset_gap_m_median"] is None else f"{fig['onset_gap_m_median']:.2f}"
             rec_onset = "–" if rec["onset_gap_m_median"] is None else f"{rec['onset_gap_m_median']:.2f}"
-            held = " (held out)" if name in HELD_OUT else ""
+            held = " (held out)" if name in result["settings"]["held_out"] else ""
             lines.append(f"| {name}{held} | {part['pedestrians']} | {model} | {fig['ade_m']:.3f} | "
                          f"{fig['min_clearance_m_median']:.2f} ({rec['min_clearance_m_median']:.2f}) | "
                          f"{fig['collisions']} | {onset} ({rec_onset}) | {fig['reacted_share']:.2f} "
@@ -221,36 +160,103 @@ def markdown_table(result: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
+def folds_table(result: dict[str, Any]) -> str:
+    """One row per fold: the folder left out (marked where the fit saw it), its pedestrians, blind and reactive ADE
+    and their ratio, median least clearance (recorded), collisions, and the realism meta scores where measured; then
+    the CV score."""
+    lines = ["| held out | pedestrians | blind ADE [m] | reactive ADE [m] | ratio | reactive clearance [m] "
+             "(recorded) | collisions blind / reactive | realism meta blind / reactive |", "|" + "---|" * 8]
+    for fold in result["folds"]:
+        blind, reactive = fold["models"]["blind"], fold["models"]["reactive"]
+        meta = (f"{fold['realism']['blind']['meta']:.3f} / {fold['realism']['reactive']['meta']:.3f}"
+                if "realism" in fold else "–")
+        seen = " (seen by the fit)" if fold["unseen"] is False else ""
+        lines.append(f"| {fold['held_out']}{seen} | {fold['pedestrians']} | {blind['ade_m']:.3f} | "
+                     f"{reactive['ade_m']:.3f} | {fold['ade_ratio']:.3f} | {reactive['min_clearance_m_median']:.2f} "
+                     f"({fold['recorded']['min_clearance_m_median']:.2f}) | {blind['collisions']} / "
+                     f"{reactive['collisions']} | {meta} |")
+    cv = result["cross_validation"]
+    lines.append(f"\nheld-out ADE ratio: mean {cv['mean_ade_ratio']:.3f}, worst {cv['worst_ade_ratio']:.3f} "
+                 f"({cv['worst_fold']}); criterion max(mean / 0.8, worst / 0.9) = {cv['criterion']:.3f}")
+    return "\n".join(lines)
+
+
+def realism_table(realism: dict[str, Any]) -> str:
+    """One row per model: the meta score, every feature's score and minADE."""
+    names = list(WEIGHTS)
+    lines = [f"| model | meta | {' | '.join(names)} | minADE [m] |", "|" + "---|" * (len(names) + 3)]
+    for model, score in realism.items():
+        features = " | ".join(f"{score['features'][name]:.3f}" for name in names)
+        lines.append(f"| {model} | {score['meta']:.3f} | {features} | {score['min_ade_m']:.3f} |")
+    return "\n".join(lines)
+
+
 def run(args: argparse.Namespace) -> int:
-    """The ``reactive-validate`` command: read, validate, print the table, write the JSON (and the chart)."""
+    """The ``reactive-validate`` command: read, validate, print the tables, write the JSON (and the charts)."""
     for value, flag in ((args.fps, "--fps"), (args.vehicle_length, "--vehicle-length"),
                         (args.vehicle_width, "--vehicle-width")):
         if not (np.isfinite(value) and value > 0):
             raise CliError(f"{flag} {value}: expected a positive number")
+    for value, flag in ((args.pace_sigma, "--pace-sigma"), (args.reaction_sigma, "--reaction-sigma")):
+        if not (np.isfinite(value) and value >= 0):
+            raise CliError(f"{flag} {value}: expected a number >= 0")
+    if args.no_refit and not args.cross_validate:
+        raise CliError("--no-refit goes with --cross-validate (it scores --reaction on every fold)")
     check_writable(Path(args.json).parent)
     try:
         reaction = read_reaction(Path(args.reaction))
+        fitted_on = read_fitted_on(Path(args.reaction))
     except ConfigError as err:
         raise CliError(f"--reaction {err}") from None
     shipped = Path(args.reaction).resolve() == FIT_PATH.resolve()
     root = data_root(dataset=CITR) if args.data is None else Path(args.data)
-    experiments = find_experiments(root, args.fps)
     body = Body(args.vehicle_length, args.vehicle_width)
-    result = validate(experiments, body, reaction, progress=not args.quiet)
+    found = found_cases(find_experiments(root, args.fps), body)
+    scorer = Scorer(found, body)
+    if args.cross_validate and len(scorer.groups) < 2:
+        raise CliError(f"--cross-validate needs at least two folders of experiments; found {scorer.groups}")
+    result = report(pedestrian_rows(scorer, found, model_reactions(reaction), not args.quiet), MODELS)
     result["settings"] = {"data": str(args.data) if args.data else "$STCROWD_CITR or the cache", "fps": args.fps,
                           "vehicle_length_m": args.vehicle_length, "vehicle_width_m": args.vehicle_width,
                           "step_s": STEP_S, "near_m": NEAR_M, "intent_gap_m": INTENT_GAP_M,
                           "intent_steps": INTENT_STEPS, "post_steps": POST_STEPS, "onset_m": ONSET_M,
                           "reaction": dataclasses.asdict(reaction),
                           "reaction_file": "envs/common/reaction_fit.json" if shipped else str(args.reaction),
-                          "held_out": list(HELD_OUT)}
+                          "held_out": [group for group in scorer.groups
+                                       if fitted_on is not None and group not in fitted_on]}
     print(markdown_table(result))
+    if args.realism:
+        result["settings"]["realism"] = {"rollouts": args.rollouts, "seed": args.seed,
+                                         "variety": dataclasses.asdict(Variety(args.pace_sigma, args.reaction_sigma)),
+                                         "weights": WEIGHTS}
+        result["realism"] = realism_of(found, body, reaction, args)
+        print(realism_table(result["realism"]))
+    if args.cross_validate:
+        procedure = dataclasses.replace(CV_PROCEDURE, variant=args.variant,
+                                        clearance_tolerance=args.clearance_tolerance)
+        fold_fits = {}
+        for held_out in scorer.groups:
+            if args.no_refit:
+                fold_fits[held_out] = reaction, fitted_on
+            else:
+                fit = fold_fit(scorer, [group for group in scorer.groups if group != held_out], procedure,
+                               Path(args.fold_fits), not args.quiet)
+                fold_fits[held_out] = fit.reaction, fit.fitted_on
+        result["folds"] = cross_validation(scorer, fold_fits, args)
+        result["cross_validation"] = {
+            **cv_score({fold["held_out"]: fold["ade_ratio"] for fold in result["folds"]}), "refit": not args.no_refit,
+            "procedure": None if args.no_refit else procedure.record(),
+            "fold_fits": None if args.no_refit else str(args.fold_fits)}
+        print(folds_table(result))
     write_text_atomic(args.json, strict_json.dumps(result, indent=1))
     print(f"wrote {args.json}")
     if args.chart:
         from st_sim.charts import save_figure
 
         print(f"wrote {save_figure(validation_chart(result), args.chart)}")
+        if args.realism or args.cross_validate:
+            chart = Path(args.chart)
+            print(f"wrote {save_figure(scores_chart(result), chart.with_name(chart.stem + '-scores.png'))}")
     return 0
 
 
@@ -259,20 +265,41 @@ def validation_chart(result: dict[str, Any], models: tuple[str, ...] = ("blind",
     experiments apart (``st_sim.charts.identity_scatter``)."""
     from st_sim.charts import identity_scatter
 
-    rows = result["pedestrian_rows"]
+    rows, held_out = result["pedestrian_rows"], result["settings"]["held_out"]
     panels: dict[str, dict[str, tuple[list[float], list[float]]]] = {}
     for key, what in (("min_clearance_m", "least clearance"), ("onset_gap_m", "onset of the reaction")):
         panel = panels.setdefault(f"{what} to the vehicle's body [m]", {})
         for model in models:
             for held in (False, True):
                 pairs = [(row["recorded"][key], row[model][key]) for row in rows
-                         if (row["group"] in HELD_OUT) == held and row["recorded"][key] is not None
+                         if (row["group"] in held_out) == held and row["recorded"][key] is not None
                          and row[model][key] is not None]
                 if pairs:
                     label = f"{model}, {'held out' if held else 'fitted on'}"
                     panel[label] = tuple(map(list, zip(*pairs, strict=True)))
     return identity_scatter("recorded [m]", "simulated [m]", panels,
                             title="CITR: pedestrians round a golf cart, recorded and simulated")
+
+
+def scores_chart(result: dict[str, Any]) -> Figure:
+    """Bars of blind against reactive: the realism feature scores and meta score over every case, and per fold the
+    held-out ADE and the realism meta score (``st_sim.charts.grouped_bars``)."""
+    from st_sim.charts import grouped_bars
+
+    panels: dict[str, tuple[list[str], dict[str, list[float]]]] = {}
+    if "realism" in result:
+        names = [*WEIGHTS, "meta"]
+        panels["realism, every pedestrian (score in [0, 1], higher: likelier)"] = (names, {
+            model: [score["features"][name] if name != "meta" else score["meta"] for name in names]
+            for model, score in result["realism"].items()})
+    if "folds" in result:
+        held = [fold["held_out"] for fold in result["folds"]]
+        panels["cross-validation: ADE [m] on the folder held out"] = (held, {
+            model: [fold["models"][model]["ade_m"] for fold in result["folds"]] for model in CV_MODELS})
+        if all("realism" in fold for fold in result["folds"]):
+            panels["cross-validation: realism meta score on the folder held out"] = (held, {
+                model: [fold["realism"][model]["meta"] for fold in result["folds"]] for model in CV_MODELS})
+    return grouped_bars("", panels, title="CITR: blind and reactive pedestrians round a golf cart")
 
 
 def add_parser(commands: argparse._SubParsersAction) -> None:
@@ -293,5 +320,34 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
                              "writes (default: the shipped envs/common/reaction_fit.json)")
     parser.add_argument("--json", required=True, metavar="OUT", help="write the figures here (JSON)")
     parser.add_argument("--chart", default=None, metavar="PNG",
-                        help="also draw recorded against simulated clearance and onset here (default: none)")
+                        help="also draw recorded against simulated clearance and onset here, and with --realism or "
+                             "--cross-validate their scores beside it (PNG-scores.png) (default: none)")
+    parser.add_argument("--cross-validate", action="store_true",
+                        help="leave one folder out: per folder, the reactive pedestrians fitted on the other folders "
+                             "only (st_sim.apps.reaction_search.CV_PROCEDURE) scored on it; adds folds and "
+                             "cross_validation to the JSON")
+    parser.add_argument("--no-refit", action="store_true",
+                        help="with --cross-validate: score --reaction on every folder instead of refitting (cheap)")
+    parser.add_argument("--variant", choices=list(VARIANTS), default="reactive",
+                        help="with --cross-validate: the variant of the reaction refitted per fold (default: reactive)")
+    parser.add_argument("--clearance-tolerance", type=non_negative_float,
+                        default=CV_PROCEDURE.clearance_tolerance, metavar="T",
+                        help=f"with --cross-validate: the refit's loss lets the median least clearance miss the "
+                             f"recorded one by up to this share at no cost (default: "
+                             f"{CV_PROCEDURE.clearance_tolerance:g})")
+    parser.add_argument("--fold-fits", default="runs/reaction_cv", metavar="DIR",
+                        help="with --cross-validate: each fold's fit is kept here and reused by a later run of the "
+                             "same procedure on the same data (default: runs/reaction_cv)")
+    parser.add_argument("--realism", action="store_true",
+                        help="add the WOSAC-style realism score of blind and reactive pedestrians (st_sim.apps."
+                             "sim_agents), over every pedestrian and per fold")
+    parser.add_argument("--rollouts", type=positive_int, default=ROLLOUTS,
+                        help=f"with --realism: seeded rollouts per model (default: {ROLLOUTS})")
+    parser.add_argument("--seed", type=int, default=0, help="with --realism: the rollouts' seed (default: 0)")
+    parser.add_argument("--pace-sigma", type=float, default=Variety.pace_sigma,
+                        help=f"with --realism: spread of each rollout's pace factor, N(1, sigma) (default: "
+                             f"{Variety.pace_sigma})")
+    parser.add_argument("--reaction-sigma", type=float, default=Variety.reaction_sigma,
+                        help=f"with --realism: spread of each rollout's reaction, every field of vehicle_cases."
+                             f"JITTERED times exp(N(0, sigma)) (default: {Variety.reaction_sigma})")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
