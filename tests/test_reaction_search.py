@@ -26,6 +26,7 @@ from st_sim.apps.reaction_search import (
     CV_TARGETS,
     FIRST_GUESS,
     GRIDS,
+    ROOM_FIELDS,
     VARIANTS,
     Fit,
     Procedure,
@@ -183,11 +184,34 @@ def test_coarse_grids_keep_every_other_value_and_the_last_and_variants_skip_the_
             assert len(coarse) == len(full) if len(full) <= 3 else len(coarse) <= len(full) // 2 + 2
     attentive = dataclasses.replace(CV_PROCEDURE, variant="attentive")
     assert "fov_deg+hearing_m" not in attentive.grids and "reaction_s" not in attentive.grids
-    assert all(getattr(attentive.first, key) == value for key, value in VARIANTS["attentive"].items())
+    assert all(getattr(attentive.first, key) == value for key, value in VARIANTS["attentive"].holds.items())
     with pytest.raises(ValueError, match="variant 'careless'"):
         Procedure("careless", FIRST_GUESS, (), 1)
     with pytest.raises(ValueError, match="grid 'speed'"):
         Procedure("reactive", FIRST_GUESS, ("speed",), 1)
+
+
+@settings(max_examples=30, deadline=None)
+@given(order=st.permutations(list(GRIDS)), start=st.tuples(*[st.sampled_from(GRIDS["head_on_s"][0])] * 3))
+def test_one_room_searches_the_room_once_and_keeps_it_equal_whichever_way_the_vehicle_comes(
+        order: list[str], start: tuple[float, float, float]) -> None:
+    procedure = Procedure("one-room", dataclasses.replace(FIRST_GUESS, **dict(zip(ROOM_FIELDS, start, strict=True))),
+                          tuple(order), 1, coarse=True)
+    room_grids = [name for name in procedure.grids if set(name.split("+")) & set(ROOM_FIELDS)]
+    assert room_grids == [ROOM_FIELDS[0]]
+    assert [name for name in procedure.grids if name not in room_grids] == \
+        [name for name in order if not set(name.split("+")) & set(ROOM_FIELDS)]
+    assert len({getattr(procedure.first, field) for field in ROOM_FIELDS}) == 1
+    assert getattr(procedure.first, ROOM_FIELDS[0]) == pytest.approx(np.mean(start))
+    for values in procedure.axes(ROOM_FIELDS[0])[0]:
+        assert procedure.changes(ROOM_FIELDS[0], (values,)) == dict.fromkeys(ROOM_FIELDS, values)
+
+
+def test_a_one_room_fit_ends_with_one_room(scorer: Scorer) -> None:
+    procedure = Procedure("one-room", FIRST_GUESS, ("clearance_m", *ROOM_FIELDS), sweeps=1, coarse=True)
+    fit = search(scorer, scorer.groups, procedure, progress=False, log=False)
+    assert len({getattr(fit.reaction, field) for field in ROOM_FIELDS}) == 1
+    assert fit.loss <= loss(scorer.figures(scorer.groups, procedure.first)) + 1e-12
 
 
 def test_reactive_validate_cross_validates_and_scores_realism(two_folders: Path, scorer: Scorer, tmp_path: Path,

@@ -11,8 +11,10 @@ averaged over the folders; plus ``COLLISION_WEIGHT`` times the share of simulate
 
 **The search** is a coordinate descent over fixed grids (``GRIDS``): each sweep tries every value of one grid with
 the other fields held, keeps the best, and goes on to the next grid; it stops after a sweep that improves nothing or
-after ``Procedure.sweeps``. A **variant** holds some fields (``VARIANTS``: ``attentive`` notices the vehicle
-everywhere and at once) and skips the grids that touch them.
+after ``Procedure.sweeps``. A **variant** (``VARIANTS``) holds some fields and skips the grids that touch them
+(``attentive`` notices the vehicle everywhere and at once), or ties some together (``one-room`` keeps one room per m/s
+of the vehicle's speed whichever way it comes: head-on, from behind and across take one value, searched as one grid),
+so that a folder left out borrows what the others fitted instead of a field only it constrains.
 
 **Cross-validation** (leave one folder out): for each folder, the search runs on the other folders from the same
 start and the fit it ends at is scored on the folder left out: its reactive ADE as a share of the blind one there
@@ -58,9 +60,22 @@ GRIDS: Final[dict[str, tuple[tuple[float, ...], ...]]] = {  # fields joined by "
     # that they rejoin their logs (tests/test_envs_reactive.py's draws); with the crossing room, which they trade with:
     "delay_cost+aside_cost+crossing_s": ((0.25, 0.5, 1.0), (0.5, 1.0, 2.0), PER_MPS),
 }
-VARIANTS: Final[dict[str, dict[str, float]]] = {  # fields each variant of the reaction holds (not searched)
-    "reactive": {},
-    "attentive": {"fov_deg": 180.0, "reaction_s": 0.0},  # noticing the vehicle everywhere, reacting at once
+ROOM_FIELDS: Final[tuple[str, ...]] = ("head_on_s", "behind_s", "crossing_s")  # room per m/s, by approach
+
+
+@dataclass(frozen=True)
+class Variant:
+    """A family of reactions: the fields it ``holds`` (not searched) and those it ``ties`` (one value for all,
+    searched together on the first tied field's grid)."""
+
+    holds: dict[str, float]
+    ties: tuple[str, ...] = ()
+
+
+VARIANTS: Final[dict[str, Variant]] = {
+    "reactive": Variant({}),
+    "attentive": Variant({"fov_deg": 180.0, "reaction_s": 0.0}),  # noticing the vehicle everywhere, reacting at once
+    "one-room": Variant({}, ROOM_FIELDS),  # the same room whichever way the vehicle comes
 }
 FIRST_GUESS: Final[Reaction] = Reaction(  # the start of the first fit (commit bd17cf8's guesses, before any data;
     fov_deg=100.0, hearing_m=3.0, reaction_s=0.6, anticipation_s=1.6, clearance_m=0.3,  # delay and aside: the
@@ -158,8 +173,21 @@ class Procedure:
 
     @property
     def grids(self) -> list[str]:
-        """The grids searched: ``search`` without those that touch a field the variant holds."""
-        return [name for name in self.search if not set(name.split("+")) & set(VARIANTS[self.variant])]
+        """The grids searched: ``search`` without those that touch a field the variant holds, and with the grids of
+        the fields it ties searched once, as the first of them (``changes`` sets them all)."""
+        variant = VARIANTS[self.variant]
+        kept = [name for name in self.search if not set(name.split("+")) & set(variant.holds)]
+        tied = [name for name in kept if set(name.split("+")) & set(variant.ties)]
+        return [name for name in kept if name not in tied or name == (variant.ties[0] if variant.ties else None)]
+
+    def changes(self, name: str, values: tuple[float, ...]) -> dict[str, float]:
+        """The fields a trial of grid ``name`` at ``values`` sets: each field of the name, and with the first tied
+        field every field the variant ties."""
+        ties = VARIANTS[self.variant].ties
+        change = dict(zip(name.split("+"), values, strict=True))
+        if ties and ties[0] in change:
+            change.update({field: change[ties[0]] for field in ties})
+        return change
 
     def axes(self, name: str) -> tuple[tuple[float, ...], ...]:
         """The values of grid ``name`` searched: ``GRIDS``', or, ``coarse``, every other value of an axis of more
@@ -170,8 +198,11 @@ class Procedure:
 
     @property
     def first(self) -> Reaction:
-        """Where the search starts: ``start`` with the variant's fields held."""
-        return dataclasses.replace(self.start, **VARIANTS[self.variant])
+        """Where the search starts: ``start`` with the variant's fields held, and its tied fields at the mean of the
+        start's values of them."""
+        variant = VARIANTS[self.variant]
+        tied = {field: float(np.mean([getattr(self.start, f) for f in variant.ties])) for field in variant.ties}
+        return dataclasses.replace(self.start, **variant.holds, **tied)
 
     @property
     def name(self) -> str:
@@ -229,7 +260,7 @@ def search(scorer: Scorer, groups: Sequence[str], procedure: Procedure, progress
         for name in procedure.grids:
             trials = list(itertools.product(*procedure.axes(name)))
             for values in tqdm(trials, desc=f"sweep {sweep + 1} {name}", leave=False, disable=not progress):
-                change = dict(zip(name.split("+"), values, strict=True))
+                change = procedure.changes(name, values)
                 if all(getattr(best, key) == value for key, value in change.items()):
                     continue
                 trial = dataclasses.replace(best, **change)
