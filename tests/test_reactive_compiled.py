@@ -182,3 +182,14 @@ def test_cached_kernels_are_dropped_when_a_source_changes(tmp_path) -> None:
     compiled.drop_stale_caches(package, tmp_path, sources)
     assert not list(cache.glob("*.nb?")), "kernels compiled with the old constant kept"
 
+
+
+def test_a_fresh_install_is_told_once_that_the_kernels_compile(tmp_path, monkeypatch, capsys) -> None:
+    package = tmp_path / "kernels"
+    (package / "__pycache__").mkdir(parents=True)
+    monkeypatch.setattr(compiled, "_announced", False)
+    assert compiled.announce_compiling(package) and "compiling" in capsys.readouterr().err
+    assert not compiled.announce_compiling(package) and not capsys.readouterr().err  # once per process
+    monkeypatch.setattr(compiled, "_announced", False)
+    (package / "__pycache__" / "choose._best-1.py311.nbi").write_text("index")
+    assert not compiled.announce_compiling(package) and not capsys.readouterr().err  # cached: nothing to say

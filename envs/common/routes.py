@@ -98,8 +98,10 @@ class Routes:
         """The tables as the compiled kernels read them (``envs.common.compiled.tables.RouteTables``, built once), or
         None where they cannot read the depth."""
         if self._tables is None:
+            from envs.common.compiled import announce_compiling
             from envs.common.compiled.tables import route_tables  # (the kernels import this module)
 
+            announce_compiling()
             self._tables = route_tables(self) or False
         return self._tables or None
 

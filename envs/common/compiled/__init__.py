@@ -35,6 +35,7 @@ every call, which costs more than the arithmetic of the small functions called p
 from __future__ import annotations
 
 import hashlib
+import sys
 from pathlib import Path
 
 from replays.atomic import write_text_atomic
@@ -67,4 +68,17 @@ def drop_stale_caches(package: Path = PACKAGE, root: Path = ROOT, sources: tuple
         return
 
 
+def announce_compiling(package: Path = PACKAGE) -> bool:
+    """Say on stderr, once per process, that the kernels compile now when none is cached yet in ``package`` (the
+    first reactive step on a fresh install takes a few minutes of one core); whether it said so."""
+    global _announced
+    if _announced or any((package / "__pycache__").glob("*.nbi")):
+        return False
+    _announced = True
+    print("STCrowd: compiling the reactive pedestrians' kernels (numba; once per install, a few minutes of one core, "
+          "then cached)", file=sys.stderr, flush=True)
+    return True
+
+
+_announced = False
 drop_stale_caches()
