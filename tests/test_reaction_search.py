@@ -27,6 +27,7 @@ from st_sim.apps.reaction_search import (
     FIRST_GUESS,
     GRIDS,
     ROOM_FIELDS,
+    SUB_GOAL_GRIDS,
     VARIANTS,
     Fit,
     Procedure,
@@ -36,9 +37,11 @@ from st_sim.apps.reaction_search import (
     cv_score,
     fold_fit,
     loss,
+    model_of,
     search,
 )
 from st_sim.apps.sim_agents import WEIGHTS
+from st_sim.apps.subgoal_force import SubGoalForce
 from st_sim.apps.vehicle_cases import cases
 
 CITR_ROOT = data_root(dataset=CITR)  # $STCROWD_CITR in CI; missing: a failure
@@ -212,6 +215,17 @@ def test_a_one_room_fit_ends_with_one_room(scorer: Scorer) -> None:
     fit = search(scorer, scorer.groups, procedure, progress=False, log=False)
     assert len({getattr(fit.reaction, field) for field in ROOM_FIELDS}) == 1
     assert fit.loss <= loss(scorer.figures(scorer.groups, procedure.first)) + 1e-12
+
+
+def test_the_sub_goal_family_is_searched_on_its_own_grids_and_its_fits_read_back(scorer: Scorer) -> None:
+    procedure = dataclasses.replace(CV_PROCEDURE, variant="sub-goal")
+    assert procedure.grids == list(SUB_GOAL_GRIDS) and procedure.first == SubGoalForce()
+    tiny = dataclasses.replace(procedure, coarse=True, sweeps=1)
+    fit = search(scorer, scorer.groups, tiny, progress=False, log=False)
+    assert isinstance(fit.reaction, SubGoalForce)
+    assert fit.loss <= loss(scorer.figures(scorer.groups, SubGoalForce()), tiny.clearance_tolerance) + 1e-12
+    assert Fit.from_record(json.loads(json.dumps(fit.record()))) == fit
+    assert model_of(dataclasses.asdict(FIRST_GUESS)) == FIRST_GUESS
 
 
 def test_reactive_validate_cross_validates_and_scores_realism(two_folders: Path, scorer: Scorer, tmp_path: Path,

@@ -43,6 +43,7 @@ from envs.common.footprint import Body
 from envs.common.reaction import Reaction
 from replays import strict_json
 from replays.atomic import write_text_atomic
+from st_sim.apps.subgoal_force import SubGoalForce
 from st_sim.apps.vehicle_cases import Case, score, walk
 
 COLLISION_WEIGHT: Final[float] = 10.0  # loss of simulated pedestrians inside the vehicle, per share of them [-]
@@ -63,19 +64,45 @@ GRIDS: Final[dict[str, tuple[tuple[float, ...], ...]]] = {  # fields joined by "
 ROOM_FIELDS: Final[tuple[str, ...]] = ("head_on_s", "behind_s", "crossing_s")  # room per m/s, by approach
 
 
+Model = Reaction | SubGoalForce
+"""what walks the pedestrians: STCrowd's reactive pedestrians with a reaction, or the sub-goal social force model"""
+
+
+def model_of(params: dict[str, float]) -> Model:
+    """The model a fit file's ``params`` describe: a ``SubGoalForce`` where they are its fields, else a reaction."""
+    if set(params) == {field.name for field in dataclasses.fields(SubGoalForce)}:
+        return SubGoalForce(**params)
+    return Reaction(**params)
+
+
+SUB_GOAL_GRIDS: Final[dict[str, tuple[tuple[float, ...], ...]]] = {  # the sub-goal social force model's
+    "tau_s": ((0.2, 0.35, 0.5, 0.8, 1.2),),
+    "lookahead_s": ((0.8, 1.2, 2.0, 3.2, 4.8),),
+    "conflict_s": ((0.0, 1.0, 2.0, 3.0, 4.0, 6.0),),  # 0: no sub-goals, forces alone
+    "margin_m": ((0.0, 0.25, 0.5, 1.0, 1.5, 2.0),),
+    "ahead_penalty_m": ((0.0, 1.0, 2.0, 5.0, 20.0),),
+    "vehicle_strength+vehicle_range_m": ((0.0, 1.0, 2.0, 4.0, 8.0), (0.2, 0.4, 0.8, 1.5)),
+    "pedestrian_strength+pedestrian_range_m": ((0.0, 0.5, 1.0, 2.0, 4.0), (0.1, 0.2, 0.3, 0.5)),
+}
+
+
 @dataclass(frozen=True)
 class Variant:
     """A family of reactions: the fields it ``holds`` (not searched) and those it ``ties`` (one value for all,
-    searched together on the first tied field's grid)."""
+    searched together on the first tied field's grid); or another model altogether (``start``, ``grids``: a
+    ``SubGoalForce`` searched over its own grids, the procedure's search and start unused)."""
 
     holds: dict[str, float]
     ties: tuple[str, ...] = ()
+    start: SubGoalForce | None = None
+    grids: dict[str, tuple[tuple[float, ...], ...]] | None = None
 
 
 VARIANTS: Final[dict[str, Variant]] = {
     "reactive": Variant({}),
     "attentive": Variant({"fov_deg": 180.0, "reaction_s": 0.0}),  # noticing the vehicle everywhere, reacting at once
     "one-room": Variant({}, ROOM_FIELDS),  # the same room whichever way the vehicle comes
+    "sub-goal": Variant({}, start=SubGoalForce(), grids=SUB_GOAL_GRIDS),  # SG-SFM (st_sim.apps.subgoal_force)
 }
 FIRST_GUESS: Final[Reaction] = Reaction(  # the start of the first fit (commit bd17cf8's guesses, before any data;
     fov_deg=100.0, hearing_m=3.0, reaction_s=0.6, anticipation_s=1.6, clearance_m=0.3,  # delay and aside: the
@@ -91,7 +118,7 @@ class Scorer:
     def __init__(self, cases: Sequence[Case], body: Body):
         self.cases, self.body = list(cases), body
         self.groups: list[str] = sorted({case.group for case in self.cases})
-        self._rows: dict[tuple[Reaction | None, str], list[dict[str, Any]]] = {}
+        self._rows: dict[tuple[Model | None, str], list[dict[str, Any]]] = {}
         self.blind_ade_m = {group: float(np.mean([row["ade_m"] for case in self.of([group])
                                                   for row in self.rows(case, None)])) for group in self.groups}
         """mean ADE [m] of the blind pedestrians (walking their intents) per folder"""
@@ -100,7 +127,7 @@ class Scorer:
         """The cases of the folders ``groups``."""
         return [case for case in self.cases if case.group in groups]
 
-    def rows(self, case: Case, reaction: Reaction | None) -> list[dict[str, Any]]:
+    def rows(self, case: Case, reaction: Model | None) -> list[dict[str, Any]]:
         """``vehicle_cases.score`` of the pedestrians of ``case`` walked with ``reaction`` (None: blind)."""
         key = (reaction, case.name)
         if key not in self._rows:
@@ -108,7 +135,7 @@ class Scorer:
                                     self.body)
         return self._rows[key]
 
-    def figures(self, groups: Sequence[str], reaction: Reaction) -> dict[str, dict[str, Any]]:
+    def figures(self, groups: Sequence[str], reaction: Model) -> dict[str, dict[str, Any]]:
         """Per folder of ``groups``: ``ade_ratio`` (reactive ADE / blind ADE), ``clearance_m`` and
         ``recorded_clearance_m`` (median least clearance [m], simulated and recorded), ``collisions`` and
         ``pedestrians``."""
@@ -133,7 +160,7 @@ class Scorer:
                 sha.update(np.ascontiguousarray(np.nan_to_num(values, nan=-1e9)).tobytes())
         return sha.hexdigest()
 
-    def walks_digest(self, groups: Sequence[str], reaction: Reaction) -> str:
+    def walks_digest(self, groups: Sequence[str], reaction: Model) -> str:
         """SHA-256 of the scores of every pedestrian of the folders ``groups`` walked with ``reaction``: how the code
         walks them."""
         rows = [self.rows(case, reaction) for case in self.of(groups)]
@@ -176,6 +203,8 @@ class Procedure:
         """The grids searched: ``search`` without those that touch a field the variant holds, and with the grids of
         the fields it ties searched once, as the first of them (``changes`` sets them all)."""
         variant = VARIANTS[self.variant]
+        if variant.grids is not None:
+            return list(variant.grids)
         kept = [name for name in self.search if not set(name.split("+")) & set(variant.holds)]
         tied = [name for name in kept if set(name.split("+")) & set(variant.ties)]
         return [name for name in kept if name not in tied or name == (variant.ties[0] if variant.ties else None)]
@@ -192,15 +221,18 @@ class Procedure:
     def axes(self, name: str) -> tuple[tuple[float, ...], ...]:
         """The values of grid ``name`` searched: ``GRIDS``', or, ``coarse``, every other value of an axis of more
         than three (its last kept)."""
+        grids = VARIANTS[self.variant].grids or GRIDS
         if not self.coarse:
-            return GRIDS[name]
-        return tuple(axis if len(axis) <= 3 else tuple(dict.fromkeys((*axis[::2], axis[-1]))) for axis in GRIDS[name])
+            return grids[name]
+        return tuple(axis if len(axis) <= 3 else tuple(dict.fromkeys((*axis[::2], axis[-1]))) for axis in grids[name])
 
     @property
-    def first(self) -> Reaction:
+    def first(self) -> Model:
         """Where the search starts: ``start`` with the variant's fields held, and its tied fields at the mean of the
         start's values of them."""
         variant = VARIANTS[self.variant]
+        if variant.start is not None:
+            return variant.start
         tied = {field: float(np.mean([getattr(self.start, f) for f in variant.ties])) for field in variant.ties}
         return dataclasses.replace(self.start, **variant.holds, **tied)
 
@@ -211,7 +243,8 @@ class Procedure:
 
     def record(self) -> dict[str, Any]:
         """The procedure as JSON: what a fit file says it was fitted by."""
-        return {"variant": self.variant, "start": dataclasses.asdict(self.start), "search": list(self.search),
+        start = self.first if VARIANTS[self.variant].start is not None else self.start  # (another model's own)
+        return {"variant": self.variant, "start": dataclasses.asdict(start), "search": list(self.search),
                 "sweeps": self.sweeps, "grids": {name: [list(axis) for axis in self.axes(name)] for name in self.grids},
                 "clearance_tolerance": self.clearance_tolerance}
 
@@ -227,7 +260,7 @@ class Fit:
     """Where a search ended: the ``reaction``, its ``figures`` (``Scorer.figures``) and ``loss`` on the folders it
     was fitted on (``fitted_on``), and the ``evaluations`` it took."""
 
-    reaction: Reaction
+    reaction: Model
     figures: dict[str, dict[str, Any]]
     loss: float
     evaluations: int
@@ -243,7 +276,7 @@ class Fit:
     def from_record(cls, record: dict[str, Any]) -> Fit:
         """The fit ``record`` holds (``Fit.record``)."""
         figures = {key: value for key, value in record["figures"].items() if key != "loss"}
-        return cls(Reaction(**record["params"]), figures, float(record["figures"]["loss"]), int(record["evaluations"]),
+        return cls(model_of(record["params"]), figures, float(record["figures"]["loss"]), int(record["evaluations"]),
                    tuple(record["fitted_on"]))
 
 
@@ -323,7 +356,7 @@ def cross_validate(scorer: Scorer, procedure: Procedure, folder: Path | None,
                                progress) for held_out in scorer.groups}
 
 
-def held_out_ratios(scorer: Scorer, fits: dict[str, Reaction]) -> dict[str, float]:
+def held_out_ratios(scorer: Scorer, fits: dict[str, Model]) -> dict[str, float]:
     """Per folder left out, the reactive ADE ratio of its fit (``fits``: folder -> reaction) on that folder."""
     return {held_out: scorer.figures([held_out], reaction)[held_out]["ade_ratio"]
             for held_out, reaction in fits.items()}

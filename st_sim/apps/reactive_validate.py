@@ -42,7 +42,7 @@ from replays.atomic import write_text_atomic
 from replays.citr import CART_LENGTH_M, CART_WIDTH_M, CITR_FPS, Experiment, find_experiments
 from replays.constants import STEP_S
 from replays.data_root import CITR, data_root
-from st_sim.apps.reaction_search import CV_PROCEDURE, VARIANTS, Scorer, cv_score, fold_fit
+from st_sim.apps.reaction_search import CV_PROCEDURE, VARIANTS, Model, Scorer, cv_score, fold_fit
 from st_sim.apps.sim_agents import WEIGHTS, case_realism
 from st_sim.apps.vehicle_cases import INTENT_GAP_M, INTENT_STEPS, NEAR_M, ONSET_M, POST_STEPS, Case, Variety, cases
 from st_sim.command_line import CliError, check_writable, non_negative_float, positive_int
@@ -55,11 +55,12 @@ CV_MODELS: Final[tuple[str, ...]] = ("blind", "reactive")  # the models of a fol
 ROLLOUTS: Final[int] = 32  # seeded rollouts per pedestrian and model of the realism score (WOSAC's)
 
 
-def model_reactions(reaction: Reaction, models: tuple[str, ...] = MODELS) -> dict[str, Reaction | None]:
-    """The reaction of each of ``models`` (None: blind)."""
-    every = {"blind": None, "reactive": reaction,
-             "attentive": dataclasses.replace(reaction, fov_deg=180.0, reaction_s=0.0)}
-    return {model: every[model] for model in models}
+def model_reactions(reaction: Model, models: tuple[str, ...] = MODELS) -> dict[str, Model | None]:
+    """The reaction of each of ``models`` (None: blind; ``reaction`` may be a sub-goal model where ``models`` has no
+    ``attentive``, which is the reactive pedestrian's)."""
+    every = {"blind": lambda: None, "reactive": lambda: reaction,
+             "attentive": lambda: dataclasses.replace(reaction, fov_deg=180.0, reaction_s=0.0)}
+    return {model: every[model]() for model in models}
 
 
 def pedestrian_rows(scorer: Scorer, found: list[Case], reactions: dict[str, Reaction | None],

@@ -34,6 +34,7 @@ from envs.common.reactive import ReactiveCrowd
 from envs.common.routes import OpenGround
 from replays.citr import Experiment, Grid, on_grid
 from replays.constants import STEP_S
+from st_sim.apps.subgoal_force import SubGoalForce, walk_sub_goal
 
 NEAR_M: Final[float] = 5.0  # pedestrians that come this close to the vehicle's body are scored [m]
 INTENT_GAP_M: Final[float] = 15.0  # an intent is taken when the vehicle's body first comes this close [m] ...
@@ -87,11 +88,14 @@ def intents(grid: Grid, body: Body) -> Intents:
     return Intents(columns, start, np.array(last, int), np.where((since_s >= 0)[..., None], xy, np.nan))
 
 
-def walk(grid: Grid, intent: Intents, body: Body, reaction: Reaction | None) -> np.ndarray:
+def walk(grid: Grid, intent: Intents, body: Body, reaction: Reaction | SubGoalForce | None) -> np.ndarray:
     """(T, N, 2) positions [m] of the scored pedestrians walking their intents with the vehicle driving its recorded
-    path (``reaction`` None: blind, the intents themselves)."""
+    path (``reaction`` None: blind, the intents themselves; a ``SubGoalForce``: that model instead of the reactive
+    pedestrians)."""
     if reaction is None:
         return intent.xy_m.copy()
+    if isinstance(reaction, SubGoalForce):
+        return walk_sub_goal(reaction, intent.xy_m, grid.vehicle_xy_m, grid.vehicle_heading_rad, body)
     present = ~np.isnan(intent.xy_m[..., 0])
     crowd = ReactiveCrowd(intent.xy_m, present, OpenGround(), body, BODY_RADIUS_M, reaction)
     path = [crowd.reset(0).copy()]
@@ -178,7 +182,7 @@ JITTERED: Final[tuple[str, ...]] = ("hearing_m", "reaction_s", "clearance_m", "h
 the costs of delay and of standing aside stay as fitted"""
 
 
-def rollout(case: Case, body: Body, reaction: Reaction | None, index: int, seed: int,
+def rollout(case: Case, body: Body, reaction: Reaction | SubGoalForce | None, index: int, seed: int,
             variety: Variety) -> np.ndarray:
     """(T, N, 2) positions [m] of rollout ``index`` of the scored pedestrians of ``case`` (``walk`` with
     ``variety``, drawn from ``seed``, the index and the experiment's name: every model of rollout ``index`` walks the
@@ -186,6 +190,7 @@ def rollout(case: Case, body: Body, reaction: Reaction | None, index: int, seed:
     rng = np.random.default_rng([seed, index, zlib.crc32(case.name.encode())])
     pace = np.clip(rng.normal(1.0, variety.pace_sigma, len(case.intent.columns)), *PACE_RANGE)
     factor = np.exp(rng.normal(0.0, variety.reaction_sigma, len(JITTERED)))
-    drawn = None if reaction is None else dataclasses.replace(
-        reaction, **{name: getattr(reaction, name) * float(f) for name, f in zip(JITTERED, factor, strict=True)})
+    drawn = None if reaction is None else dataclasses.replace(  # (a sub-goal model has none of them: paces only)
+        reaction, **{name: getattr(reaction, name) * float(f) for name, f in zip(JITTERED, factor, strict=True)
+                     if hasattr(reaction, name)})
     return walk(case.grid, case.intent.paced(pace), body, drawn)
