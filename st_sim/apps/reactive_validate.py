@@ -58,9 +58,10 @@ ROLLOUTS: Final[int] = 32  # seeded rollouts per pedestrian and model of the rea
 def model_reactions(reaction: Model, models: tuple[str, ...] = MODELS) -> dict[str, Model | None]:
     """The reaction of each of ``models`` (None: blind; ``reaction`` may be a sub-goal model where ``models`` has no
     ``attentive``, which is the reactive pedestrian's)."""
-    every = {"blind": lambda: None, "reactive": lambda: reaction,
-             "attentive": lambda: dataclasses.replace(reaction, fov_deg=180.0, reaction_s=0.0)}
-    return {model: every[model]() for model in models}
+    every = {"blind": None, "reactive": reaction}
+    if "attentive" in models:
+        every["attentive"] = dataclasses.replace(reaction, fov_deg=180.0, reaction_s=0.0)
+    return {model: every[model] for model in models}
 
 
 def pedestrian_rows(scorer: Scorer, found: list[Case], reactions: dict[str, Reaction | None],

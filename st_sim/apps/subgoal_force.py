@@ -23,11 +23,13 @@ deterministic.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, fields
 from typing import Final
 
 import numpy as np
 
+from envs.common.config import Interval, check_fields
 from envs.common.footprint import Body
 from replays.constants import STEP_S
 
@@ -54,11 +56,8 @@ class SubGoalForce:
     pedestrian_range_m: float = 0.3
 
     def __post_init__(self) -> None:
-        for name, value in vars(self).items():
-            if not (np.isfinite(value) and value >= 0.0):
-                raise ValueError(f"SubGoalForce.{name} = {value!r}: expected a finite number >= 0")
-        if self.tau_s == 0.0:
-            raise ValueError("SubGoalForce.tau_s = 0: expected a relaxation time > 0")
+        check_fields(self, {f.name: Interval(0.0, math.inf, low_open=f.name == "tau_s", high_open=True)
+                            for f in fields(self)})  # ConfigError (a ValueError) naming the field
 
 
 def _away_from_body(body: Body, offset_m: np.ndarray, heading_rad: float) -> tuple[np.ndarray, np.ndarray]:
