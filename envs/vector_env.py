@@ -76,13 +76,19 @@ class CrowdVectorEnv(VectorEnv):
         num_envs: number of sub-envs, >= 1.
         max_episode_steps: steps after which a sub-env's episode is truncated (None: never), as ``TimeLimit``.
         autoreset_mode: ``AutoresetMode.NEXT_STEP`` (default) or ``SAME_STEP`` (or their string values).
+        autoreset_seeds: called for each autoreset, returns the seed (an int >= 0) the ended sub-env starts its next
+            episode with (a training split's seeds: ``envs.suite.Suite.draw_seed``); None: the sub-env's own generator
+            goes on, gymnasium's way.
         kwargs: the env's arguments (``predictor``, ``task``, ``pedestrians`` ...), the same for every sub-env.
     """
 
     metadata: ClassVar[dict[str, Any]] = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": ["rgb_array"]}
 
     def __init__(self, make_env: Callable[..., CrowdEnv], num_envs: int = 1, max_episode_steps: int | None = None,
-                 autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP, **kwargs: Any):
+                 autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
+                 autoreset_seeds: Callable[[], int] | None = None, **kwargs: Any):
+        if autoreset_seeds is not None and not callable(autoreset_seeds):
+            raise EnvInputError(f"autoreset_seeds={autoreset_seeds!r}: expected None or a function returning a seed")
         if isinstance(num_envs, bool) or not isinstance(num_envs, int | np.integer) or num_envs < 1:
             raise EnvInputError(f"num_envs={num_envs!r}: expected an int >= 1")
         if max_episode_steps is not None and (isinstance(max_episode_steps, bool) or
@@ -109,6 +115,7 @@ class CrowdVectorEnv(VectorEnv):
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self._elapsed = np.zeros(self.num_envs, np.int64)
         self._autoreset = np.zeros(self.num_envs, bool)
+        self._autoreset_seeds = autoreset_seeds
 
     def reset(self, *, seed: int | Sequence[int | None] | None = None, options: dict | None = None):
         """Reset every sub-env: ``seed`` an int (sub-env i gets seed + i), a list of one per sub-env, or None.
@@ -154,7 +161,7 @@ class CrowdVectorEnv(VectorEnv):
         """``step`` after ``check_actions``, unbatched."""
         resetting = np.flatnonzero(self._autoreset)
         stepping = np.flatnonzero(~self._autoreset)
-        self._env_class.begin_reset_all([self.envs[i] for i in resetting], [None] * len(resetting), None)
+        self._env_class.begin_reset_all([self.envs[i] for i in resetting], self._next_seeds(len(resetting)), None)
         self._env_class.advance_all([self.envs[i] for i in stepping], [velocities[i] for i in stepping])
         forecasts = self._predict_all()
         parts = StepParts([], np.zeros(self.num_envs), np.zeros(self.num_envs, bool), np.zeros(self.num_envs, bool),
@@ -175,7 +182,7 @@ class CrowdVectorEnv(VectorEnv):
             ended_ids = np.flatnonzero(ended)
             for i in ended_ids:
                 parts.finals[int(i)] = {"final_obs": parts.observations[i], "final_info": parts.infos[i]}
-            self._env_class.begin_reset_all([self.envs[i] for i in ended_ids], [None] * len(ended_ids), None)
+            self._env_class.begin_reset_all([self.envs[i] for i in ended_ids], self._next_seeds(len(ended_ids)), None)
             for i, prediction in zip(ended_ids, self._predict_all(ended_ids), strict=True):
                 parts.observations[i], parts.infos[i] = self.envs[i].end_reset(*prediction)
                 self._elapsed[i] = 0
@@ -190,6 +197,16 @@ class CrowdVectorEnv(VectorEnv):
     def close_extras(self, **kwargs: Any) -> None:
         for env in self.envs:
             env.close()
+
+    def _next_seeds(self, count: int) -> list[int | None]:
+        """Seeds of ``count`` autoresets: ``autoreset_seeds()`` each, or None (the sub-envs' generators go on)."""
+        if self._autoreset_seeds is None:
+            return [None] * count
+        seeds = [self._autoreset_seeds() for _ in range(count)]
+        for seed in seeds:
+            if isinstance(seed, bool | np.bool_) or not isinstance(seed, int | np.integer) or seed < 0:
+                raise EnvInputError(f"autoreset_seeds returned {seed!r}: expected an int >= 0")
+        return [int(seed) for seed in seeds]
 
     def _predict_all(self, which: Sequence[int] | None = None) -> list[Forecast]:
         """(futures, anchors) of the sub-envs ``which`` (None: all), in that order: kept forecasts where a sub-env
@@ -249,4 +266,7 @@ def _vector_env(env_class_path: str, num_envs: int, max_episode_steps: int | Non
         raise EnvInputError(f"num_envs={num_envs!r}: expected an int >= 1")
     if kwargs.get("rerun") is not None:
         raise EnvInputError("rerun=: a vector env does not record; record one env made with gym.make(..., rerun=)")
+    if kwargs.get("autoreset_seeds") is not None:
+        raise EnvInputError("autoreset_seeds=: only a vector env in this process takes it (shards=1, "
+                            "executor='process')")
     return ShardedVectorEnv(env_class_path, num_envs, shards, executor, max_episode_steps, **kwargs)

@@ -161,3 +161,68 @@ def test_a_training_env_that_is_not_an_id_or_mode_is_refused() -> None:
         FeatureVecEnv(["STCrowd-Eth-v0", "Nowhere-v0"], 2, FeatureConfig(False))
     with pytest.raises(EnvInputError, match="give each at least one"):
         FeatureVecEnv(["STCrowd-Eth-v0", "STCrowd-Hotel-v0"], 1, FeatureConfig(False))
+
+
+@settings(max_examples=3, deadline=None)
+@given(seed=st.integers(0, 10_000), listed=st.sets(st.integers(0, 40), max_size=30))
+def test_with_a_train_split_every_episode_starts_from_one_of_its_seeds(seed: int, listed: set) -> None:
+    """Sub-envs of a simulated and a replayed scenario, their episodes ending often: every reset, the first and each
+    autoreset, takes a seed of the split (in its range, in no published list); the first ones are the split's
+    (seed + i)-th seeds, so the same seed gives the same episodes."""
+    from envs.common.crowd_env import CrowdEnv
+    from envs.sim_env import SimCrowdEnv
+    from envs.suite import TrainSeeds
+
+    split = TrainSeeds(0, 48, tuple(sorted(listed)))
+    seen: list[int | None] = []
+
+    def spy(original):
+        def begin_reset_all(cls, batch, seeds, options):
+            seen.extend(seeds)
+            return original.__func__(cls, batch, seeds, options)
+        return classmethod(begin_reset_all)
+
+    patch = pytest.MonkeyPatch()
+    patch.setattr(CrowdEnv, "begin_reset_all", spy(CrowdEnv.begin_reset_all))
+    patch.setattr(SimCrowdEnv, "begin_reset_all", spy(SimCrowdEnv.begin_reset_all))
+    try:
+        vec = FeatureVecEnv(["STCrowd-SimCorridor-v1", "STCrowd-Hotel-v0:log"], 4, FeatureConfig(False),
+                            train_seeds=split)
+        vec.seed(seed)
+        first = vec.reset()
+        assert seen == split.nth(np.arange(seed, seed + 4) % split.count).tolist()
+        rng, ended = np.random.default_rng(seed), 0
+        for _ in range(80):
+            vec.step_async(rng.uniform(-1.0, 1.0, (4, 2)).astype(np.float32))
+            ended += int(vec.step_wait()[2].sum())
+        vec.seed(seed)
+        np.testing.assert_array_equal(vec.reset(), first)
+        vec.close()
+    finally:
+        patch.undo()
+    assert ended > 0 and len(seen) == 8 + ended, "each autoreset went through the spy"
+    assert all(isinstance(s, int) and 0 <= s < 48 and s not in listed for s in seen)
+
+
+def test_suite_scenarios_with_a_hold_out_train_on_the_rest() -> None:
+    from st_sim.apps.navigation.train_ppo import parse_args
+
+    cfg = parse_args(["--scenarios", "all", "--hold-out", "zara1", "univ"])
+    assert cfg.scenarios and not any(name.startswith(("zara1-", "univ-")) for name in cfg.scenarios)
+    assert "STCrowd-Eth-v0:reactive" in cfg.env_ids and len(cfg.env_ids) == len(cfg.scenarios) == 14
+    assert not any(env.startswith(("STCrowd-Zara1", "STCrowd-Univ")) for env in cfg.env_ids)
+    assert parse_args(["--scenarios", "sim-crossing", "eth-log"]).env_ids == ("STCrowd-SimCrossing-v1",
+                                                                              "STCrowd-Eth-v0:log")
+
+
+@pytest.mark.parametrize("argv, match", [(["--scenarios", "moon"], "no scenario 'moon'"),
+                                         (["--hold-out", "eth"], "add --scenarios"),
+                                         (["--scenarios", "all", "--hold-out", "mars"], "neither a scenario"),
+                                         (["--scenarios", "eth-log", "--hold-out", "eth"], "leaves no scenario")])
+def test_bad_suite_scenarios_are_refused_naming_the_flag(argv: list[str], match: str,
+                                                         capsys: pytest.CaptureFixture) -> None:
+    from st_sim.apps.navigation.train_ppo import parse_args
+
+    with pytest.raises(SystemExit):
+        parse_args(argv)
+    assert match in capsys.readouterr().err

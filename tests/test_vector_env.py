@@ -122,7 +122,10 @@ def test_every_id_has_a_native_vector_entry_point(env_id: str) -> None:
 
 
 @pytest.mark.parametrize("kwargs, match", [({"num_envs": 0}, "num_envs"), ({"num_envs": 2, "rerun": "x.rrd"}, "rerun"),
-                                           ({"num_envs": 2, "autoreset_mode": "Disabled"}, "autoreset_mode")])
+                                           ({"num_envs": 2, "autoreset_mode": "Disabled"}, "autoreset_mode"),
+                                           ({"num_envs": 2, "autoreset_seeds": 7}, "autoreset_seeds"),
+                                           ({"num_envs": 2, "shards": 2, "autoreset_seeds": lambda: 0},
+                                            "autoreset_seeds")])
 def test_vector_env_arguments_are_checked(kwargs: dict, match: str) -> None:
     with pytest.raises(EnvInputError, match=match):
         gym.make_vec("STCrowd-SimCrossing-v1", vectorization_mode="vector_entry_point", predictor="cvm", **kwargs)

@@ -6,9 +6,11 @@ so distances are in metres even where the homography has perspective (ETH, HOTEL
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from scipy import ndimage
-from scipy.sparse import coo_matrix
+from scipy.sparse import coo_matrix, csr_matrix
 from scipy.sparse.csgraph import dijkstra
 
 from replays.scenes import Scene
@@ -56,6 +58,7 @@ class Terrain:
         padded = np.pad(self.free, 1, constant_values=False)
         self.clearance_m = ndimage.distance_transform_edt(padded)[1:-1, 1:-1] * cell_m
         self._goal_fields: dict[tuple, np.ndarray] = {}  # goal key -> cost-to-go field, least recently used first
+        self._grids: dict[float, GridGraph] = {}  # body radius -> the moves between its eligible cells
 
     def __repr__(self) -> str:
         return f"Terrain({self.free.shape[1]}x{self.free.shape[0]} cells of {self.cell_m} m)"
@@ -137,41 +140,67 @@ class Terrain:
         key = (*np.round(goal_m, 6).tolist(), body_m)
         field = self._goal_fields.pop(key, None)
         if field is None:
-            field = _geodesic(self.clearance_m >= body_m, self._centres_m, goal_m)
+            if body_m not in self._grids:
+                spacing_m = (self.origin_m[0] + self.cell_m) - self.origin_m[0]  # as the centres have it, to the bit
+                self._grids[body_m] = GridGraph.of(self.clearance_m >= body_m, float(spacing_m))
+            field = self._grids[body_m].geodesic(self._centres_m, goal_m)
         self._goal_fields[key] = field  # most recently used last
         while len(self._goal_fields) > GOAL_FIELDS_KEPT:
             self._goal_fields.pop(next(iter(self._goal_fields)))
         return field
 
 
-def _geodesic(eligible: np.ndarray, centres_m: np.ndarray, goal_m: np.ndarray) -> np.ndarray:
-    """Dijkstra from the goal over ``eligible`` (Gy, Gx) cells along ``MOVES``.
+@dataclass(frozen=True)
+class GridGraph:
+    """The moves (``MOVES``, both ways) between the eligible cells of a grid, as a CSR graph with one more node, the
+    goal's, whose edges each ``geodesic`` call adds.
 
-    The goal is a virtual node joined to every eligible cell within SOURCE_REACH_M (or to the nearest eligible
-    cell) by its straight distance, so a goal beside a wall still gets a field.
+    Attributes:
+        eligible: (Gy, Gx) bool cells a path may use.
+        cells: (C,) their flat indices.
+        moves: (N + 1, N + 1) CSR over the N = Gy * Gx cells and the goal's node, last and without edges.
     """
-    cells = np.flatnonzero(eligible)
-    if cells.size == 0:
-        return np.full(eligible.shape, np.inf)
-    width = eligible.shape[1]
-    cell_m = float(centres_m[0, 1, 0] - centres_m[0, 0, 0])
-    padded = np.pad(eligible, 2, constant_values=False)
-    y, x = np.divmod(cells, width)
-    heads, tails, lengths = [], [], []
-    for (dy, dx), passed in MOVES.items():
-        ok = padded[y + 2 + dy, x + 2 + dx]
-        for py, px in passed:
-            ok &= padded[y + 2 + py, x + 2 + px]
-        heads.append(cells[ok])
-        tails.append(cells[ok] + dy * width + dx)
-        lengths.append(np.full(int(ok.sum()), cell_m * np.hypot(dy, dx)))
-    goal_node = eligible.size
-    to_goal_m = np.linalg.norm(centres_m.reshape(-1, 2)[cells] - goal_m, axis=1)
-    near = to_goal_m <= SOURCE_REACH_M
-    near = near if near.any() else to_goal_m == to_goal_m.min()
-    heads.append(np.full(int(near.sum()), goal_node))
-    tails.append(cells[near])
-    lengths.append(np.maximum(to_goal_m[near], 1e-6))  # a zero weight would be no edge
-    graph = coo_matrix((np.concatenate(lengths), (np.concatenate(heads), np.concatenate(tails))),
-                       shape=(goal_node + 1, goal_node + 1)).tocsr()
-    return dijkstra(graph, directed=False, indices=goal_node)[:-1].reshape(eligible.shape)
+
+    eligible: np.ndarray
+    cells: np.ndarray
+    moves: csr_matrix
+
+    @classmethod
+    def of(cls, eligible: np.ndarray, cell_m: float) -> GridGraph:
+        """The graph of ``eligible`` (Gy, Gx) cells ``cell_m`` [m] apart."""
+        cells = np.flatnonzero(eligible)
+        width = eligible.shape[1]
+        padded = np.pad(eligible, 2, constant_values=False)
+        y, x = np.divmod(cells, width)
+        heads, tails, lengths = [], [], []
+        for (dy, dx), passed in MOVES.items():
+            ok = padded[y + 2 + dy, x + 2 + dx]
+            for py, px in passed:
+                ok &= padded[y + 2 + py, x + 2 + px]
+            heads.append(cells[ok])
+            tails.append(cells[ok] + dy * width + dx)
+            lengths.append(np.full(int(ok.sum()), cell_m * np.hypot(dy, dx)))
+        heads, tails, lengths = np.concatenate(heads), np.concatenate(tails), np.concatenate(lengths)
+        nodes = eligible.size + 1
+        moves = coo_matrix((np.r_[lengths, lengths], (np.r_[heads, tails], np.r_[tails, heads])),
+                           shape=(nodes, nodes)).tocsr()
+        return cls(eligible, cells, moves)
+
+    def geodesic(self, centres_m: np.ndarray, goal_m: np.ndarray) -> np.ndarray:
+        """(Gy, Gx) Dijkstra distance [m] from ``goal_m`` (2,) over the eligible cells (inf elsewhere), ``centres_m``
+        (Gy, Gx, 2) the cells' centres.
+
+        The goal is a node joined to every eligible cell within SOURCE_REACH_M (or to the nearest eligible cell) by
+        its straight distance, so a goal beside a wall still gets a field.
+        """
+        if self.cells.size == 0:
+            return np.full(self.eligible.shape, np.inf)
+        to_goal_m = np.linalg.norm(centres_m.reshape(-1, 2)[self.cells] - goal_m, axis=1)
+        near = to_goal_m <= SOURCE_REACH_M
+        near = near if near.any() else to_goal_m == to_goal_m.min()
+        goal_node = self.eligible.size
+        indptr = self.moves.indptr.copy()
+        indptr[-1] += int(near.sum())  # the goal's row, last: its edges go after every other row's
+        graph = csr_matrix((np.r_[self.moves.data, np.maximum(to_goal_m[near], 1e-6)],  # a zero weight: no edge
+                            np.r_[self.moves.indices, self.cells[near]], indptr), shape=self.moves.shape)
+        return dijkstra(graph, directed=True, indices=goal_node)[:-1].reshape(self.eligible.shape)

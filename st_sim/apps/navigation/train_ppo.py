@@ -5,6 +5,8 @@
     python -m st_sim.apps.navigation.train_ppo --timesteps 0 --demo-steps 40000 ... --out runs/nav/clone-with
     python -m st_sim.apps.navigation.train_ppo --init-policy runs/nav/clone-with/policy.pt --critic-rollouts 5 \
         --learning-rate 1e-4 --target-kl 0.02 --log-std-init -2.5 ... --out runs/nav/ft-with   # PPO from a clone
+    python -m st_sim.apps.navigation.train_ppo --scenarios all --hold-out zara1 univ --init-policy ... \
+        --out runs/suite/with-s0      # on the navigation suite's train split, two scenes held out
 
 The ``--num-envs`` sub-envs (64) run as native vector envs in ``--shards`` worker processes (2, a core each;
 ``training_envs.FeatureVecEnv``): one batched SingularTrajectory call per step in each, for the pedestrians the
@@ -14,9 +16,11 @@ once into ``--demos`` (reused by the other variant) and cloned into the actor-cr
 see every pedestrian, so it needs ``--sensor-range inf``). ``--dagger-rounds K`` then runs K DAgger rounds: the clone
 drives ``--dagger-steps`` steps, the teacher labels every state it reaches, and the clone is fitted again on all labels
 so far (each round's steps are kept in --out). ``--timesteps 0`` stops there (a clone without PPO); ``--init-policy``
-starts PPO (of any seed) from such a clone's ``policy.pt``, and ``--critic-rollouts R`` fits its critic to the
-training reward for R updates before the actor moves (``critic_first.CriticFirstPPO``). ``--minutes`` stops the run
-after that much wall time (then writes everything as at the end of the budget); ``--device`` puts PPO and the
+starts PPO (of any seed) from such a clone's ``policy.pt`` (or any policy file), and ``--critic-rollouts R`` fits its
+critic to the training reward for R updates before the actor moves (``critic_first.CriticFirstPPO``).
+``--scenarios`` trains on scenarios of the shipped navigation suite (``--hold-out`` leaves some out), every episode
+from its train split (``training_envs.FeatureVecEnv``'s ``train_seeds``). ``--minutes`` stops the run after that
+much wall time (then writes everything as at the end of the budget); ``--device`` puts PPO and the
 forecasts on a GPU where torch sees one (``auto``, the default) or where it is told.
 
 Writes into --out: ``policy.pt`` (loadable with ``ppo.load_policy``), ``curve.png`` and ``curve.json`` (the
@@ -57,10 +61,10 @@ from st_sim.apps.navigation.ppo import EXTRACTORS, PRETRAINED_DIR, build_policy,
 
 CURVE_WINDOW = 100  # training episodes averaged per learning-curve point [-]
 DAGGER_SEED_STRIDE = 10_000  # episode seeds between two DAgger rounds (a worker's share is far fewer episodes) [-]
-RESUMABLE = ("use_predictions", "env_ids", "num_envs", "sensor_range_m", "reward", "seed", "n_steps", "batch_size",
-             "n_epochs", "learning_rate", "gamma", "net_arch", "log_std_init", "initial_forward", "init_policy",
-             "demo_steps", "demos", "bc_epochs", "dagger_rounds", "dagger_steps", "extractor", "closest_approach",
-             "clip_range", "target_kl", "critic_rollouts")
+RESUMABLE = ("use_predictions", "env_ids", "scenarios", "num_envs", "sensor_range_m", "reward", "seed", "n_steps",
+             "batch_size", "n_epochs", "learning_rate", "gamma", "net_arch", "log_std_init", "initial_forward",
+             "init_policy", "demo_steps", "demos", "bc_epochs", "dagger_rounds", "dagger_steps", "extractor",
+             "closest_approach", "clip_range", "target_kl", "critic_rollouts")
 """settings a run must share with the saved state to continue it (the budget and output options may differ)"""
 
 
@@ -73,6 +77,9 @@ class TrainConfig:
     env_ids: tuple[str, ...] = ("STCrowd-SimCrossing-v1",)
     """training envs, ``ID`` or ``ID:MODE`` for a replay's pedestrians (log, reactive); several share the sub-envs
     evenly (``FeatureVecEnv``)"""
+    scenarios: tuple[str, ...] = ()
+    """the shipped suite's scenarios trained on (``envs.suite``), every episode from its train split; their envs are
+    ``env_ids`` (``training_envs.scenario_env``); empty: ``env_ids`` as given, their episodes from the seeds"""
     timesteps: int = 1_000_000
     """env steps over all envs (the training budget)"""
     num_envs: int = 64
@@ -319,6 +326,7 @@ def main(cfg: TrainConfig) -> Path:
     import torch
     from stable_baselines3.common.vec_env import VecMonitor
 
+    from envs.suite import load_suite
     from st_sim.apps.navigation.critic_first import CriticFirstPPO
     from st_sim.apps.navigation.training_envs import FeatureVecEnv
 
@@ -327,14 +335,16 @@ def main(cfg: TrainConfig) -> Path:
     torch.manual_seed(cfg.seed)
     out = Path(cfg.out)
     variant = "predictions" if cfg.use_predictions else "no-predictions"
-    run_name = f"{'+'.join(cfg.env_ids)}__ppo-{variant}__seed{cfg.seed}"
+    envs_name = f"suite-train-{len(cfg.scenarios)}-scenarios" if cfg.scenarios else "+".join(cfg.env_ids)
+    run_name = f"{envs_name}__ppo-{variant}__seed{cfg.seed}"
     print(f"{run_name}: {strict_json.dumps(asdict(cfg), default=str)}")
 
     # envs: num_envs sub-envs as native vector envs in cfg.shards processes (one batched forecast per step in each),
     # seen through the features
     device = resolve_device(cfg.device)
+    train_seeds = load_suite().train if cfg.scenarios else None
     vec = VecMonitor(FeatureVecEnv(cfg.env_ids, cfg.num_envs, cfg.features, EnvConfig(reward=cfg.reward), cfg.shards,
-                                   str(device)))
+                                   str(device), train_seeds))
     vec.seed(cfg.seed)
 
     # model: PPO with a tanh actor-critic on the flat features or on their attention encoding (same for both variants)
@@ -454,6 +464,12 @@ def parse_args(argv: list[str] | None = None) -> TrainConfig:
     parser = argparse.ArgumentParser(prog="python -m st_sim.apps.navigation.train_ppo", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--no-predictions", action="store_true", help="train without the predicted futures")
+    parser.add_argument("--scenarios", nargs="+", default=None, metavar="NAME",
+                        help="train on these scenarios of the shipped navigation suite ('all': every one), every "
+                             "episode from its train split (never a val or test seed); replaces --env-ids")
+    parser.add_argument("--hold-out", nargs="+", default=[], metavar="NAME",
+                        help="with --scenarios: leave out these scenarios, a scene's name leaving out all of its "
+                             "(e.g. zara1 univ: zara1-log, zara1-reactive, univ-log, univ-reactive)")
     parser.add_argument("--env-ids", "--env-id", nargs="+", default=list(d.env_ids), metavar="ID[:MODE]",
                         help="training envs, MODE a replay's pedestrians (log or reactive), e.g. "
                              "STCrowd-Eth-v0:reactive; several share the sub-envs evenly (default: "
@@ -520,13 +536,45 @@ def parse_args(argv: list[str] | None = None) -> TrainConfig:
         parser.error(f"--device: {err}")
     if not np.isfinite(args.prediction_reward):
         parser.error(f"--prediction-reward={args.prediction_reward}: expected a finite weight")
-    return TrainConfig(use_predictions=not args.no_predictions, env_ids=tuple(args.env_ids),
+    scenarios, env_ids = training_scenarios(parser, args)
+    return TrainConfig(use_predictions=not args.no_predictions, env_ids=env_ids, scenarios=scenarios,
                        sensor_range_m=args.sensor_range,
                        seed=args.seed, reward=replace(d.reward, prediction=args.prediction_reward),
                        extractor=args.extractor, closest_approach=args.closest_approach, tensorboard=args.tensorboard,
                        demos=args.demos, minutes=args.minutes, log_std_init=args.log_std_init, device=args.device,
                        init_policy=args.init_policy, out=args.out, ship_as=args.ship, progress=not args.quiet,
                        **{name: getattr(args, name) for name, *_ in (*COUNTS, *RATES)})
+
+
+def training_scenarios(parser: argparse.ArgumentParser, args: argparse.Namespace
+                       ) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """(suite scenarios, training envs) of the flags: --scenarios less --hold-out and their envs, or () and
+    --env-ids; a parser error for an unknown name or a hold-out that leaves nothing."""
+    from envs.suite import SuiteError, load_suite
+    from st_sim.apps.navigation.training_envs import scenario_env
+
+    if args.scenarios is None:
+        if args.hold_out:
+            parser.error("--hold-out: it leaves scenarios out of --scenarios; add --scenarios all (or names)")
+        return (), tuple(args.env_ids)
+    if args.demo_steps > 0:
+        parser.error("--demo-steps: the teacher's demonstrations come from one env; start from a policy with "
+                     "--init-policy to train on --scenarios")
+    suite = load_suite()
+    try:
+        chosen = suite.select(None if args.scenarios == ["all"] else args.scenarios)
+    except SuiteError as err:
+        parser.error(f"--scenarios: {err}")
+    names = {scenario.name for scenario in suite.scenarios}
+    for name in args.hold_out:
+        if name not in names and not any(other.startswith(f"{name}-") for other in names):
+            parser.error(f"--hold-out {name}: neither a scenario nor a scene of suite {suite.name} {suite.version}")
+    kept = [s for s in chosen if not any(s.name == h or s.name.startswith(f"{h}-") for h in args.hold_out)]
+    if not kept:
+        parser.error("--hold-out leaves no scenario to train on")
+    if suite.train is None:
+        parser.error(f"--scenarios: suite {suite.name} {suite.version} states no train split")
+    return tuple(s.name for s in kept), tuple(scenario_env(s) for s in kept)
 
 
 def cli(argv: list[str] | None = None) -> int:

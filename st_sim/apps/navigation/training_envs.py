@@ -15,7 +15,10 @@ Actions (num_envs, 2) in [-1, 1] are path-frame velocities in speed limits (``fe
 conditions their forecast). Several training envs (``ID`` or ``ID:MODE``, a replay's pedestrians "log" or
 "reactive") share the sub-envs evenly, in the order given, one native vector env each. With ``shards`` > 1 the
 sub-envs are split into worker processes (``FeatureShards`` in each, through ``envs.shards``), which step at once and
-send back features, not observations.
+send back features, not observations. With a suite's ``train_seeds`` every episode is one of the suite's train split
+(``envs.suite.TrainSeeds``): sub-env i's first reset seed s becomes the split's s-th seed and every later episode
+starts from a seed of the split drawn by the shard (seeded by its first seeds), so training never meets a val or test
+episode.
 """
 
 from __future__ import annotations
@@ -34,6 +37,7 @@ from envs.common.config import EnvConfig
 from envs.common.errors import EnvInputError
 from envs.replay_env import PEDESTRIAN_MODES
 from envs.shards import ProcessShard, one_thread
+from envs.suite import Scenario, TrainSeeds
 from st_sim.apps.navigation.features import NEAREST, FeatureConfig, encode_batch, path_frames, to_velocities
 from st_sim.apps.navigation.predictors import env_predictor
 from st_sim.apps.navigation.world import world_of
@@ -61,28 +65,51 @@ def training_env(spec: str) -> tuple[str, dict[str, Any]]:
     return env_id, {"pedestrians": mode}
 
 
+def scenario_env(scenario: Scenario) -> str:
+    """The training env (``ID`` or ``ID:MODE``) of a suite scenario; ``EnvInputError`` for keywords other than a
+    replay's pedestrians."""
+    kwargs = dict(scenario.env_kwargs)
+    mode = kwargs.pop("pedestrians", None)
+    if kwargs:
+        raise EnvInputError(f"scenario {scenario.name!r}: keywords {sorted(kwargs)} cannot be trained on (only "
+                            "'pedestrians')")
+    return scenario.env if mode is None else f"{scenario.env}:{mode}"
+
+
 class FeatureShard:
     """``num_envs`` sub-envs of one training env (``ID`` or ``ID:MODE``) in this process: one native vector env and
     its features (arguments as ``FeatureVecEnv``)."""
 
     def __init__(self, env_id: str, num_envs: int, features: FeatureConfig, config: EnvConfig | None = None,
-                 device: str = "auto", worker: bool = False):
+                 device: str = "auto", worker: bool = False, train_seeds: TrainSeeds | None = None):
         if worker:
             one_thread()
         config = replace(config or EnvConfig(), sensor_range_m=features.sensor_range_m, forecast_nearest=NEAREST)
         env_id, kwargs = training_env(env_id)
+        self.train_seeds = train_seeds
+        self._draws = np.random.default_rng()  # the split's seeds of later episodes; seeded by the first reset's
         self.vector = gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point",
                                    autoreset_mode=AutoresetMode.SAME_STEP, config=config, device=device,
                                    predictor=env_predictor("singular" if features.use_predictions else "none"),
-                                   **kwargs)
+                                   autoreset_seeds=None if train_seeds is None else self._draw_seed, **kwargs)
         self.features = features
         self.world = world_of(self.vector.envs[0])  # every sub-env of an id has the same world (scene, limits, map)
         self._frames = np.zeros((num_envs, 2, 2))  # path_frames of the sub-envs' observations, for their next action
 
     def reset(self, seeds: list[int | None] | None) -> np.ndarray:
-        """(num_envs, size) features of new episodes; sub-env i seeded with ``seeds[i]`` (None: fresh ones)."""
+        """(num_envs, size) features of new episodes; sub-env i seeded with ``seeds[i]`` (None: fresh ones; with
+        ``train_seeds``, the split's ``seeds[i]``-th seed, or a drawn one)."""
+        if self.train_seeds is not None:
+            given = [seed for seed in seeds or [] if seed is not None]
+            self._draws = np.random.default_rng(given or None)
+            seeds = [self._draw_seed() if seed is None else int(self.train_seeds.nth(seed % self.train_seeds.count))
+                     for seed in seeds or [None] * self.vector.num_envs]
         obs, _ = self.vector.reset(seed=seeds)
         return self._encode_all(obs)
+
+    def _draw_seed(self) -> int:
+        """A seed of the train split, drawn uniformly."""
+        return int(self.train_seeds.nth(self._draws.integers(self.train_seeds.count)))
 
     def step(self, actions: np.ndarray) -> StepResult:
         """One step of every sub-env with path-frame actions (num_envs, 2) in [-1, 1]."""
@@ -128,10 +155,11 @@ class FeatureShards:
     """
 
     def __init__(self, parts: Sequence[tuple[str, int]], features: FeatureConfig, config: EnvConfig | None = None,
-                 device: str = "auto", worker: bool = False):
+                 device: str = "auto", worker: bool = False, train_seeds: TrainSeeds | None = None):
         if worker:
             one_thread()
-        self.shards = [FeatureShard(env_id, size, features, config, device) for env_id, size in parts]
+        self.shards = [FeatureShard(env_id, size, features, config, device, train_seeds=train_seeds)
+                       for env_id, size in parts]
         self._cuts = np.cumsum([size for _, size in parts])[:-1]
 
     def reset(self, seeds: list[int | None] | None) -> np.ndarray:
@@ -182,10 +210,13 @@ class FeatureVecEnv(VecEnv):
         shards: worker processes the sub-envs are split into (``FeatureShard`` each; 1: this process), at most
             ``num_envs``. Sub-env i is the same env, with the same seed, whichever shard holds it.
         device: where the forecasts run (``predictor.devices``; "auto": a GPU when torch sees one).
+        train_seeds: a suite's train split (``Suite.train``): every episode is one of its seeds; None: the sub-envs'
+            seeds and generators as ever.
     """
 
     def __init__(self, env_id: str | Sequence[str], num_envs: int, features: FeatureConfig,
-                 config: EnvConfig | None = None, shards: int = 1, device: str = "auto"):
+                 config: EnvConfig | None = None, shards: int = 1, device: str = "auto",
+                 train_seeds: TrainSeeds | None = None):
         if isinstance(shards, bool) or not isinstance(shards, int | np.integer) or not 1 <= shards <= num_envs:
             raise EnvInputError(f"shards={shards!r}: expected an int between 1 and num_envs={num_envs}")
         env_ids = [env_id] if isinstance(env_id, str) else list(env_id)
@@ -198,9 +229,11 @@ class FeatureVecEnv(VecEnv):
         parts = [[(env_ids[k], int(np.sum(block == k))) for k in dict.fromkeys(block.tolist())] for block in blocks]
         self.sizes = [len(block) for block in blocks]
         self._cuts = np.cumsum(self.sizes)[:-1]
-        self._local = FeatureShards(parts[0], features, config, device) if shards == 1 else None
+        self._local = None if shards > 1 else FeatureShards(parts[0], features, config, device,
+                                                             train_seeds=train_seeds)
         self._workers = [] if shards == 1 else [
-            ProcessShard(f"{__name__}:FeatureShards", part, features, config, device, True) for part in parts]
+            ProcessShard(f"{__name__}:FeatureShards", part, features, config, device, True, train_seeds)
+            for part in parts]
         super().__init__(num_envs, spaces.Box(-np.inf, np.inf, (features.size,), np.float32),
                          spaces.Box(-1.0, 1.0, (2,), np.float32))
         self._actions = np.zeros((num_envs, 2), np.float32)
