@@ -109,25 +109,29 @@ def goal_seeking(obs: dict[str, np.ndarray], rng: np.random.Generator) -> np.nda
     return (velocity + rng.normal(0.0, 0.5, velocity.shape)).astype(np.float32)
 
 
-def single_rate(steps: int, seed: int, model, threads: int | None, sensor_range_m: float = SENSOR_RANGE_M) -> float:
-    """Env steps per second of one SimCrossing-v1 env (``sensor_range_m`` sensing) with a goal-seeking noisy robot, at
-    ``threads`` torch threads (None: default)."""
+def single_rate(steps: int, seed: int, model, threads: int | None, sensor_range_m: float = SENSOR_RANGE_M,
+                envs_made: tuple[tuple[str, dict], ...] = (("STCrowd-SimCrossing-v1", {}),)) -> float:
+    """Env steps per second of one env (``sensor_range_m`` sensing) with a goal-seeking noisy robot, at ``threads``
+    torch threads (None: default): ``steps`` steps in each of ``envs_made`` ((id, ``gym.make`` keywords) pairs; by
+    default SimCrossing-v1 alone), all steps over all the time."""
     default = torch.get_num_threads()
     torch.set_num_threads(threads or DEFAULT_THREADS)
+    elapsed = 0.0
     try:
-        env = gym.make("STCrowd-SimCrossing-v1", predictor=model, config=EnvConfig(sensor_range_m=sensor_range_m))
-        rng = np.random.default_rng(seed)
-        obs, _ = env.reset(seed=seed)
-        start = time.perf_counter()
-        for _ in range(steps):
-            obs, _, terminated, truncated, _ = env.step(goal_seeking(obs, rng))
-            if terminated or truncated:
-                obs, _ = env.reset()
-        rate = steps / (time.perf_counter() - start)
-        env.close()
+        for env_id, kwargs in envs_made:
+            env = gym.make(env_id, predictor=model, config=EnvConfig(sensor_range_m=sensor_range_m), **kwargs)
+            rng = np.random.default_rng(seed)
+            obs, _ = env.reset(seed=seed)
+            start = time.perf_counter()
+            for _ in range(steps):
+                obs, _, terminated, truncated, _ = env.step(goal_seeking(obs, rng))
+                if terminated or truncated:
+                    obs, _ = env.reset()
+            elapsed += time.perf_counter() - start
+            env.close()
     finally:
         torch.set_num_threads(default)
-    return rate
+    return steps * len(envs_made) / elapsed
 
 
 def vector_rate(num_envs: int, steps: int, seed: int, model, shards: int = 1) -> tuple[float, float, float]:

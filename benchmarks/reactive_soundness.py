@@ -2,17 +2,22 @@
 in walls or off the image, measured against their own recordings.
 
     export OMP_NUM_THREADS=1 STCROWD_DATA=$PWD/../shared/datasets/eth_ucy
-    python benchmarks/reactive_soundness.py --scenes univ zara1 --episodes 50 --busiest-episodes 30 --seed 1000
+    python benchmarks/reactive_soundness.py --scenes univ zara1 --episodes 50 --busiest-episodes 30 \
+        --log-end-episodes 30 --seed 1000
 
 Each episode starts from ``reset(seed=seed + i)`` of ``STCrowd-<Scene>-v0`` with ``pedestrians="reactive"`` and the
 robot commanded to stand still for up to 200 steps, either where the env spawned it (at least 1 m from everybody, the
-benchmark's own setting) or moved, right after the reset, to the busiest clear spot: the walkable point at least 1 m
-from everybody then that the most logged pedestrian-frames of the episode pass within 1 m of. Everything is measured
-from the observations (who is present where) against the recording:
+benchmark's own setting) or moved, right after the reset, to the busiest clear spot (the walkable point at least 1 m
+from everybody then that the most logged pedestrian-frames of the episode pass within 1 m of) or onto a log's end
+(the walkable point at least 1 m from everybody then nearest to where a log present now ends within the episode, the
+log ending soonest first). Everything is measured from the observations (who is present where) against the
+recording:
 
 - frozen: a pedestrian that moves under 2 cm per step for 10 steps in a row while its log moves more than 1 m over
   them (episodes with one);
-- leave far: a pedestrian that leaves the scene more than 1 m from where its log ends;
+- leave far: a pedestrian that leaves the scene more than 1 m from where its log ends or, where the robot's body
+  stands within 1 m of that end, more than 1 m from the nearest place there that is clear of the robot (pedestrian
+  and robot bodies apart);
 - overlap: a pair of pedestrians closer than 0.3 m (bodies of 0.2 m overlapping by more than 10 cm) whose logs are
   not that close at that frame (distinct pairs);
 - in a wall: pedestrian-steps on a non-walkable pixel where the log is walkable, and those more than 0.3 m deeper in
@@ -54,11 +59,45 @@ def busiest_clear_spot(env: gym.Env) -> np.ndarray:
     return candidates[clear][np.argmax(traffic)].copy()
 
 
-def run_episode(env: gym.Env, seed: int, busiest: bool, depth: MapDepth) -> dict[str, float]:
+def log_end_spot(env: gym.Env) -> np.ndarray:
+    """The walkable arena point >= 1 m from everybody now nearest to the end of a log present now that ends within
+    the next STEPS frames (the soonest such end); the busiest clear spot where no log ends so."""
+    replay, index = env.unwrapped.replay, env.unwrapped.index
+    candidates = env.unwrapped.candidates_m
+    now = replay.xy_m[index][replay.present[index]]
+    clear = np.linalg.norm(candidates[:, None] - now[None], axis=-1).min(axis=1) >= 1.0 if len(now) else \
+        np.ones(len(candidates), bool)
+    _, run_last = run_bounds(replay.present)
+    last = np.where(replay.present[index], run_last[index], -1)  # (A,) the frame each present log's run ends
+    ending = np.flatnonzero((last >= index) & (last < min(index + STEPS, len(replay.present) - 1)))
+    if not ending.size or not clear.any():
+        return busiest_clear_spot(env)
+    soonest = ending[np.argmin(last[ending])]
+    end = replay.xy_m[last[soonest], soonest]
+    return candidates[clear][np.argmin(np.linalg.norm(candidates[clear] - end, axis=1))].copy()
+
+
+def clear_of_robot(point: np.ndarray, robot: np.ndarray, apart_m: float) -> np.ndarray:
+    """(2,) the nearest place to ``point`` whose centre is at least ``apart_m`` from the robot's centre."""
+    offset = point - robot
+    distance = float(np.linalg.norm(offset))
+    if distance >= apart_m:
+        return point
+    direction = offset / distance if distance > 1e-9 else np.array([1.0, 0.0])
+    return robot + apart_m * direction
+
+
+PLACEMENTS = {"at its spawn": None, "busiest clear spot": busiest_clear_spot, "on a log's end": log_end_spot}
+"""where the robot stands: as the env spawned it, or moved right after the reset by the function"""
+
+
+def run_episode(env: gym.Env, seed: int, placement: str, depth: MapDepth) -> dict[str, float]:
     _, info = env.reset(seed=seed)
     unwrapped = env.unwrapped
-    if busiest:
-        unwrapped.ego_xy_m = busiest_clear_spot(env)
+    if PLACEMENTS[placement] is not None:
+        unwrapped.ego_xy_m = PLACEMENTS[placement](env)
+    robot = unwrapped.ego_xy_m.copy()
+    apart_m = unwrapped.cfg.ego_radius_m + unwrapped.cfg.pedestrian_radius_m  # bodies touching
     replay = unwrapped.replay
     column = {agent: k for k, agent in enumerate(replay.agents.tolist())}
     _, run_last = run_bounds(replay.present)  # (F, A): the last frame of the log's run of presence holding frame f
@@ -84,6 +123,8 @@ def run_episode(env: gym.Env, seed: int, busiest: bool, depth: MapDepth) -> dict
         for agent in set(previous) - set(here):  # left the scene
             col = column[agent]
             end = replay.xy_m[run_last[last_seen[agent], col], col]
+            if np.linalg.norm(end - robot) - unwrapped.cfg.ego_radius_m <= LEAVE_FAR_M:  # the robot by its end
+                end = clear_of_robot(end, robot, apart_m)
             counts["leave_far"] += bool(np.linalg.norm(previous[agent] - end) > LEAVE_FAR_M)
         for k, agent in enumerate(ids):
             if agent in previous:
@@ -117,6 +158,7 @@ def main() -> None:
     parser.add_argument("--scenes", nargs="+", default=["univ", "zara1"])
     parser.add_argument("--episodes", type=int, default=50, help="episodes with the robot where it spawns")
     parser.add_argument("--busiest-episodes", type=int, default=30, help="episodes at the busiest clear spot")
+    parser.add_argument("--log-end-episodes", type=int, default=30, help="episodes on a log's end")
     parser.add_argument("--seed", type=int, default=1000, help="episode i starts from reset(seed=seed + i)")
     parser.add_argument("--per-episode", action="store_true",
                         help="also print the seed and counts of every episode with something to count but wall steps")
@@ -127,11 +169,11 @@ def main() -> None:
     for scene in args.scenes:
         env = gym.make(f"STCrowd-{scene.capitalize()}-v0", predictor="cvm", pedestrians="reactive")
         depth = MapDepth(env.unwrapped.scene)
-        for busiest, episodes in ((False, args.episodes), (True, args.busiest_episodes)):
+        for where, episodes in zip(PLACEMENTS, (args.episodes, args.busiest_episodes, args.log_end_episodes),
+                                   strict=True):
             total: dict[str, int] = defaultdict(int)
-            where = "busiest clear spot" if busiest else "at its spawn"
             for i in tqdm(range(episodes), desc=f"{scene} {where}", leave=False):
-                counts = run_episode(env, args.seed + i, busiest, depth)
+                counts = run_episode(env, args.seed + i, where, depth)
                 for key, value in counts.items():
                     total[key] += value
                 if args.per_episode and any(value for key, value in counts.items() if key != "in_wall"):

@@ -188,3 +188,47 @@ def test_the_sample_belief_follows_the_sample_a_pedestrian_walks() -> None:
     assert weights.min() >= 0.1 * 0.25 - 1e-12, "the floor keeps every sample possible"
     obs["history"][0, -2] = [50.0, 50.0]  # somebody else in that row now
     assert np.allclose(belief.update(obs)[0], prior), "a new pedestrian starts at the prior"
+
+
+class Proposer:
+    """A planner that always proposes the same command."""
+
+    def __init__(self, command: np.ndarray):
+        self.command, self.resets = np.asarray(command, np.float32), 0
+
+    def reset(self) -> None:
+        self.resets += 1
+
+    def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        return self.command
+
+
+@pytest.mark.parametrize("heading_deg", [-150.0, -90.0, 90.0, 180.0])
+def test_the_shield_keeps_a_command_that_stays_clear(open_world: NavWorld, heading_deg: float) -> None:
+    from st_sim.apps.navigation.shield import ShieldedPlanner
+
+    away = 0.8 * np.array([np.cos(np.radians(heading_deg)), np.sin(np.radians(heading_deg))])
+    inner = Proposer(away)
+    shield = ShieldedPlanner(open_world, True, inner)
+    shield.reset()
+    np.testing.assert_array_equal(shield.act(observation(np.zeros(2), np.zeros(2), 0)), inner.command)
+    assert (shield.vetoes, shield.decisions, inner.resets) == (0, 1, 1)
+
+
+def test_the_shield_vetoes_walking_into_the_forecast_and_then_passes_clear(open_world: NavWorld) -> None:
+    """The straight planner meets the crosser (its collision above): shielded, its commands are vetoed on the steps
+    the forecast says so, and the robot never touches the crosser and still makes headway."""
+    from st_sim.apps.navigation.shield import ShieldedPlanner
+
+    shield = ShieldedPlanner(open_world, True, make_planner("straight", open_world, "none"))
+    shield.reset()
+    ego_xy, ego_v, closest = np.zeros(2), np.zeros(2), np.inf
+    for step in range(30):
+        command = np.asarray(shield.act(observation(ego_xy, ego_v, step)), np.float64)
+        for fraction in np.linspace(0.1, 1.0, 10):
+            crosser = CROSSER_START + (step + fraction) * STEP_S * CROSSER_VELOCITY
+            closest = min(closest, float(np.linalg.norm(ego_xy + fraction * STEP_S * command - crosser)))
+        ego_xy, ego_v = ego_xy + STEP_S * command, command
+    assert 0 < shield.vetoes < shield.decisions
+    assert closest >= open_world.contact_m, f"the shielded robot touched the crosser ({closest:.2f} m)"
+    assert np.linalg.norm(GOAL - ego_xy) < 12.0 - 3.0, "it made no headway"

@@ -7,7 +7,8 @@ Modules, one concept each:
 - ``planners``: the registry (straight, orca, mpc, ppo, ppo-reactive) and the ``Planner`` interface (``reset``,
   ``act``); ``policies``: any policy by spec (a shipped name, package.module:name, sb3:PATH.zip); ``sb3_zip``: a
   stable-baselines3 model file read without running anything stored in it;
-  ``straight``, ``orca``, ``mpc``, ``ppo``: one planner class each;
+  ``straight``, ``orca``, ``mpc``, ``ppo``: one planner class each; ``shield``: another planner's commands vetted by
+  the MPC over the forecasts;
 - ``predictors``: the predictor names (none, cvm, cvm-s, singular) and "none" (nobody moves);
 - ``world``, ``pedestrians``: what a planner knows (limits, radii, the map grid and cost-to-go of
   ``envs.common.terrain``) and sees;

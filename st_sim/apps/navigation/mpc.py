@@ -116,12 +116,37 @@ class MpcPlanner:
 
     def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
         """Velocity command (2,) [m/s], world frame."""
+        commands, cost, risk = self._scored(obs, self._commands)
+        best = int(np.argmin(cost))
+        stop = risk[best] > self.cfg.risk_limit and self.cfg.safe_stop
+        self._previous = np.zeros(2) if stop else commands[best]
+        return self._previous.astype(np.float32)
+
+    def vet(self, obs: dict[str, np.ndarray], proposed: np.ndarray) -> tuple[np.ndarray, bool]:
+        """(command (2,) [m/s], vetoed): the ``proposed`` command (2,) [m/s] of another planner when its rollout keeps
+        within the risk limit and out of walls, else this planner's own choice (``act``'s, the proposal among the
+        candidates); the previous command becomes the one returned."""
+        proposal = np.asarray(proposed, np.float64).reshape(1, 2)
+        commands, cost, risk = self._scored(obs, np.concatenate([self._commands, proposal]))
+        proposed_at = len(self._commands)  # its row: after the fixed candidates, before the previous command
+        if risk[proposed_at] <= self.cfg.risk_limit and cost[proposed_at] < INFEASIBLE:
+            self._previous = commands[proposed_at]
+            return self._previous.astype(np.float32), False
+        best = int(np.argmin(cost))
+        stop = risk[best] > self.cfg.risk_limit and self.cfg.safe_stop
+        self._previous = np.zeros(2) if stop else commands[best]
+        return self._previous.astype(np.float32), True
+
+    def _scored(self, obs: dict[str, np.ndarray], candidates: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(commands (K, 2) [m/s]: ``candidates`` then the previous command, their costs (K,), their expected
+        collisions (K,)); updates the sample belief with ``obs``."""
         ego_xy, ego_v, goal = (obs["ego"][i:i + 2].astype(np.float64) for i in (0, 2, 4))
         peds = pedestrians_of(obs, self.cfg.horizon_steps, self.use_predictions)
         weights = None
         if self._belief is not None and self.use_predictions:
             weights = self._belief.update(obs)[obs["history_mask"][:, -1]]  # (P, S), rows of ``peds``
-        commands = np.concatenate([self._commands, self._previous[None]])
+        commands = np.concatenate([candidates, self._previous[None]])
         path = self._rollout(ego_xy, ego_v, commands, goal)  # (K, J, 2)
         risk, crowding = self._risk_terms(path, ego_xy, peds, weights)
         cost = (self.cfg.risk_weight * risk + self.cfg.clearance_weight * crowding
@@ -129,10 +154,7 @@ class MpcPlanner:
                 + self.cfg.smooth_weight * self._smoothness(commands, ego_v)
                 + self._walls(path, ego_xy)
                 + np.where(risk > self.cfg.risk_limit, RISK_PENALTY * (1.0 + risk), 0.0))
-        best = int(np.argmin(cost))
-        stop = risk[best] > self.cfg.risk_limit and self.cfg.safe_stop
-        self._previous = np.zeros(2) if stop else commands[best]
-        return self._previous.astype(np.float32)
+        return commands, cost, risk
 
     # ---------------------------------------------------------------- rollout
     def _rollout(self, ego_xy: np.ndarray, ego_v: np.ndarray, commands: np.ndarray, goal: np.ndarray) -> np.ndarray:
