@@ -45,6 +45,7 @@ class Terrain:
         free: (Gy, Gx) bool, walkable cell centres.
         clearance_m: (Gy, Gx) float64 distance from each cell centre to the nearest non-walkable cell [m]
             (0 on non-walkable cells; the grid's outside counts as non-walkable).
+        cell_centres_m: (Gy, Gx, 2) the cells' centres [m].
     """
 
     def __init__(self, scene: Scene, bounds_m: tuple[float, float, float, float], cell_m: float = CELL_M):
@@ -53,8 +54,8 @@ class Terrain:
         self.origin_m = np.array([xmin, ymin])
         shape = (int(np.ceil((ymax - ymin) / cell_m)) + 1, int(np.ceil((xmax - xmin) / cell_m)) + 1)
         iy, ix = np.indices(shape)
-        self._centres_m = self.origin_m + cell_m * np.stack([ix, iy], axis=-1)
-        self.free = scene.is_walkable(self._centres_m)
+        self.cell_centres_m = self.origin_m + cell_m * np.stack([ix, iy], axis=-1)
+        self.free = scene.is_walkable(self.cell_centres_m)
         padded = np.pad(self.free, 1, constant_values=False)
         self.clearance_m = ndimage.distance_transform_edt(padded)[1:-1, 1:-1] * cell_m
         self._goal_fields: dict[tuple, np.ndarray] = {}  # goal key -> cost-to-go field, least recently used first
@@ -110,7 +111,7 @@ class Terrain:
         for dy in reach:
             for dx in reach:
                 r, c = np.clip(row + dy, 0, height - 1), np.clip(col + dx, 0, width - 1)
-                best = np.minimum(best, cost[r, c] + np.linalg.norm(xy_m - self._centres_m[r, c], axis=-1))
+                best = np.minimum(best, cost[r, c] + np.linalg.norm(xy_m - self.cell_centres_m[r, c], axis=-1))
         straight = np.linalg.norm(xy_m - goal_m, axis=-1)
         return np.where(np.isfinite(best), best, straight + UNREACHABLE_PENALTY_M)
 
@@ -134,16 +135,20 @@ class Terrain:
             cost[mine] = self.cost_to_go(ahead[mine], goal, body_m)
         return np.where((reach_m >= 1e-6)[:, None], HEADINGS[np.argmin(cost, axis=1)], 0.0)
 
+    def grid_graph(self, body_m: float) -> GridGraph:
+        """The moves between the cells with ``body_m`` of wall clearance, built on first use and kept."""
+        if body_m not in self._grids:
+            spacing_m = (self.origin_m[0] + self.cell_m) - self.origin_m[0]  # as the centres have it, to the bit
+            self._grids[body_m] = GridGraph.of(self.clearance_m >= body_m, float(spacing_m))
+        return self._grids[body_m]
+
     def _goal_field(self, goal_m: np.ndarray, body_m: float) -> np.ndarray:
         """(Gy, Gx) geodesic distance to ``goal_m`` [m] over cells with ``body_m`` of clearance; the last
         ``GOAL_FIELDS_KEPT`` goals' fields are kept."""
         key = (*np.round(goal_m, 6).tolist(), body_m)
         field = self._goal_fields.pop(key, None)
         if field is None:
-            if body_m not in self._grids:
-                spacing_m = (self.origin_m[0] + self.cell_m) - self.origin_m[0]  # as the centres have it, to the bit
-                self._grids[body_m] = GridGraph.of(self.clearance_m >= body_m, float(spacing_m))
-            field = self._grids[body_m].geodesic(self._centres_m, goal_m)
+            field = self.grid_graph(body_m).geodesic(self.cell_centres_m, goal_m)
         self._goal_fields[key] = field  # most recently used last
         while len(self._goal_fields) > GOAL_FIELDS_KEPT:
             self._goal_fields.pop(next(iter(self._goal_fields)))
@@ -157,11 +162,13 @@ class GridGraph:
 
     Attributes:
         eligible: (Gy, Gx) bool cells a path may use.
+        cell_m: the cells' spacing [m].
         cells: (C,) their flat indices.
         moves: (N + 1, N + 1) CSR over the N = Gy * Gx cells and the goal's node, last and without edges.
     """
 
     eligible: np.ndarray
+    cell_m: float
     cells: np.ndarray
     moves: csr_matrix
 
@@ -184,7 +191,7 @@ class GridGraph:
         nodes = eligible.size + 1
         moves = coo_matrix((np.r_[lengths, lengths], (np.r_[heads, tails], np.r_[tails, heads])),
                            shape=(nodes, nodes)).tocsr()
-        return cls(eligible, cells, moves)
+        return cls(eligible, cell_m, cells, moves)
 
     def geodesic(self, centres_m: np.ndarray, goal_m: np.ndarray) -> np.ndarray:
         """(Gy, Gx) Dijkstra distance [m] from ``goal_m`` (2,) over the eligible cells (inf elsewhere), ``centres_m``
