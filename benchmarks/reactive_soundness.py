@@ -15,9 +15,9 @@ recording:
 
 - frozen: a pedestrian that moves under 2 cm per step for 10 steps in a row while its log moves more than 1 m over
   them (episodes with one);
-- leave far: a pedestrian that leaves the scene more than 1 m from where its log ends or, where the robot's body
-  stands within 1 m of that end, more than 1 m from the nearest place there that is clear of the robot (pedestrian
-  and robot bodies apart);
+- leave far: a pedestrian that leaves the scene more than 1 m from the nearest places clear of the robot (its body
+  and the pedestrian's apart) to where its log ends: more than 1 m from the end, plus, where the robot stands on the
+  end, the way from the end out of the robot's reach (any side of it);
 - overlap: a pair of pedestrians closer than 0.3 m (bodies of 0.2 m overlapping by more than 10 cm) whose logs are
   not that close at that frame (distinct pairs);
 - in a wall: pedestrian-steps on a non-walkable pixel where the log is walkable, and those more than 0.3 m deeper in
@@ -77,16 +77,6 @@ def log_end_spot(env: gym.Env) -> np.ndarray:
     return candidates[clear][np.argmin(np.linalg.norm(candidates[clear] - end, axis=1))].copy()
 
 
-def clear_of_robot(point: np.ndarray, robot: np.ndarray, apart_m: float) -> np.ndarray:
-    """(2,) the nearest place to ``point`` whose centre is at least ``apart_m`` from the robot's centre."""
-    offset = point - robot
-    distance = float(np.linalg.norm(offset))
-    if distance >= apart_m:
-        return point
-    direction = offset / distance if distance > 1e-9 else np.array([1.0, 0.0])
-    return robot + apart_m * direction
-
-
 PLACEMENTS = {"at its spawn": None, "busiest clear spot": busiest_clear_spot, "on a log's end": log_end_spot}
 """where the robot stands: as the env spawned it, or moved right after the reset by the function"""
 
@@ -123,9 +113,8 @@ def run_episode(env: gym.Env, seed: int, placement: str, depth: MapDepth) -> dic
         for agent in set(previous) - set(here):  # left the scene
             col = column[agent]
             end = replay.xy_m[run_last[last_seen[agent], col], col]
-            if np.linalg.norm(end - robot) - unwrapped.cfg.ego_radius_m <= LEAVE_FAR_M:  # the robot by its end
-                end = clear_of_robot(end, robot, apart_m)
-            counts["leave_far"] += bool(np.linalg.norm(previous[agent] - end) > LEAVE_FAR_M)
+            free_m = max(apart_m - float(np.linalg.norm(end - robot)), 0.0)  # from the end out of the robot's body
+            counts["leave_far"] += bool(np.linalg.norm(previous[agent] - end) > LEAVE_FAR_M + free_m)
         for k, agent in enumerate(ids):
             if agent in previous:
                 col = column[agent]
