@@ -232,3 +232,22 @@ def test_the_shield_vetoes_walking_into_the_forecast_and_then_passes_clear(open_
     assert 0 < shield.vetoes < shield.decisions
     assert closest >= open_world.contact_m, f"the shielded robot touched the crosser ({closest:.2f} m)"
     assert np.linalg.norm(GOAL - ego_xy) < 12.0 - 3.0, "it made no headway"
+
+
+def test_the_shield_vetoes_a_command_into_a_wall_even_toward_the_goal() -> None:
+    """A wall 1 m ahead between the robot and its goal, nobody about: full speed at it goes deeper into the wall
+    within the MPC's horizon, so it is vetoed (however much progress it promises); along the wall it stands."""
+    from st_sim.apps.navigation.shield import ShieldedPlanner
+
+    H = np.array([[0.1, 0.0, -10.0], [0.0, 0.1, -10.0], [0.0, 0.0, 1.0]])
+    walkable = np.ones((300, 300), bool)
+    walkable[:, 110:120] = False  # a wall from x = 1 m to 2 m, the whole height
+    world = NavWorld(Scene("wall", H, walkable), (-4.0, -8.0, 16.0, 8.0))
+    obs = observation(np.zeros(2), np.zeros(2), 0)
+    obs["history_mask"][:], obs["futures_mask"][:] = False, False  # nobody
+    into = ShieldedPlanner(world, True, Proposer(np.array([1.5, 0.0])))
+    command = into.act(obs)
+    assert into.vetoes == 1 and command[0] < 1.5
+    along = ShieldedPlanner(world, True, Proposer(np.array([0.0, 1.0])))
+    np.testing.assert_array_equal(along.act(obs), [0.0, 1.0])
+    assert along.vetoes == 0

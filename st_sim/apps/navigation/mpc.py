@@ -116,7 +116,7 @@ class MpcPlanner:
 
     def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
         """Velocity command (2,) [m/s], world frame."""
-        commands, cost, risk = self._scored(obs, self._commands)
+        commands, cost, risk, _ = self._scored(obs, self._commands)
         best = int(np.argmin(cost))
         stop = risk[best] > self.cfg.risk_limit and self.cfg.safe_stop
         self._previous = np.zeros(2) if stop else commands[best]
@@ -127,9 +127,9 @@ class MpcPlanner:
         within the risk limit and out of walls, else this planner's own choice (``act``'s, the proposal among the
         candidates); the previous command becomes the one returned."""
         proposal = np.asarray(proposed, np.float64).reshape(1, 2)
-        commands, cost, risk = self._scored(obs, np.concatenate([self._commands, proposal]))
+        commands, cost, risk, into_wall = self._scored(obs, np.concatenate([self._commands, proposal]))
         proposed_at = len(self._commands)  # its row: after the fixed candidates, before the previous command
-        if risk[proposed_at] <= self.cfg.risk_limit and cost[proposed_at] < INFEASIBLE:
+        if risk[proposed_at] <= self.cfg.risk_limit and not into_wall[proposed_at]:
             self._previous = commands[proposed_at]
             return self._previous.astype(np.float32), False
         best = int(np.argmin(cost))
@@ -138,9 +138,10 @@ class MpcPlanner:
         return self._previous.astype(np.float32), True
 
     def _scored(self, obs: dict[str, np.ndarray], candidates: np.ndarray
-                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(commands (K, 2) [m/s]: ``candidates`` then the previous command, their costs (K,), their expected
-        collisions (K,)); updates the sample belief with ``obs``."""
+        collisions (K,), whether each path goes deeper into a wall than the ego is (K,) bool); updates the sample
+        belief with ``obs``."""
         ego_xy, ego_v, goal = (obs["ego"][i:i + 2].astype(np.float64) for i in (0, 2, 4))
         peds = pedestrians_of(obs, self.cfg.horizon_steps, self.use_predictions)
         weights = None
@@ -149,12 +150,13 @@ class MpcPlanner:
         commands = np.concatenate([candidates, self._previous[None]])
         path = self._rollout(ego_xy, ego_v, commands, goal)  # (K, J, 2)
         risk, crowding = self._risk_terms(path, ego_xy, peds, weights)
+        walls = self._walls(path, ego_xy)
         cost = (self.cfg.risk_weight * risk + self.cfg.clearance_weight * crowding
                 + self.cfg.progress_weight * self._progress(path, ego_xy, goal)
                 + self.cfg.smooth_weight * self._smoothness(commands, ego_v)
-                + self._walls(path, ego_xy)
+                + walls
                 + np.where(risk > self.cfg.risk_limit, RISK_PENALTY * (1.0 + risk), 0.0))
-        return commands, cost, risk
+        return commands, cost, risk, walls >= INFEASIBLE
 
     # ---------------------------------------------------------------- rollout
     def _rollout(self, ego_xy: np.ndarray, ego_v: np.ndarray, commands: np.ndarray, goal: np.ndarray) -> np.ndarray:

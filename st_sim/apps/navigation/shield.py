@@ -4,11 +4,11 @@
     planner.reset()
     action = planner.act(obs)              # the PPO policy's command, or the MPC's where the shield vetoed it
 
-Each step the inner planner proposes a command; the sampling MPC (``mpc.MpcPlanner``, its defaults but a wider wall
-margin) rolls it out with its own candidates over the same forecasts and keeps it when its expected collisions stay
-within the MPC's risk limit and its path keeps ``WALL_MARGIN_M`` from walls (``MpcPlanner.vet``); otherwise the MPC's
-own choice goes out (braking where every candidate is above the limit). ``vetoes`` and ``decisions`` count what
-happened since the planner was built.
+Each step the inner planner proposes a command; the sampling MPC (``mpc.MpcPlanner``) rolls it out with its own
+candidates over the same forecasts and keeps it when its expected collisions stay within the MPC's risk limit and its
+path goes no deeper into a wall than the robot is (``MpcPlanner.vet``); otherwise the MPC's own choice goes out
+(braking where every candidate is above the limit). ``vetoes`` and ``decisions`` count what happened since the planner
+was built.
 Without predictions the MPC assumes everybody stands still, so the shield then only vetoes walking into people or
 walls as they are now.
 """
@@ -22,8 +22,6 @@ import numpy as np
 from st_sim.apps.navigation.mpc import MpcConfig, MpcPlanner
 from st_sim.apps.navigation.world import NavWorld
 
-WALL_MARGIN_M = 0.2  # the shield's MPC keeps this beyond the robot's wall clearance, the MPC's own 0.08 [m]
-
 
 class ShieldedPlanner:
     """``inner``'s commands, each vetted by a sampling MPC over the forecasts (module docstring).
@@ -32,14 +30,12 @@ class ShieldedPlanner:
         world: the env's facts (limits, radii, map).
         use_predictions: the MPC reads the forecasts (False: pedestrians assumed to stand still).
         inner: the planner whose commands are vetted (``reset`` and ``act`` as ``planners.Planner``).
-        cfg: the MPC's tunables (its risk limit and wall margin are the shield's); None: the MPC's defaults with a
-            wall margin of ``WALL_MARGIN_M`` (a learned planner's commands hug walls closer than the MPC's own, and its
-            checks, two per step on a 0.1 m grid, miss a corner cut by less).
+        cfg: the MPC's tunables (its risk limit and wall margin are the shield's); None: the MPC's defaults.
     """
 
     def __init__(self, world: NavWorld, use_predictions: bool, inner: Any, cfg: MpcConfig | None = None):
         self.inner = inner
-        self.mpc = MpcPlanner(world, use_predictions, cfg or MpcConfig(wall_margin_m=WALL_MARGIN_M))
+        self.mpc = MpcPlanner(world, use_predictions, cfg)
         self.vetoes = 0
         self.decisions = 0
 
