@@ -117,10 +117,7 @@ class MpcPlanner:
     def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
         """Velocity command (2,) [m/s], world frame."""
         commands, cost, risk, _ = self._scored(obs, self._commands)
-        best = int(np.argmin(cost))
-        stop = risk[best] > self.cfg.risk_limit and self.cfg.safe_stop
-        self._previous = np.zeros(2) if stop else commands[best]
-        return self._previous.astype(np.float32)
+        return self._choose(commands, cost, risk)
 
     def vet(self, obs: dict[str, np.ndarray], proposed: np.ndarray) -> tuple[np.ndarray, bool]:
         """(command (2,) [m/s], vetoed): the ``proposed`` command (2,) [m/s] of another planner when its rollout keeps
@@ -132,10 +129,15 @@ class MpcPlanner:
         if risk[proposed_at] <= self.cfg.risk_limit and not into_wall[proposed_at]:
             self._previous = commands[proposed_at]
             return self._previous.astype(np.float32), False
+        return self._choose(commands, cost, risk), True
+
+    def _choose(self, commands: np.ndarray, cost: np.ndarray, risk: np.ndarray) -> np.ndarray:
+        """(2,) float32 the cheapest command, or zero when even it breaks the risk limit and ``safe_stop`` holds; it
+        becomes the previous command."""
         best = int(np.argmin(cost))
         stop = risk[best] > self.cfg.risk_limit and self.cfg.safe_stop
         self._previous = np.zeros(2) if stop else commands[best]
-        return self._previous.astype(np.float32), True
+        return self._previous.astype(np.float32)
 
     def _scored(self, obs: dict[str, np.ndarray], candidates: np.ndarray
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
