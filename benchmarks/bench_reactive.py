@@ -89,8 +89,9 @@ def digest_lines(env_id: str, seeds: list[int]) -> list[str]:
         while not done:
             obs, reward, terminated, truncated, _ = env.step(planner.act(obs))
             state = env.unwrapped.reactive.state
-            for field in fields(state):
-                digest.update(np.ascontiguousarray(getattr(state, field.name)).tobytes())
+            for field in fields(state):  # but the traits, constant over the episode (and new on 2026-11-28)
+                if field.name != "traits":
+                    digest.update(np.ascontiguousarray(getattr(state, field.name)).tobytes())
             digest.update(np.float64(reward).tobytes())
             done, steps = terminated or truncated, steps + 1
         lines.append(f"{env_id} seed {seed} steps {steps} {digest.hexdigest()}")

@@ -3,9 +3,10 @@ in walls or off the image, measured against their own recordings.
 
     export OMP_NUM_THREADS=1 STCROWD_DATA=$PWD/../shared/datasets/eth_ucy
     python benchmarks/reactive_soundness.py --scenes univ zara1 --episodes 50 --busiest-episodes 30 \
-        --log-end-episodes 30 --seed 1000
+        --log-end-episodes 30 --seed 1000 [--reaction-traits drawn]
 
-Each episode starts from ``reset(seed=seed + i)`` of ``STCrowd-<Scene>-v0`` with ``pedestrians="reactive"`` and the
+Each episode starts from ``reset(seed=seed + i)`` of ``STCrowd-<Scene>-v0`` with ``pedestrians="reactive"`` (and
+``reaction_traits``: every pedestrian the fitted one, or each with traits drawn from the fitted spread) and the
 robot commanded to stand still for up to 200 steps, either where the env spawned it (at least 1 m from everybody, the
 benchmark's own setting) or moved, right after the reset, to the busiest clear spot (the walkable point at least 1 m
 from everybody then that the most logged pedestrian-frames of the episode pass within 1 m of) or onto a log's end
@@ -37,6 +38,7 @@ from tqdm import tqdm
 
 import envs  # noqa: F401  (registers the ids)
 from envs.common.routes import run_bounds
+from envs.replay_env import REACTION_TRAITS
 from st_sim.sim.map_depth import MapDepth
 
 STEPS = 200
@@ -151,12 +153,15 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=1000, help="episode i starts from reset(seed=seed + i)")
     parser.add_argument("--per-episode", action="store_true",
                         help="also print the seed and counts of every episode with something to count but wall steps")
+    parser.add_argument("--reaction-traits", choices=REACTION_TRAITS, default="fitted",
+                        help="the env's reaction_traits (default: fitted)")
     args = parser.parse_args()
     print("| scene | robot stands | episodes | frozen (episodes) | leave > 1 m from log end | overlapping pairs "
           "| steps in a wall (log walkable) | > 0.3 m deeper than log | off the image | robot hit (episodes) |")
     print("|---|---|---|---|---|---|---|---|---|---|")
     for scene in args.scenes:
-        env = gym.make(f"STCrowd-{scene.capitalize()}-v0", predictor="cvm", pedestrians="reactive")
+        env = gym.make(f"STCrowd-{scene.capitalize()}-v0", predictor="cvm", pedestrians="reactive",
+                       reaction_traits=args.reaction_traits)
         depth = MapDepth(env.unwrapped.scene)
         for where, episodes in zip(PLACEMENTS, (args.episodes, args.busiest_episodes, args.log_end_episodes),
                                    strict=True):

@@ -17,6 +17,7 @@ from envs.common.ego import move_within, spawn_start_goal, walkable_points
 from envs.common.errors import EnvInputError, ResetOptionsError
 from envs.common.footprint import Body
 from envs.common.predictors import shipped_checkpoint
+from envs.common.reaction import draw_traits, fitted_spread
 from envs.common.reactive import ReactiveCrowd
 from envs.common.routes import Routes
 from envs.common.tracks import Frame
@@ -30,6 +31,7 @@ from st_sim.sim.map_depth import MapDepth
 MIN_REPLAY_STEPS = 50  # a random start leaves at least this many steps (20 s) of recording
 MIN_FRAMES = 2  # a replay starts at one listed frame and steps to the next
 PEDESTRIAN_MODES: tuple[str, ...] = ("log", "reactive")  # the recording exactly, or stepping round the robot
+REACTION_TRAITS: tuple[str, ...] = ("fitted", "drawn")  # everybody the fitted pedestrian, or each its own traits
 
 
 @dataclass(frozen=True, eq=False)
@@ -168,18 +170,21 @@ class ReplayCrowdEnv(CrowdEnv):
     offline evaluation does, instead of every agent with T_obs frames), rerun (a .rrd path or "spawn": log
     every step, with predictions and SingularTrajectory's anchors, to Rerun; an existing recording is never
     overwritten: the new one is numbered, ``run-1.rrd``, and ``rerun_paths`` lists what was written),
-    pedestrians ("log": the recording exactly; "reactive": recorded pedestrians step round the robot), device
+    pedestrians ("log": the recording exactly; "reactive": recorded pedestrians step round the robot),
+    reaction_traits (reactive only; "fitted" (default): every pedestrian reacts as fitted; "drawn": at each reset
+    every pedestrian draws its own noticing distance, reaction time, room and willingness to wait from the fitted
+    spread, ``envs.common.reaction.fitted_spread``, with the env's ``np_random``: seeded by the reset's seed), device
     (where a SingularTrajectory the env loads runs: "auto" (default: a CUDA GPU when torch sees one, else the CPU),
     "cpu", "cuda", "cuda:N" or "mps"; a predictor object passed in runs where it is).
 
     ## Version History
-    - v0: initial version. 2026-11-26, same id (the default is unchanged): reactive pedestrians notice the robot
-      within a field of view or hearing, react a reaction time later and keep a room that grows with the robot's
-      speed, all fitted on CITR. 2026-11-25, same id (the default is unchanged): ``pedestrians="reactive"``,
-      ``info["pedestrians"]``, ``info["off_log"]``, ``info["log_deviation_m"]``. 2026-11-23, same id
-      (reward, observation and dynamics unchanged): ``info["termination"]``, the ``collision`` reward part
-      renamed ``pedestrian_collision`` (and a ``wall_collision`` part, always 0), the ``ego_max_accel_mps2``
-      attribute.
+    - v0: initial version. 2026-11-28, same id (the default is unchanged): ``reaction_traits``. 2026-11-26, same
+      id (the default is unchanged): reactive pedestrians notice the robot within a field of view or hearing,
+      react a reaction time later and keep a room that grows with the robot's speed, all fitted on CITR.
+      2026-11-25, same id (the default is unchanged): ``pedestrians="reactive"``, ``info["pedestrians"]``,
+      ``info["off_log"]``, ``info["log_deviation_m"]``. 2026-11-23, same id (reward, observation and dynamics
+      unchanged): ``info["termination"]``, the ``collision`` reward part renamed ``pedestrian_collision`` (and a
+      ``wall_collision`` part, always 0), the ``ego_max_accel_mps2`` attribute.
     """
 
     RESET_OPTIONS: ClassVar[dict[str, str]] = {"start_index": "int, the listed frame to start at"}
@@ -188,11 +193,17 @@ class ReplayCrowdEnv(CrowdEnv):
                  task: str = "stochastic", ego: bool = True, render_mode: str | None = None,
                  config: EnvConfig | None = None, root: str | os.PathLike | None = None,
                  benchmark_windows: bool = False, rerun: str | os.PathLike | None = None,
-                 pedestrians: str = "log", device: str = "auto"):
+                 pedestrians: str = "log", device: str = "auto", reaction_traits: str = "fitted"):
         check_flag("benchmark_windows", benchmark_windows)
         if not isinstance(pedestrians, str) or pedestrians not in PEDESTRIAN_MODES:
             raise EnvInputError(f"pedestrians={pedestrians!r}: expected one of {', '.join(PEDESTRIAN_MODES)}")
         self.pedestrians = pedestrians
+        if not isinstance(reaction_traits, str) or reaction_traits not in REACTION_TRAITS:
+            raise EnvInputError(f"reaction_traits={reaction_traits!r}: expected one of {', '.join(REACTION_TRAITS)}")
+        if reaction_traits != "fitted" and pedestrians != "reactive":
+            raise EnvInputError(f"reaction_traits={reaction_traits!r} needs pedestrians='reactive' (got "
+                                f"{pedestrians!r}): pedestrians of a log do not react")
+        self.reaction_traits = reaction_traits
         check_flag("ego", ego)
         if benchmark_windows and ego:
             raise EnvInputError("benchmark_windows=True is a spectator mode: pass ego=False")
@@ -243,7 +254,9 @@ class ReplayCrowdEnv(CrowdEnv):
                 self.cfg.goal_min_fraction * diagonal_m, self.np_random)
             self.ego_velocity_mps = np.zeros(2)
         if self.reactive is not None:
-            self.reactive.reset(self.index)
+            agents = self.reactive.routes.present.shape[1]
+            self.reactive.reset(self.index, None if self.reaction_traits == "fitted"
+                                else draw_traits(self.np_random, agents, fitted_spread()))
         first = max(0, self.index - self.t_obs + 1)
         return [self.replay.frame(i) for i in range(first, self.index + 1)]
 

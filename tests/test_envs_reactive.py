@@ -16,7 +16,7 @@ import envs  # noqa: F401  (registers the ids)
 from envs import REPLAY_SCENES
 from envs.common.errors import EnvInputError
 from envs.common.footprint import ROBOT_MARGIN_M, Body
-from envs.common.reaction import Reaction
+from envs.common.reaction import Reaction, Spread
 from envs.common.reactive import ReactiveCrowd
 from replays.scenes import Scene
 from st_sim.sim.map_depth import MapDepth
@@ -40,6 +40,50 @@ def test_reactive_replay_passes_check_env(env_id: str) -> None:
 def test_an_unknown_pedestrian_mode_is_refused() -> None:
     with pytest.raises(EnvInputError, match="pedestrians='sheep'"):
         gym.make("STCrowd-Zara1-v0", pedestrians="sheep")
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    ({"pedestrians": "reactive", "reaction_traits": "random"}, "reaction_traits='random'"),
+    ({"pedestrians": "reactive", "reaction_traits": 1}, "reaction_traits=1"),
+    ({"reaction_traits": "drawn"}, "needs pedestrians='reactive'")], ids=["unknown", "not-text", "log"])
+def test_bad_reaction_traits_are_refused(kwargs: dict, message: str) -> None:
+    with pytest.raises(EnvInputError, match=message):
+        gym.make("STCrowd-Zara1-v0", predictor="none", **kwargs)
+
+
+def _crowd_walk(env: gym.Env, seed: int, steps: int) -> tuple[np.ndarray, np.ndarray]:
+    """The traits the crowd drew at reset with ``seed`` and its positions over ``steps`` steps of a robot heading
+    for its goal at 1 m/s."""
+    env.reset(seed=seed)
+    core = env.unwrapped
+    path = []
+    for _ in range(steps):
+        toward = core.goal_m - core.ego_xy_m
+        _, _, terminated, truncated, _ = env.step(toward / max(np.linalg.norm(toward), 1e-9))
+        path.append(np.nan_to_num(core.reactive.state.xy_m, nan=-1e3))
+        if terminated or truncated:
+            break
+    return core.reactive.state.traits.copy(), np.array(path)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_drawn_traits_follow_the_seed_and_a_spread_of_zeros_walks_as_the_fitted_pedestrians(
+        seed: int, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Each pedestrian draws its own traits from the reset's seed: the same seed, the same people and the same walk;
+    another seed, other people. With every sigma 0 the drawn crowd walks bit for bit as the fitted one."""
+    monkeypatch.setattr("envs.replay_env.fitted_spread", lambda: Spread.even(0.5))
+    drawn = gym.make("STCrowd-Zara1-v0", predictor="none", pedestrians="reactive", reaction_traits="drawn")
+    traits, walk = _crowd_walk(drawn, seed, 30)
+    again, walk_again = _crowd_walk(drawn, seed, 30)
+    other, _ = _crowd_walk(drawn, seed + 100, 30)
+    assert np.array_equal(traits, again) and np.array_equal(walk, walk_again)
+    assert not np.array_equal(traits, other) and (np.log(traits).std(axis=0) > 0.3).all()  # people differ
+    fitted = gym.make("STCrowd-Zara1-v0", predictor="none", pedestrians="reactive")
+    typical, fitted_walk = _crowd_walk(fitted, seed, 30)
+    assert np.array_equal(typical, np.ones_like(typical))
+    monkeypatch.setattr("envs.replay_env.fitted_spread", lambda: Spread())
+    none_drawn, zero_walk = _crowd_walk(drawn, seed, 30)
+    assert np.array_equal(none_drawn, typical) and np.array_equal(zero_walk, fitted_walk)
 
 
 def _far_from_everybody(env: gym.Env, frames: int) -> np.ndarray:

@@ -16,12 +16,22 @@ from envs.common.errors import ConfigError
 from envs.common.reaction import (
     FIT_PATH,
     MEMORY_S,
+    NOTICING,
+    REACTION,
+    SPREAD_PATH,
+    TRAIT_RANGE,
+    TRAITS,
     Reaction,
+    Spread,
     attend,
+    draw_traits,
     fitted_reaction,
+    fitted_spread,
     notices,
     read_fitted_on,
     read_reaction,
+    read_spread,
+    typical,
 )
 
 DRAWS = settings(max_examples=50, deadline=None)
@@ -32,21 +42,29 @@ reactions = st.builds(Reaction, fov_deg=st.floats(0.0, 180.0), hearing_m=st.floa
 
 
 @DRAWS
-@given(reaction=reactions, noticed_s=st.floats(0.0, 10.0))
+@given(reaction=reactions, noticed_s=st.floats(0.0, 10.0), slowness=st.floats(*TRAIT_RANGE))
 def test_the_reaction_starts_a_reaction_time_after_noticing_and_grows_over_one_step(reaction: Reaction,
-                                                                                   noticed_s: float) -> None:
-    weight = float(reaction.weight(np.array([noticed_s]))[0])
+                                                                                   noticed_s: float,
+                                                                                   slowness: float) -> None:
+    traits = typical(1)
+    traits[0, REACTION] = slowness  # its own reaction time: the fitted one times this
+    weight = float(reaction.weight(np.array([noticed_s]), traits)[0])
+    reaction_s = reaction.reaction_s * slowness
     assert 0.0 <= weight <= 1.0
-    assert (weight == 0.0) == (noticed_s <= reaction.reaction_s)
-    assert (weight == 1.0) == (noticed_s >= reaction.reaction_s + 0.4)
+    assert (weight == 0.0) == (noticed_s <= reaction_s)
+    assert (weight == 1.0) == (noticed_s >= reaction_s + 0.4)
     assert reaction.anticipation_steps >= 1
 
 
 @DRAWS
-@given(reaction=reactions, gap=st.floats(0.0, 30.0), bearing=st.floats(-np.pi, np.pi))
-def test_the_robot_is_noticed_in_view_or_within_hearing(reaction: Reaction, gap: float, bearing: float) -> None:
-    seen = bool(notices(reaction, np.array([gap]), np.array([bearing]))[0])
-    assert seen == (gap <= reaction.hearing_m or abs(bearing) <= np.radians(reaction.fov_deg))
+@given(reaction=reactions, gap=st.floats(0.0, 30.0), bearing=st.floats(-np.pi, np.pi),
+       keenness=st.floats(*TRAIT_RANGE))
+def test_the_robot_is_noticed_in_view_or_within_hearing(reaction: Reaction, gap: float, bearing: float,
+                                                       keenness: float) -> None:
+    traits = typical(1)
+    traits[0, NOTICING] = keenness  # it hears the robot this many times as far as the fitted pedestrian
+    seen = bool(notices(reaction, np.array([gap]), np.array([bearing]), traits)[0])
+    assert seen == (gap <= reaction.hearing_m * keenness or abs(bearing) <= np.radians(reaction.fov_deg))
 
 
 @DRAWS
@@ -141,3 +159,49 @@ def test_a_fit_file_names_the_folders_it_was_fitted_on_or_is_refused(tmp_path: P
     else:
         assert read_fitted_on(path) == expected
     assert read_fitted_on(FIT_PATH) == ("vci_back", "vci_front", "vci_lat_uni")
+
+
+spreads = st.builds(Spread, *(st.floats(0.0, 2.0) for _ in TRAITS))
+
+
+@DRAWS
+@given(spread=spreads, agents=st.integers(0, 40), seed=st.integers(0, 2**32 - 1))
+def test_traits_are_drawn_from_the_seed_within_their_range_and_a_spread_of_zeros_is_the_fitted_pedestrian(
+        spread: Spread, agents: int, seed: int) -> None:
+    traits = draw_traits(np.random.default_rng(seed), agents, spread)
+    assert traits.shape == (agents, len(TRAITS))
+    assert np.array_equal(traits, draw_traits(np.random.default_rng(seed), agents, spread))
+    assert ((traits >= TRAIT_RANGE[0]) & (traits <= TRAIT_RANGE[1])).all()
+    assert np.array_equal(traits[:, spread.sigmas() == 0], np.ones((agents, int((spread.sigmas() == 0).sum()))))
+    assert np.array_equal(draw_traits(np.random.default_rng(seed), agents, Spread()), typical(agents))
+
+
+def test_wider_spreads_draw_people_who_differ_more() -> None:
+    narrow, wide = (np.log(draw_traits(np.random.default_rng(3), 4000, Spread.even(sigma))).std(axis=0)
+                    for sigma in (0.1, 0.4))
+    assert np.allclose(narrow, 0.1, rtol=0.1) and np.allclose(wide, 0.4, rtol=0.1)
+
+
+@DRAWS
+@given(value=st.one_of(st.floats(allow_nan=True).filter(lambda v: not 0 <= v <= 2), st.booleans(), st.text()),
+       trait=st.sampled_from(TRAITS))
+def test_a_spread_outside_zero_to_two_is_refused_naming_the_trait(value: object, trait: str) -> None:
+    with pytest.raises(ConfigError, match=f"Spread.{trait}"):
+        Spread(**{trait: value})
+
+
+def test_a_spread_file_is_read_or_refused_naming_the_file_and_the_trait(tmp_path: Path) -> None:
+    assert fitted_spread() == read_spread(SPREAD_PATH)
+    good = {name: 0.1 for name in TRAITS}
+    path = tmp_path / "spread.json"
+    path.write_text(json.dumps({"spread": good}))
+    assert read_spread(path) == Spread.even(0.1)
+    for body, problem in ((json.dumps({"spread": {**good, "room": -1}}), "Spread.room"),
+                          (json.dumps({"spread": {k: v for k, v in good.items() if k != "patience"}}),
+                           "no spread.patience"), ("{", "not a readable JSON spread"), ("[1]", "not a readable")):
+        path.write_text(body)
+        with pytest.raises(ConfigError, match=str(path)) as err:
+            read_spread(path)
+        assert problem in str(err.value)
+    with pytest.raises(ConfigError, match="no such spread file"):
+        read_spread(tmp_path / "missing.json")

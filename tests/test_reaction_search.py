@@ -277,7 +277,8 @@ def test_reactive_validate_cross_validates_and_scores_realism(two_folders: Path,
 @pytest.mark.parametrize("flags, message", [
     (["--no-refit"], "--no-refit goes with --cross-validate"),
     (["--realism", "--pace-sigma", "-0.1"], "--pace-sigma"),
-    (["--realism", "--reaction-sigma", "nan"], "--reaction-sigma")], ids=["no-refit", "pace", "reaction"])
+    (["--realism", "--trait-sigma", "nan"], "--trait-sigma"),
+    (["--realism", "--trait-sigma", "2.5"], "--trait-sigma")], ids=["no-refit", "pace", "traits", "traits-wide"])
 def test_bad_cross_validation_and_realism_flags_give_one_error_line(two_folders: Path, tmp_path: Path,
                                                                    capsys: pytest.CaptureFixture, flags: list[str],
                                                                    message: str) -> None:

@@ -22,23 +22,28 @@ from envs.common.compiled import exact
 from envs.common.compiled.way_round import _shortest_walks
 from envs.common.detour import grid_cells, walking_distance_m
 from envs.common.footprint import Body
+from envs.common.reaction import Spread, draw_traits
 from envs.common.reactive import ReactiveCrowd, ReactiveState
 from envs.common.routes import OpenGround, Routes
 
 VEHICLE = Body(length_m=2.5, width_m=1.3, radius_m=0.1)  # a golf cart's box, as CITR's
 DRAWS = settings(max_examples=12, deadline=None)
+FITTED = Spread()  # every pedestrian the fitted one
 
 
 def _state_bytes(state: ReactiveState) -> list[bytes]:
     return [np.ascontiguousarray(getattr(state, field.name)).tobytes() for field in fields(ReactiveState)]
 
 
-def _walk(routes: Routes, robots: np.ndarray, lag: list[int]) -> tuple[list[list[list[bytes]]], int]:
+def _walk(routes: Routes, robots: np.ndarray, lag: list[int], spread: Spread = FITTED,
+          seed: int = 0) -> tuple[list[list[list[bytes]]], int]:
     """Every crowd's state (as bytes, field by field) after every step of crowds on ``routes`` stepped together, crowd
-    i ``lag[i]`` frames late, and how many times a pedestrian took its way round."""
+    i ``lag[i]`` frames late, its pedestrians' traits drawn with ``spread`` from ``seed``, and how many times a
+    pedestrian took its way round."""
     crowds = [ReactiveCrowd.on(routes) for _ in lag]
+    rng = np.random.default_rng(seed)
     for crowd, k in zip(crowds, lag, strict=True):
-        crowd.reset(k)
+        crowd.reset(k, draw_traits(rng, routes.present.shape[1], spread))
     states, detours = [], 0
     for t in range(1, FRAMES - max(lag)):
         ReactiveCrowd.step_all(crowds, [k + t for k in lag], list(robots[:, t - 1]), list(robots[:, t]),
@@ -60,14 +65,16 @@ def _first_difference(plain: list, fast: list) -> str:
 @pytest.mark.parametrize("body", [ROBOT, VEHICLE], ids=["disc", "vehicle"])
 @pytest.mark.parametrize("walls", [True, False], ids=["walls", "open-ground"])
 @DRAWS
-@given(seed=st.integers(0, 2**31), walkers=st.integers(2, 16), crowds=st.integers(1, 3))
+@given(seed=st.integers(0, 2**31), walkers=st.integers(2, 16), crowds=st.integers(1, 3),
+       spread=st.sampled_from([Spread(), Spread.even(0.5), Spread(room=1.0, patience=1.0)]))
 def test_drawn_crowds_walk_the_same_compiled_and_plain(body: Body, walls: bool, seed: int, walkers: int,
-                                                        crowds: int) -> None:
+                                                        crowds: int, spread: Spread) -> None:
+    """... whether everybody is the fitted pedestrian or each has traits of its own."""
     log, present = straight_logs(seed, walkers)
     routes = Routes(log, present, scene_with_walls() if walls else OpenGround(), body, 0.25)
     robots, lag = robot_paths(seed, crowds), [int(k) for k in np.random.default_rng(seed).integers(0, 4, crowds)]
-    plain, _ = _walk(routes.stepped(False), robots, lag)
-    fast, _ = _walk(routes.stepped(True), robots, lag)
+    plain, _ = _walk(routes.stepped(False), robots, lag, spread, seed)
+    fast, _ = _walk(routes.stepped(True), robots, lag, spread, seed)
     assert plain == fast, f"first difference at {_first_difference(plain, fast)}"
 
 

@@ -14,7 +14,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from envs.common.footprint import Body
-from envs.common.reaction import fitted_reaction
+from envs.common.reaction import Spread, fitted_reaction
 from replays.citr import PED_SUFFIX, VEH_SUFFIX, find_experiments, on_grid
 from replays.data_root import CITR, data_root
 from st_sim.apps.cli import main
@@ -163,7 +163,7 @@ def test_rollouts_walk_the_same_paces_for_every_model_seeded_and_the_determinist
     grid = on_grid(find_experiments(folder, fps=10.0)[0], 0.4)
     intent = intents(grid, CART)
     case = Case("run", ".", grid, intent, score(grid, intent, grid.xy_m[:, intent.columns], CART))
-    variety = Variety(0.2, 0.3)
+    variety = Variety(0.2, Spread.even(0.3))
     first, again = (rollout(case, CART, None, 0, rollout_seed, variety) for _ in range(2))
     assert np.array_equal(first, again, equal_nan=True)
     steps = np.arange(len(grid.times_s))
@@ -176,5 +176,5 @@ def test_rollouts_walk_the_same_paces_for_every_model_seeded_and_the_determinist
         assert np.array_equal(first[begin, n], grid.xy_m[begin, intent.columns[n]])
     assert not np.allclose(np.nan_to_num(rollout(case, CART, None, 1, rollout_seed, variety)), np.nan_to_num(first))
     for reaction in (None, fitted_reaction()):
-        assert np.array_equal(rollout(case, CART, reaction, 3, rollout_seed, Variety(0.0, 0.0)),
+        assert np.array_equal(rollout(case, CART, reaction, 3, rollout_seed, Variety(0.0, Spread())),
                               walk(grid, intent, CART, reaction), equal_nan=True)

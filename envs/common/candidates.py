@@ -84,7 +84,7 @@ class Step:
         present, off_log, chosen: (N, A) bool.  velocity_mps: (N, A, 2) velocities over the previous step [m/s].
         stuck, farthest, recent_m, detour: as ``ReactiveState`` (N, A, ...), for this step.
         weight: (N, A) how far each reacts to its crowd's robot in this step, in [0, 1].  room_m: (N, A) the room it
-            keeps [m].
+            keeps [m].  aside_cost: (N, A) what a metre aside costs it.
     """
 
     index: np.ndarray
@@ -101,6 +101,7 @@ class Step:
     robot: Robot
     weight: np.ndarray
     room_m: np.ndarray
+    aside_cost: np.ndarray
 
 
 @dataclass(frozen=True, eq=False)
@@ -178,8 +179,7 @@ def place_candidates(routes: Routes, step: Step, rows: np.ndarray, agents: np.nd
     gain, behind = routes.progress(a, c_tau, step.farthest[rows, agents][owner], index[owner])
     staying = no_headway(gain, behind + np.abs(c_off), step.recent_m[rows, agents].min(axis=1)[owner])
     delay = np.minimum(index[owner] - c_tau, behind / (STEP_S * LAG_PACE_MPS))  # [frame]
-    style = routes.reaction  # how it trades delay against standing aside
-    fixed_cost = (style.delay_cost * delay + style.aside_cost * np.abs(c_off)
+    fixed_cost = (routes.reaction.delay_cost * delay + step.aside_cost[rows, agents][owner] * np.abs(c_off)
                   + SWAY_COST * np.abs(c_off - offset[owner]))
     stuck_cost = STUCK_COST * step.stuck[rows, agents][owner] * staying
     firsts = np.concatenate([[0], np.cumsum(np.bincount(owner, minlength=len(agents)))])

@@ -13,6 +13,11 @@ the reactive pedestrians (``envs.common.reactive`` does the walking).
 - **Yielding or stepping aside.** Off its log, each step it weighs ``delay_cost`` per 0.4 s frame it falls behind
   its log against ``aside_cost`` per metre it stands to the side of its route: the dearer the side, the more it slows
   or waits and passes behind the robot rather than stepping round it in front.
+- **People differ.** Each pedestrian carries four traits (``TRAITS``, one row of an (A, 4) array), factors on the
+  fitted reaction: its noticing distance (``hearing_m``), its reaction time (``reaction_s``), the room it keeps and
+  how dear standing aside is to it (``aside_cost``: the dearer, the more it waits). ``TYPICAL`` (every factor 1) is
+  the fitted pedestrian, bit for bit; ``draw_traits`` draws each factor from exp(N(0, sigma)) with the sigmas of a
+  ``Spread`` (``fitted_spread``: chosen by the cross-validated realism score, ``benchmarks/fit_spread.py``).
 
 The values are fitted on CITR's pedestrians reacting to a golf cart (``benchmarks/fit_reaction.py``, written to
 ``reaction_fit.json`` beside this module, which ``fitted_reaction`` reads); they are not a safety rule. The safety
@@ -34,8 +39,13 @@ from envs.common.errors import ConfigError
 from replays.constants import STEP_S
 
 FIT_PATH: Final[Path] = Path(__file__).with_name("reaction_fit.json")
+SPREAD_PATH: Final[Path] = Path(__file__).with_name("spread_fit.json")
 MEMORY_S: Final[float] = 2.0  # a pedestrian that stops noticing the robot keeps it in mind this long [s]
 MOVING_MPS: Final[float] = 0.2  # walking direction: its velocity when faster than this, else its route's [m/s]
+TRAITS: Final[tuple[str, ...]] = ("noticing", "reaction", "room", "patience")
+"""the columns of a traits array: factors on ``hearing_m``, ``reaction_s``, the room kept and ``aside_cost``"""
+NOTICING, REACTION, ROOM, PATIENCE = range(len(TRAITS))
+TRAIT_RANGE: Final[tuple[float, float]] = (0.25, 4.0)  # a drawn factor is kept within this [-]
 
 
 @dataclass(frozen=True)
@@ -68,10 +78,10 @@ class Reaction:
         """``anticipation_s`` in whole 0.4 s steps (at least 1)."""
         return max(1, round(self.anticipation_s / STEP_S))
 
-    def weight(self, noticed_s: np.ndarray) -> np.ndarray:
+    def weight(self, noticed_s: np.ndarray, traits: np.ndarray) -> np.ndarray:
         """(A,) how far each pedestrian reacts over this step, in [0, 1], from the time ``noticed_s`` (A,) it has had
-        the robot in mind at the end of the step [s]."""
-        return np.clip((noticed_s - self.reaction_s) / STEP_S, 0.0, 1.0)
+        the robot in mind at the end of the step [s] and its ``traits`` (A, 4)."""
+        return np.clip((noticed_s - self.reaction_s * traits[..., REACTION]) / STEP_S, 0.0, 1.0)
 
     def room_m(self, robot_velocity_mps: np.ndarray, robot_heading: np.ndarray, walking: np.ndarray,
                coming: np.ndarray) -> np.ndarray:
@@ -125,10 +135,11 @@ def fitted_reaction() -> Reaction:
     return read_reaction(FIT_PATH)
 
 
-def notices(reaction: Reaction, gap_m: np.ndarray, bearing_rad: np.ndarray) -> np.ndarray:
-    """(A,) bool: pedestrians that notice the robot, from the gap to its body (A,) [m] and the angle (A,) [rad]
-    between their walking direction and the direction to the body's nearest point."""
-    return (gap_m <= reaction.hearing_m) | (np.abs(bearing_rad) <= np.radians(reaction.fov_deg))
+def notices(reaction: Reaction, gap_m: np.ndarray, bearing_rad: np.ndarray, traits: np.ndarray) -> np.ndarray:
+    """(A,) bool: pedestrians that notice the robot, from the gap to its body (A,) [m], the angle (A,) [rad]
+    between their walking direction and the direction to the body's nearest point, and their ``traits`` (A, 4)."""
+    return ((gap_m <= reaction.hearing_m * traits[..., NOTICING])
+            | (np.abs(bearing_rad) <= np.radians(reaction.fov_deg)))
 
 
 def attend(noticed_s: np.ndarray, unseen_s: np.ndarray, noticing: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -137,3 +148,67 @@ def attend(noticed_s: np.ndarray, unseen_s: np.ndarray, noticing: np.ndarray) ->
     unseen = np.where(noticing, 0.0, unseen_s + STEP_S)
     kept = noticing | ((noticed_s > 0) & (unseen <= MEMORY_S))
     return np.where(kept, noticed_s + STEP_S, 0.0), np.where(kept, unseen, 0.0)
+
+
+
+def typical(agents: int) -> np.ndarray:
+    """(agents, 4) the traits of the fitted pedestrian: every factor 1."""
+    return np.ones((agents, len(TRAITS)))
+
+
+@dataclass(frozen=True)
+class Spread:
+    """How much pedestrians differ: the sigma of the log of each trait's factor (``draw_traits``); all 0: everybody
+    the fitted pedestrian."""
+
+    noticing: float = 0.0
+    reaction: float = 0.0
+    room: float = 0.0
+    patience: float = 0.0
+
+    def __post_init__(self) -> None:
+        for field in fields(self):
+            value = getattr(self, field.name)
+            if isinstance(value, bool) or not isinstance(value, int | float) or not 0 <= value <= 2:
+                raise ConfigError(f"Spread.{field.name} = {value!r}: expected a number in [0, 2]")
+
+    @classmethod
+    def even(cls, sigma: float) -> Spread:
+        """The same sigma for every trait."""
+        return cls(*(sigma,) * len(TRAITS))
+
+    def sigmas(self) -> np.ndarray:
+        """(4,) the sigmas in ``TRAITS``' order."""
+        return np.array([getattr(self, name) for name in TRAITS], np.float64)
+
+
+def draw_traits(rng: np.random.Generator, agents: int, spread: Spread) -> np.ndarray:
+    """(agents, 4) traits drawn from ``rng``: each factor exp(N(0, sigma)), kept within ``TRAIT_RANGE``; a spread
+    of zeros draws nothing and gives ``typical``."""
+    sigmas = spread.sigmas()
+    if not sigmas.any():
+        return typical(agents)
+    return np.clip(np.exp(rng.normal(0.0, 1.0, (agents, len(TRAITS))) * sigmas), *TRAIT_RANGE)
+
+
+def read_spread(path: Path) -> Spread:
+    """The spread in a file (``{"spread": {trait: sigma, ...}}``, as ``benchmarks/fit_spread.py`` writes);
+    ``ConfigError`` naming the file and the field when it cannot be read."""
+    try:
+        values = json.loads(Path(path).read_text())["spread"]
+        return Spread(**{name: values[name] for name in TRAITS})
+    except FileNotFoundError:
+        raise ConfigError(f"{path}: no such spread file") from None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError, TypeError) as err:
+        raise ConfigError(f"{path}: not a readable JSON spread ({err})") from err
+    except KeyError as err:
+        raise ConfigError(f"{path}: no spread.{err.args[0]} (a spread names every trait: "
+                          f"{', '.join(TRAITS)})") from None
+    except ConfigError as err:
+        raise ConfigError(f"{path}: {err}") from None
+
+
+@cache
+def fitted_spread() -> Spread:
+    """The shipped spread (``spread_fit.json``), read once per process."""
+    return read_spread(SPREAD_PATH)

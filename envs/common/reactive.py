@@ -46,7 +46,18 @@ from envs.common.compiled.geometry import robot_rows
 from envs.common.compiled.step import attention, leave, settle
 from envs.common.footprint import BODY_RADIUS_M, PAIR_BODY_M, PAIR_GIVE_M, Body, Robot, heading_of, length_m
 from envs.common.ragged import leading
-from envs.common.reaction import MOVING_MPS, Reaction, attend, notices
+from envs.common.reaction import (
+    MOVING_MPS,
+    NOTICING,
+    PATIENCE,
+    REACTION,
+    ROOM,
+    TRAITS,
+    Reaction,
+    attend,
+    notices,
+    typical,
+)
 from envs.common.routes import Depth, Routes
 from replays.constants import STEP_S
 
@@ -82,6 +93,7 @@ class ReactiveState:
         noticed_s: (A,) how long it has had the robot in mind [s] (0: it has not noticed it).
         unseen_s: (A,) how long since it last noticed the robot, while it keeps it in mind [s].
         weight: (A,) how far it reacted to the robot in the last step, in [0, 1].
+        traits: (A, 4) its factors on the fitted reaction (``reaction.TRAITS``), drawn when the episode starts.
     """
 
     xy_m: np.ndarray
@@ -98,6 +110,7 @@ class ReactiveState:
     noticed_s: np.ndarray
     unseen_s: np.ndarray
     weight: np.ndarray
+    traits: np.ndarray
 
 
 def stack_states(states: Sequence[ReactiveState]) -> ReactiveState:
@@ -138,9 +151,14 @@ class ReactiveCrowd:
                                    window[:-MAX_LINGER_STEPS]][: len(window)]
         return int((present.sum(axis=1) + ((lingering > 0) & ~present).sum(axis=1)).max())
 
-    def reset(self, index: int) -> np.ndarray:
-        """Everybody on their log at frame ``index``, nobody has noticed the robot; returns the (A, 2) positions."""
-        self.state = on_log(self.routes, index)
+    def reset(self, index: int, traits: np.ndarray | None = None) -> np.ndarray:
+        """Everybody on their log at frame ``index``, nobody has noticed the robot, each with its ``traits`` (A, 4)
+        from now on (``reaction.draw_traits``; default: ``reaction.typical``, the fitted pedestrian); returns the
+        (A, 2) positions."""
+        agents = self.routes.present.shape[1]
+        if traits is not None and np.shape(traits) != (agents, len(TRAITS)):
+            raise ValueError(f"traits of shape {np.shape(traits)}: expected ({agents}, 4), one row per agent")
+        self.state = on_log(self.routes, index, traits)
         return self.state.xy_m
 
     def deviation_m(self, index: int) -> np.ndarray:
@@ -170,7 +188,7 @@ class ReactiveCrowd:
         for i, crowd in enumerate(crowds):
             if robots_to_m[i] is None:  # no robot: everybody on their log
                 old = crowd.state
-                crowd.state = on_log(crowd.routes, indices[i])
+                crowd.state = on_log(crowd.routes, indices[i], old.traits)
                 crowd.state.velocity_mps[:] = velocity(crowd.state.xy_m, old.xy_m,
                                                        old.present & crowd.routes.present[indices[i]])
             else:
@@ -189,15 +207,17 @@ class ReactiveCrowd:
         return [crowd.state.xy_m for crowd in crowds]
 
 
-def on_log(routes: Routes, index: int) -> ReactiveState:
-    """Everybody on their log at frame ``index``, nobody has noticed the robot."""
+def on_log(routes: Routes, index: int, traits: np.ndarray | None = None) -> ReactiveState:
+    """Everybody on their log at frame ``index``, nobody has noticed the robot, with ``traits`` (A, 4) (default:
+    ``reaction.typical``)."""
     now = routes.present[index]
     xy = np.where(now[:, None], routes.log_xy_m[index], np.nan)
     agents = len(now)
     zero = np.zeros(agents)
     return ReactiveState(xy, np.zeros_like(xy), now.copy(), np.zeros(agents, bool), np.full(agents, float(index)),
                          zero, np.zeros(agents, int), np.zeros(agents, int), np.full(agents, float(index)),
-                         np.full((agents, RECENT_STEPS), np.inf), np.zeros(agents, bool), zero, zero, zero)
+                         np.full((agents, RECENT_STEPS), np.inf), np.zeros(agents, bool), zero, zero, zero,
+                         typical(agents) if traits is None else np.array(traits, np.float64))
 
 
 def advance(routes: Routes, old: ReactiveState, index: np.ndarray, robot: Robot) -> ReactiveState:
@@ -207,7 +227,7 @@ def advance(routes: Routes, old: ReactiveState, index: np.ndarray, robot: Robot)
     logged, log_now = routes.present[index], routes.log_xy_m[index]  # (N, A), (N, A, 2)
     walking = _walking(routes, old)
     noticed, unseen = attend(old.noticed_s, old.unseen_s, _notices(routes, old, robot, walking))
-    weight = np.where(old.present, routes.reaction.weight(noticed), 0.0)
+    weight = np.where(old.present, routes.reaction.weight(noticed, old.traits), 0.0)
     room = _room(routes, old, robot, walking)
     lingering = old.present & old.off_log & ~logged & (old.linger < MAX_LINGER_STEPS)  # on their way out
     present = logged | lingering
@@ -224,13 +244,13 @@ def advance(routes: Routes, old: ReactiveState, index: np.ndarray, robot: Robot)
     xy = np.where(off_log[..., None], start, log_now)
     xy[~present] = np.nan
     step = Step(index, start, xy, present, off_log, np.zeros(present.shape, bool), old.velocity_mps, old.stuck,
-                farthest, recent, detour, robot, weight, room)
+                farthest, recent, detour, robot, weight, room, _aside_cost(routes, old))
     clear = routes.clear_of_robot(log_now, robot.from_m[:, None], robot.to_m[:, None], robot.heading_rad[:, None])
     _place_newcomers(routes, step, logged & ~old.present, clear, offset)
     choose_all(routes, step, tau, offset)
     # back on the log: caught up, beside it, and nothing in the way; out of the scene: where the log ended
     ahead = ReactiveState(xy, velocity(xy, old.xy_m, old.present & present), present, off_log, tau, offset,
-                          old.linger, old.stuck, farthest, recent, detour, noticed, unseen, weight)
+                          old.linger, old.stuck, farthest, recent, detour, noticed, unseen, weight, old.traits)
     rejoin = (off_log & logged & (length_m(np.nan_to_num(xy - log_now, nan=np.inf)) <= REJOIN_M)
               & ~_robot_in_the_way(routes, index + 1, robot.after(), weight, room)
               & ~_others_in_the_way(routes, index + 1, ahead) & clear)
@@ -259,7 +279,7 @@ def advance(routes: Routes, old: ReactiveState, index: np.ndarray, robot: Robot)
                          np.where(present & lingering, old.linger + 1, 0), stuck,
                          np.where(off_log, np.maximum(farthest, tau), frame),
                          np.concatenate([recent[..., 1:], behind[..., None]], axis=-1), detour,
-                         np.where(present, noticed, 0.0), np.where(present, unseen, 0.0), weight)
+                         np.where(present, noticed, 0.0), np.where(present, unseen, 0.0), weight, old.traits)
 
 
 def advance_compiled(routes: Routes, old: ReactiveState, index: np.ndarray, robot: Robot) -> ReactiveState:
@@ -269,14 +289,14 @@ def advance_compiled(routes: Routes, old: ReactiveState, index: np.ndarray, robo
     walking, noticed, unseen, weight = attention(
         tables, old.present, old.xy_m, old.velocity_mps, old.tau, old.noticed_s, old.unseen_s, rows,
         np.c_[np.cos(-robot.heading_rad), np.sin(-robot.heading_rad)], float(np.radians(reaction.fov_deg)),
-        reaction.hearing_m, reaction.reaction_s)
+        reaction.hearing_m * old.traits[..., NOTICING], reaction.reaction_s * old.traits[..., REACTION])
     room = _room(routes, old, robot, walking)
     lingering, present, off_log, start, tau, farthest, recent, detour, offset, xy, clear = leave(
         tables, routes.present, index, rows, weight, room, old.xy_m, old.velocity_mps, old.present, old.off_log,
         old.linger, old.tau, old.farthest, old.recent_m, old.detour, old.offset_m, MAX_LINGER_STEPS,
         PAIR_LOOK_AHEAD_STEPS, PAIR_CLEARANCE_M)
     step = Step(index, start, xy, present, off_log, np.zeros(present.shape, bool), old.velocity_mps, old.stuck,
-                farthest, recent, detour, robot, weight, room)
+                farthest, recent, detour, robot, weight, room, _aside_cost(routes, old))
     appearing = routes.present[index] & ~old.present
     if appearing.any():
         _place_newcomers(routes, step, appearing, clear, offset)
@@ -285,15 +305,21 @@ def advance_compiled(routes: Routes, old: ReactiveState, index: np.ndarray, robo
                    lingering, start, clear, tau, offset, farthest, recent, detour, old.xy_m, old.present, old.linger,
                    old.stuck, REJOIN_M, STILL_M, LEAVE_BLOCKED_M, DETOUR_AFTER_STEPS, PAIR_LOOK_AHEAD_STEPS,
                    PAIR_CLEARANCE_M)
-    return ReactiveState(*state, np.where(present, noticed, 0.0), np.where(present, unseen, 0.0), weight)
+    return ReactiveState(*state, np.where(present, noticed, 0.0), np.where(present, unseen, 0.0), weight,
+                         old.traits)
 
 
 def _room(routes: Routes, state: ReactiveState, robot: Robot, walking: np.ndarray) -> np.ndarray:
-    """(N, A) the room each pedestrian keeps from its crowd's robot this step [m] (``Reaction.room_m``; numpy's
-    matrix products, crowd by crowd, in both paths)."""
+    """(N, A) the room each pedestrian keeps from its crowd's robot this step [m] (``Reaction.room_m`` times its
+    room trait; numpy's matrix products, crowd by crowd, in both paths)."""
     return np.stack([routes.reaction.room_m(robot.velocity_mps[n], robot.heading[n], walking[n],
                                             np.nan_to_num((state.xy_m[n] - robot.from_m[n]) @ robot.velocity_mps[n])
-                                            > 0) for n in range(len(robot.heading_rad))])
+                                            > 0) for n in range(len(robot.heading_rad))]) * state.traits[..., ROOM]
+
+
+def _aside_cost(routes: Routes, state: ReactiveState) -> np.ndarray:
+    """(N, A) what a metre aside costs each pedestrian (``Reaction.aside_cost`` times its patience trait)."""
+    return routes.reaction.aside_cost * state.traits[..., PATIENCE]
 
 
 def _walking(routes: Routes, state: ReactiveState) -> np.ndarray:
@@ -314,7 +340,7 @@ def _notices(routes: Routes, state: ReactiveState, robot: Robot, walking: np.nda
     bearing = np.arctan2(walking[..., 0] * toward[..., 1] - walking[..., 1] * toward[..., 0],
                          (walking * toward).sum(-1))
     gap = np.nan_to_num(routes.body.gap_m(offset, heading), nan=np.inf)
-    return state.present & notices(routes.reaction, gap, np.nan_to_num(bearing, nan=np.pi))
+    return state.present & notices(routes.reaction, gap, np.nan_to_num(bearing, nan=np.pi), state.traits)
 
 
 def _robot_in_the_way(routes: Routes, index: np.ndarray, robot: Robot, weight: np.ndarray,

@@ -20,7 +20,8 @@ never saw. Fold fits are kept in ``--fold-fits`` and reused. ``--no-refit`` inst
 every folder (cheap; on a folder that fit saw it measures nothing held out).
 
 ``--realism``: the realism score of the blind and the reactive pedestrians (``st_sim.apps.sim_agents``: ``--rollouts``
-seeded rollouts each, paces and reactions drawn per ``vehicle_cases.Variety``), over every case and, with
+seeded rollouts each, paces and traits drawn per ``vehicle_cases.Variety``: the traits with the environments' spread,
+``envs.common.reaction.fitted_spread``, or ``--trait-sigma``), over every case and, with
 ``--cross-validate``, per fold.
 """
 
@@ -36,7 +37,7 @@ from tqdm import tqdm
 
 from envs.common.errors import ConfigError
 from envs.common.footprint import Body
-from envs.common.reaction import FIT_PATH, Reaction, read_fitted_on, read_reaction
+from envs.common.reaction import FIT_PATH, Reaction, Spread, fitted_spread, read_fitted_on, read_reaction
 from replays import strict_json
 from replays.atomic import write_text_atomic
 from replays.citr import CART_LENGTH_M, CART_WIDTH_M, CITR_FPS, Experiment, find_experiments
@@ -115,9 +116,18 @@ def summary(rows: list[dict[str, Any]], models: tuple[str, ...]) -> dict[str, An
                                "collisions": int(sum(row[model]["collision"] for row in rows))} for model in models}}
 
 
+def variety_of(args: argparse.Namespace) -> Variety:
+    """The rollouts' variety: ``--pace-sigma`` and the traits of ``--trait-sigma`` or the fitted spread."""
+    try:
+        spread = fitted_spread() if args.trait_sigma is None else Spread.even(args.trait_sigma)
+    except ConfigError as err:
+        raise CliError(f"--trait-sigma: {err}") from None
+    return Variety(args.pace_sigma, spread)
+
+
 def realism_of(found: list[Case], body: Body, reaction: Reaction, args: argparse.Namespace) -> dict[str, Any]:
     """``{"blind": ..., "reactive": ...}``: ``sim_agents.case_realism`` of both models on ``found``."""
-    variety = Variety(args.pace_sigma, args.reaction_sigma)
+    variety = variety_of(args)
     return {model: case_realism(found, body, model_reaction, args.rollouts, args.seed, variety,
                                 progress=not args.quiet)
             for model, model_reaction in model_reactions(reaction, CV_MODELS).items()}
@@ -199,9 +209,10 @@ def run(args: argparse.Namespace) -> int:
                         (args.vehicle_width, "--vehicle-width")):
         if not (np.isfinite(value) and value > 0):
             raise CliError(f"{flag} {value}: expected a positive number")
-    for value, flag in ((args.pace_sigma, "--pace-sigma"), (args.reaction_sigma, "--reaction-sigma")):
-        if not (np.isfinite(value) and value >= 0):
+    for value, flag in ((args.pace_sigma, "--pace-sigma"), (args.trait_sigma, "--trait-sigma")):
+        if value is not None and not (np.isfinite(value) and value >= 0):
             raise CliError(f"{flag} {value}: expected a number >= 0")
+    variety_of(args)  # a spread out of range: one error line before anything runs
     if args.no_refit and not args.cross_validate:
         raise CliError("--no-refit goes with --cross-validate (it scores --reaction on every fold)")
     check_writable(Path(args.json).parent)
@@ -229,7 +240,7 @@ def run(args: argparse.Namespace) -> int:
     print(markdown_table(result))
     if args.realism:
         result["settings"]["realism"] = {"rollouts": args.rollouts, "seed": args.seed,
-                                         "variety": dataclasses.asdict(Variety(args.pace_sigma, args.reaction_sigma)),
+                                         "variety": dataclasses.asdict(variety_of(args)),
                                          "weights": WEIGHTS}
         result["realism"] = realism_of(found, body, reaction, args)
         print(realism_table(result["realism"]))
@@ -349,7 +360,8 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     parser.add_argument("--pace-sigma", type=float, default=Variety.pace_sigma,
                         help=f"with --realism: spread of each rollout's pace factor, N(1, sigma) (default: "
                              f"{Variety.pace_sigma})")
-    parser.add_argument("--reaction-sigma", type=float, default=Variety.reaction_sigma,
-                        help=f"with --realism: spread of each rollout's reaction, every field of vehicle_cases."
-                             f"JITTERED times exp(N(0, sigma)) (default: {Variety.reaction_sigma})")
+    parser.add_argument("--trait-sigma", type=float, default=None,
+                        help="with --realism: every reactive pedestrian's traits (noticing, reaction time, room, "
+                             "patience) drawn as exp(N(0, sigma)) (default: the environments' fitted spread, "
+                             "envs/common/spread_fit.json)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")

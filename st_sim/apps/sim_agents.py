@@ -230,14 +230,23 @@ def case_realism(cases: Sequence[Case], body: Body, reaction: Reaction | None, r
                  variety: Variety, depth: Depth | None = None, progress: bool = False) -> dict[str, object]:
     """``realism`` of a model (``reaction``; None: blind) on the pedestrians of ``cases``: ``rollouts`` seeded
     rollouts each (``vehicle_cases.rollout``), ``depth`` the ground (default ``OpenGround``: all walkable)."""
-    ground = OpenGround() if depth is None else depth
-    scored: dict[str, list[np.ndarray]] = {}
-    closest = []
-    for case in tqdm(cases, desc="rollouts", unit="experiment", disable=not progress):
-        scene = scene_of(case, body, ground)
-        walked = np.stack([crowd_of(case, rollout(case, body, reaction, index, seed, variety))
-                           for index in range(rollouts)])
-        for name, values in log_likelihoods(scene, case.grid.xy_m, walked).items():
-            scored.setdefault(name, []).append(values)
-        closest.append(min_ade_m(scene, case.grid.xy_m, walked))
-    return realism({name: np.concatenate(values) for name, values in scored.items()}, np.concatenate(closest))
+    scored = [case_likelihoods(case, body, reaction, rollouts, seed, variety, depth)
+              for case in tqdm(cases, desc="rollouts", unit="experiment", disable=not progress)]
+    return pooled_realism(scored)
+
+
+def case_likelihoods(case: Case, body: Body, reaction: Reaction | None, rollouts: int, seed: int, variety: Variety,
+                     depth: Depth | None = None) -> tuple[dict[str, np.ndarray], np.ndarray]:
+    """(``log_likelihoods``, ``min_ade_m``) of one case's scored pedestrians under ``rollouts`` seeded rollouts of a
+    model (arguments as ``case_realism``'s): what ``pooled_realism`` pools over cases."""
+    scene = scene_of(case, body, OpenGround() if depth is None else depth)
+    walked = np.stack([crowd_of(case, rollout(case, body, reaction, index, seed, variety))
+                       for index in range(rollouts)])
+    return log_likelihoods(scene, case.grid.xy_m, walked), min_ade_m(scene, case.grid.xy_m, walked)
+
+
+def pooled_realism(scored: Sequence[tuple[dict[str, np.ndarray], np.ndarray]]) -> dict[str, object]:
+    """``realism`` of the pedestrians of several cases together, from each case's ``case_likelihoods``."""
+    names = scored[0][0] if scored else {}
+    return realism({name: np.concatenate([values[name] for values, _ in scored]) for name in names},
+                   np.concatenate([closest for _, closest in scored]))

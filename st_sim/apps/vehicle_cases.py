@@ -16,20 +16,20 @@ along every step, whether the simulated pedestrian's centre entered the body (a 
 reaction: the gap to the vehicle's body when it first strays ``ONSET_M`` from its intent (none if it never does).
 
 **Rollouts** (``rollout``, for ``st_sim.apps.sim_agents``' realism score): the same walk with seeded variety
-(``Variety``): each intent walked at a pace of its own, and a reactive crowd's reaction drawn round the fitted one.
+(``Variety``): each intent walked at a pace of its own, and each reactive pedestrian with traits of its own
+(``envs.common.reaction.draw_traits``).
 """
 
 from __future__ import annotations
 
-import dataclasses
 import zlib
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Final
 
 import numpy as np
 
 from envs.common.footprint import BODY_RADIUS_M, Body
-from envs.common.reaction import Reaction
+from envs.common.reaction import Reaction, Spread, draw_traits
 from envs.common.reactive import ReactiveCrowd
 from envs.common.routes import OpenGround
 from replays.citr import Experiment, Grid, on_grid
@@ -88,17 +88,18 @@ def intents(grid: Grid, body: Body) -> Intents:
     return Intents(columns, start, np.array(last, int), np.where((since_s >= 0)[..., None], xy, np.nan))
 
 
-def walk(grid: Grid, intent: Intents, body: Body, reaction: Reaction | SubGoalForce | None) -> np.ndarray:
+def walk(grid: Grid, intent: Intents, body: Body, reaction: Reaction | SubGoalForce | None,
+         traits: np.ndarray | None = None) -> np.ndarray:
     """(T, N, 2) positions [m] of the scored pedestrians walking their intents with the vehicle driving its recorded
     path (``reaction`` None: blind, the intents themselves; a ``SubGoalForce``: that model instead of the reactive
-    pedestrians)."""
+    pedestrians); ``traits`` (N, 4): the reactive pedestrians' (default: the fitted pedestrian's)."""
     if reaction is None:
         return intent.xy_m.copy()
     if isinstance(reaction, SubGoalForce):
         return walk_sub_goal(reaction, intent.xy_m, grid.vehicle_xy_m, grid.vehicle_heading_rad, body)
     present = ~np.isnan(intent.xy_m[..., 0])
     crowd = ReactiveCrowd(intent.xy_m, present, OpenGround(), body, BODY_RADIUS_M, reaction)
-    path = [crowd.reset(0).copy()]
+    path = [crowd.reset(0, traits).copy()]
     for index in range(1, len(grid.times_s)):
         heading = grid.vehicle_heading_rad[index - 1]
         here = grid.vehicle_xy_m[index - 1]
@@ -167,19 +168,16 @@ def cases(experiments: list[Experiment], body: Body) -> list[Case]:
 @dataclass(frozen=True)
 class Variety:
     """How seeded rollouts of the same experiment differ (``rollout``): each scored pedestrian walks its intent at a
-    pace drawn from N(1, ``pace_sigma``) (kept within ``PACE_RANGE``), blind and reactive alike; a reactive crowd
-    also draws one reaction per rollout, each field of ``JITTERED`` times exp(N(0, ``reaction_sigma``)), shared by
-    the experiment's pedestrians (the reactive crowd takes one reaction). Zero sigmas: the deterministic models. The
-    defaults are chosen, not fitted: a tenth of a pedestrian's pace, a fifth of each parameter."""
+    pace drawn from N(1, ``pace_sigma``) (kept within ``PACE_RANGE``), blind and reactive alike, and a reactive
+    pedestrian also draws its traits with ``spread`` (``reaction.draw_traits``; a sub-goal model has none). Zero
+    sigmas: the deterministic models. The pace's default is chosen, not fitted: a tenth of a pedestrian's pace; the
+    traits' is the environments' (``reaction.fitted_spread``), which ``reactive-validate`` passes."""
 
     pace_sigma: float = 0.1
-    reaction_sigma: float = 0.2
+    spread: Spread = field(default_factory=Spread)
 
 
 PACE_RANGE: Final[tuple[float, float]] = (0.5, 1.5)  # a rollout's pace factor is kept within this [-]
-JITTERED: Final[tuple[str, ...]] = ("hearing_m", "reaction_s", "clearance_m", "head_on_s", "behind_s", "crossing_s")
-"""the fields of a reaction a rollout draws (noticing distance, reaction time, room); field of view, anticipation and
-the costs of delay and of standing aside stay as fitted"""
 
 
 def rollout(case: Case, body: Body, reaction: Reaction | SubGoalForce | None, index: int, seed: int,
@@ -189,8 +187,5 @@ def rollout(case: Case, body: Body, reaction: Reaction | SubGoalForce | None, in
     same paces)."""
     rng = np.random.default_rng([seed, index, zlib.crc32(case.name.encode())])
     pace = np.clip(rng.normal(1.0, variety.pace_sigma, len(case.intent.columns)), *PACE_RANGE)
-    factor = np.exp(rng.normal(0.0, variety.reaction_sigma, len(JITTERED)))
-    drawn = None if reaction is None else dataclasses.replace(  # (a sub-goal model has none of them: paces only)
-        reaction, **{name: getattr(reaction, name) * float(f) for name, f in zip(JITTERED, factor, strict=True)
-                     if hasattr(reaction, name)})
-    return walk(case.grid, case.intent.paced(pace), body, drawn)
+    traits = draw_traits(rng, len(case.intent.columns), variety.spread) if isinstance(reaction, Reaction) else None
+    return walk(case.grid, case.intent.paced(pace), body, reaction, traits)

@@ -69,8 +69,8 @@ class StepArrays(NamedTuple):
     Attributes:
         index: (N,) int64.  start, xy: (N, A, 2) [m] (``xy`` updated as they choose).  present, off_log, detour:
             (N, A) bool.  velocity: (N, A, 2) [m/s].  stuck: (N, A) int64.  farthest: (N, A).  recent: (N, A, R) [m].
-            weight: (N, A).  room: (N, A) [m].  robot: (N, 8) from x, y, to x, y, cos, sin of its heading,
-            velocity x, y.  tau, offset: (N, A) route points and sides [m] (updated as they choose).
+            weight: (N, A).  room: (N, A) [m].  aside_cost: (N, A).  robot: (N, 8) from x, y, to x, y, cos, sin of its
+            heading, velocity x, y.  tau, offset: (N, A) route points and sides [m] (updated as they choose).
     """
 
     index: np.ndarray
@@ -85,6 +85,7 @@ class StepArrays(NamedTuple):
     recent: np.ndarray
     weight: np.ndarray
     room: np.ndarray
+    aside_cost: np.ndarray
     robot: np.ndarray
     tau: np.ndarray
     offset: np.ndarray
@@ -100,7 +101,8 @@ def choose_compiled(routes: Routes, step: Step, tau: np.ndarray, offset: np.ndar
     order = np.lexsort((gap, rows))  # by crowd, then the nearest to the robot first (stable: by agent on ties)
     _choose(routes.tables(), StepArrays(step.index, step.start, step.xy, step.present, step.off_log, step.detour,
                                         step.velocity_mps, step.stuck, step.farthest, step.recent_m, step.weight,
-                                        step.room_m, robot_rows(step.robot), tau, offset), rows[order], agents[order])
+                                        step.room_m, step.aside_cost, robot_rows(step.robot), tau, offset),
+            rows[order], agents[order])
     step.chosen[rows, agents] = True
 
 
@@ -196,7 +198,7 @@ def _candidates(t: RouteTables, s: StepArrays, n: int, a: int, horizon: int, tab
         to_x, to_y = from_x, from_y
     half_m, radius_m, corners, half_diagonal_m, reach_m = t.half_m, t.radius_m, t.corners, t.half_diagonal_m, \
         t.robot_reach_m
-    delay_cost, aside_cost, stuck = t.delay_cost, t.aside_cost, s.stuck[n, a]
+    delay_cost, aside_cost, stuck = t.delay_cost, s.aside_cost[n, a], s.stuck[n, a]
     recent_m = s.recent[n, a, 0]
     for k in range(1, s.recent.shape[2]):
         recent_m = minimum(recent_m, s.recent[n, a, k])

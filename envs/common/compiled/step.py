@@ -24,12 +24,12 @@ from replays.constants import STEP_S
 @njit(cache=True)
 def attention(t: RouteTables, present: np.ndarray, xy: np.ndarray, velocity: np.ndarray, tau: np.ndarray,
               noticed_s: np.ndarray, unseen_s: np.ndarray, robot: np.ndarray, turned_back: np.ndarray, fov_rad: float,
-              hearing_m: float, reaction_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+              hearing_m: np.ndarray, reaction_s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(walking (N, A, 2), noticed_s, unseen_s, weight (N, A)): each pedestrian's unit walking direction
     (``reactive._walking``), its attention after noticing the robot or not (``reactive._notices``,
     ``reaction.attend``) and how far it reacts (``Reaction.weight``), for the state (N, A, ...) before the step;
     ``turned_back`` (N, 2): the cosine and sine of minus each robot's heading; the reaction's field of view [rad],
-    hearing [m] and reaction time [s]."""
+    each pedestrian's hearing [m] and reaction time [s] (N, A)."""
     crowds, agents = present.shape
     frames = t.tangent.shape[0]
     walking = np.empty((crowds, agents, 2))
@@ -54,12 +54,12 @@ def attention(t: RouteTables, present: np.ndarray, xy: np.ndarray, velocity: np.
             bearing = np.pi if bearing != bearing else bearing
             body_gap = gap(off_x, off_y, cos, sin, t.half_m, t.radius_m)
             body_gap = np.inf if body_gap != body_gap else body_gap
-            noticing = present[n, a] and (body_gap <= hearing_m or abs(bearing) <= fov_rad)
+            noticing = present[n, a] and (body_gap <= hearing_m[n, a] or abs(bearing) <= fov_rad)
             unseen[n, a] = 0.0 if noticing else unseen_s[n, a] + STEP_S
             kept = noticing or (noticed_s[n, a] > 0 and unseen[n, a] <= MEMORY_S)
             noticed[n, a] = noticed_s[n, a] + STEP_S if kept else 0.0
             unseen[n, a] = unseen[n, a] if kept else 0.0
-            weight[n, a] = clip((noticed[n, a] - reaction_s) / STEP_S, 0.0, 1.0) if present[n, a] else 0.0
+            weight[n, a] = clip((noticed[n, a] - reaction_s[n, a]) / STEP_S, 0.0, 1.0) if present[n, a] else 0.0
     return walking, noticed, unseen, weight
 
 

@@ -32,7 +32,7 @@ class RouteTables(NamedTuple):
             its last row is (0, 0, 1).  open_ground: bool, every point at depth 0 (no raster).
         half_m: (2,) the robot's half length and width [m].  radius_m: its radius [m].  corners: (C, 2) its
             rectangle's distinct corners [m].  half_diagonal_m: hypot of ``half_m`` [m].
-        robot_reach_m: gap kept from the robot's body [m].  delay_cost, aside_cost: the reaction's costs.
+        robot_reach_m: gap kept from the robot's body [m].  delay_cost: the reaction's cost of delay.
             anticipation_steps: the reaction's look-ahead in steps.
     """
 
@@ -54,7 +54,6 @@ class RouteTables(NamedTuple):
     half_diagonal_m: float
     robot_reach_m: float
     delay_cost: float
-    aside_cost: float
     anticipation_steps: int
 
 
@@ -75,7 +74,7 @@ def route_tables(routes: Routes) -> RouteTables | None:
                        np.ascontiguousarray(to_pixel, np.float64), affine, open_ground, half_m,
                        float(routes.body.radius_m), np.array(corners(half_m), np.float64).reshape(-1, 2),
                        float(np.hypot(*half_m)), float(routes.robot_reach_m), float(reaction.delay_cost),
-                       float(reaction.aside_cost), int(reaction.anticipation_steps))
+                       int(reaction.anticipation_steps))
 
 
 @njit(cache=True, inline="always")
