@@ -48,7 +48,7 @@ SEP, MIN_ADE = "|", "min_ade_m"  # a kept job's keys: experiment, then feature (
 
 def job_path(cache: Path, reaction: Reaction, sigma: float, rollouts: int, seed: int, pace_sigma: float) -> Path:
     """Where the job of ``reaction`` and ``sigma`` keeps its likelihoods (named by everything it depends on)."""
-    key = json.dumps([dataclasses.asdict(reaction), sigma, rollouts, seed, pace_sigma], sort_keys=True)
+    key = strict_json.dumps([dataclasses.asdict(reaction), sigma, rollouts, seed, pace_sigma], sort_keys=True)
     return cache / f"{hashlib.sha256(key.encode()).hexdigest()[:16]}.npz"
 
 

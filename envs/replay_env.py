@@ -13,7 +13,7 @@ import numpy as np
 
 from envs.common.config import EnvConfig
 from envs.common.crowd_env import CrowdEnv, check_flag
-from envs.common.ego import move_within, spawn_start_goal, walkable_points
+from envs.common.ego import SpawnPoints, move_within, spawn_start_goal, walkable_points
 from envs.common.errors import EnvInputError, ResetOptionsError
 from envs.common.footprint import Body
 from envs.common.predictors import shipped_checkpoint
@@ -223,13 +223,22 @@ class ReplayCrowdEnv(CrowdEnv):
         observed = self.replay.xy_m[self.replay.present]
         margin = self.cfg.arena_margin_m  # checked by EnvConfig: [0, 100] m
         self.arena_low_m, self.arena_high_m = observed.min(axis=0) - margin, observed.max(axis=0) + margin
-        self.candidates_m = walkable_points(self.scene, (*self.arena_low_m, *self.arena_high_m))
+        self.spawn_points = SpawnPoints(walkable_points(self.scene, (*self.arena_low_m, *self.arena_high_m)))
         self.index = 0
         self.reactive: ReactiveCrowd | None = None
         if pedestrians == "reactive":
             self.reactive = ReactiveCrowd.on(reactive_routes(self.replay, info.name, root,
                                                              Body(radius_m=self.cfg.ego_radius_m),
                                                              self.cfg.pedestrian_radius_m))
+
+    @property
+    def candidates_m(self) -> np.ndarray:
+        """(M, 2) the walkable points the robot may start on and aim at [m] (set: others, tree rebuilt)."""
+        return self.spawn_points.xy_m
+
+    @candidates_m.setter
+    def candidates_m(self, xy_m: np.ndarray) -> None:
+        self.spawn_points = SpawnPoints(xy_m)
 
     def _check_options(self, options: dict[str, Any]) -> None:
         if "start_index" not in options:
@@ -250,7 +259,7 @@ class ReplayCrowdEnv(CrowdEnv):
         if self.ego:
             diagonal_m = float(np.linalg.norm(self.arena_high_m - self.arena_low_m))
             self.ego_xy_m, self.goal_m = spawn_start_goal(
-                self.candidates_m, now.xy_m, self.cfg.spawn_clearance_m,
+                self.spawn_points, now.xy_m, self.cfg.spawn_clearance_m,
                 self.cfg.goal_min_fraction * diagonal_m, self.np_random)
             self.ego_velocity_mps = np.zeros(2)
         if self.reactive is not None:

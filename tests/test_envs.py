@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 
 import envs
 from envs import STCROWD_IDS
-from envs.common.ego import action_to_velocity, on_image, require_on_map, walkable_points
+from envs.common.ego import SpawnPoints, action_to_velocity, on_image, require_on_map, spawn_start_goal, walkable_points
 from replays import SCENE_NAMES, load_scene
 
 ROLLOUT_STEPS = 30
@@ -135,6 +135,40 @@ def test_every_ego_spawn_candidate_is_on_the_image_and_walkable(scene_name: str)
     assert on_image(scene, candidates).all()
     for xy in candidates:
         require_on_map(scene, xy, "a spawn candidate", walkable=True)
+
+
+def _reference_spawn(candidates_m: np.ndarray, peds_xy_m: np.ndarray, clearance_m: float, goal_m: float,
+                     rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """The spawn as first written: every candidate's room measured."""
+    from scipy.spatial import cKDTree
+
+    room = cKDTree(peds_xy_m).query(candidates_m)[0] if len(peds_xy_m) else np.full(len(candidates_m), np.inf)
+    free = np.flatnonzero(room >= clearance_m)
+    start = candidates_m[rng.choice(free)] if len(free) else candidates_m[np.argmax(room)]
+    distance = np.linalg.norm(candidates_m - start, axis=1)
+    far = np.flatnonzero(distance >= goal_m)
+    return start, candidates_m[rng.choice(far)] if len(far) else candidates_m[np.argmax(distance)]
+
+
+@settings(max_examples=200, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), points=st.integers(1, 400), peds=st.integers(0, 60),
+       clearance=st.sampled_from([0.0, 0.5, 1.0, 2.5, 40.0]), goal=st.floats(0.0, 30.0), grid=st.booleans())
+def test_the_spawn_measures_room_only_near_pedestrians_and_draws_as_measuring_every_point(
+        seed: int, points: int, peds: int, clearance: float, goal: float, grid: bool) -> None:
+    """The same start and goal, and the generator left in the same state, as measuring every candidate's room: on
+    random points and on a lattice with pedestrians exactly ``clearance`` from some points, crowded or empty."""
+    rng = np.random.default_rng(seed)
+    if grid:  # lattice points and pedestrians on it: distances that equal the clearance exactly
+        side = int(np.ceil(np.sqrt(points)))
+        candidates = np.stack(np.meshgrid(np.arange(side) * 0.5, np.arange(side) * 0.5), -1).reshape(-1, 2)[:points]
+        people = candidates[rng.integers(0, len(candidates), peds)] if peds else np.zeros((0, 2))
+    else:
+        candidates, people = rng.uniform(-10, 10, (points, 2)), rng.uniform(-10, 10, (peds, 2))
+    ours, theirs = np.random.default_rng(seed + 1), np.random.default_rng(seed + 1)
+    start, goal_m = spawn_start_goal(SpawnPoints(candidates), people, clearance, goal, ours)
+    start_ref, goal_ref = _reference_spawn(candidates, people, clearance, goal, theirs)
+    assert np.array_equal(start, start_ref) and np.array_equal(goal_m, goal_ref)
+    assert ours.random() == theirs.random()
 
 
 def test_forecasts_run_with_one_torch_thread_and_leave_the_setting_as_it_was() -> None:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 from typing import Any
 
 import numpy as np
@@ -100,7 +101,43 @@ def walkable_points(scene: Scene, bounds_m: tuple[float, float, float, float]) -
     return xy_m[inside & on_image(scene, xy_m)]
 
 
-def spawn_start_goal(candidates_m: np.ndarray, peds_xy_m: np.ndarray, clearance_m: float,
+class SpawnPoints:
+    """The walkable points a robot may start on and aim at, (M, 2) metres, with a k-d tree over them built once: a
+    start's room from the pedestrians is measured only for the points near one (``spawn_start_goal``)."""
+
+    def __init__(self, xy_m: np.ndarray):
+        self.xy_m = xy_m
+        self._tree = cKDTree(xy_m) if len(xy_m) else None
+
+    def room_m(self, peds_xy_m: np.ndarray) -> np.ndarray:
+        """(M,) distance [m] from each point to the nearest pedestrian (inf with none)."""
+        return cKDTree(peds_xy_m).query(self.xy_m)[0] if len(peds_xy_m) else np.full(len(self.xy_m), np.inf)
+
+    def free(self, peds_xy_m: np.ndarray, clearance_m: float) -> np.ndarray:
+        """(M,) bool: ``room_m(peds_xy_m) >= clearance_m``, the same to the last bit: the points within a hair less
+        than ``clearance_m`` of a pedestrian are not free, those farther than a hair more are, and only those in
+        between are measured as ``room_m`` measures them."""
+        free = np.ones(len(self.xy_m), bool)
+        if self._tree is None or not len(peds_xy_m):
+            return free
+        hair = clearance_m * 1e-9 + 1e-9  # far more than the rounding of two ways of measuring a distance [m]
+        outer, inner = (self._points_within(peds_xy_m, clearance_m + side) for side in (hair, -hair))
+        free[outer] = False
+        band = outer & ~inner
+        if band.any():
+            free[band] = cKDTree(peds_xy_m).query(self.xy_m[band])[0] >= clearance_m
+        return free
+
+    def _points_within(self, peds_xy_m: np.ndarray, radius_m: float) -> np.ndarray:
+        """(M,) bool: the points within ``radius_m`` of a pedestrian (none for a negative radius)."""
+        within = np.zeros(len(self.xy_m), bool)
+        if radius_m >= 0:
+            lists = self._tree.query_ball_point(peds_xy_m, radius_m, return_sorted=False)
+            within[np.fromiter(itertools.chain.from_iterable(lists), np.int64)] = True
+        return within
+
+
+def spawn_start_goal(points: SpawnPoints, peds_xy_m: np.ndarray, clearance_m: float,
                      min_goal_distance_m: float, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
     """Draw a free start and a distant goal among walkable candidates.
 
@@ -109,7 +146,7 @@ def spawn_start_goal(candidates_m: np.ndarray, peds_xy_m: np.ndarray, clearance_
     (the farthest candidate if none is).
 
     Args:
-        candidates_m: (M, 2) walkable points, metres.  peds_xy_m: (N, 2) pedestrian positions, metres.
+        points: the (M, 2) walkable candidates, metres.  peds_xy_m: (N, 2) pedestrian positions, metres.
 
     Returns:
         start_m: (2,) float64 metres.  goal_m: (2,) float64 metres.
@@ -117,11 +154,11 @@ def spawn_start_goal(candidates_m: np.ndarray, peds_xy_m: np.ndarray, clearance_
     Raises:
         EgoPlacementError: no candidate (no walkable pixel inside the arena).
     """
+    candidates_m = points.xy_m
     if len(candidates_m) == 0:
         raise EgoPlacementError("no walkable point to spawn the ego on (empty walkability map inside the arena)")
-    room = cKDTree(peds_xy_m).query(candidates_m)[0] if len(peds_xy_m) else np.full(len(candidates_m), np.inf)
-    free = np.flatnonzero(room >= clearance_m)
-    start = candidates_m[rng.choice(free)] if len(free) else candidates_m[np.argmax(room)]
+    free = np.flatnonzero(points.free(peds_xy_m, clearance_m))
+    start = candidates_m[rng.choice(free)] if len(free) else candidates_m[np.argmax(points.room_m(peds_xy_m))]
     distance = np.linalg.norm(candidates_m - start, axis=1)
     far = np.flatnonzero(distance >= min_goal_distance_m)
     goal = candidates_m[rng.choice(far)] if len(far) else candidates_m[np.argmax(distance)]
