@@ -5,7 +5,9 @@ have noticed, and never into its body.
 a vehicle) and how it moved in the last step: it expects the robot to hold that velocity over the step
 (``footprint.Robot``). **When it reacts** (``reaction.Reaction``, fitted on CITR): it notices the robot within its
 field of view or hearing, reacts a reaction time later, and from then on keeps room round the robot that grows with
-the robot's speed, depending on whether it comes head-on, from behind or across.
+the robot's speed, depending on whether it comes head-on, from behind or across; each pedestrian scales its noticing
+distance, reaction time, room and cost of standing aside by its own traits (``ReactiveState.traits``, given at the
+reset, ``ReactiveCrowd.reset``; the replay env draws them with ``reaction_traits="drawn"``).
 
 Every pedestrian follows its recording exactly until either
 
@@ -157,7 +159,8 @@ class ReactiveCrowd:
         (A, 2) positions."""
         agents = self.routes.present.shape[1]
         if traits is not None and np.shape(traits) != (agents, len(TRAITS)):
-            raise ValueError(f"traits of shape {np.shape(traits)}: expected ({agents}, 4), one row per agent")
+            raise ValueError(f"traits of shape {np.shape(traits)}: expected ({agents}, {len(TRAITS)}), one row per "
+                             "agent")
         self.state = on_log(self.routes, index, traits)
         return self.state.xy_m
 
