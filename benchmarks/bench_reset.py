@@ -25,7 +25,7 @@ def main() -> None:
     parser.add_argument("--scenes", nargs="+", default=list(REPLAY_SCENES))
     args = parser.parse_args()
     for scene in args.scenes:
-        env = gym.make(f"STCrowd-{scene}-v0", predictor="none")
+        env = gym.make(f"STCrowd-{scene.capitalize()}-v0", predictor="none")
         env.reset(seed=0)  # built and warm
         start = time.perf_counter()
         for seed in range(args.resets):

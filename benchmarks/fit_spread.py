@@ -47,7 +47,8 @@ SEP, MIN_ADE = "|", "min_ade_m"  # a kept job's keys: experiment, then feature (
 
 
 def job_path(cache: Path, reaction: Reaction, sigma: float, rollouts: int, seed: int, pace_sigma: float) -> Path:
-    """Where the job of ``reaction`` and ``sigma`` keeps its likelihoods (named by everything it depends on)."""
+    """Where the job of ``reaction`` and ``sigma`` keeps its likelihoods, named by the settings of the job (not by
+    the data or the code: delete ``--cache`` after changing either)."""
     key = strict_json.dumps([dataclasses.asdict(reaction), sigma, rollouts, seed, pace_sigma], sort_keys=True)
     return cache / f"{hashlib.sha256(key.encode()).hexdigest()[:16]}.npz"
 
@@ -69,7 +70,7 @@ def run_job(task: tuple[list[Case], Body, Reaction, float, int, int, float, Path
     with np.load(path, allow_pickle=False) as kept:
         for key in kept.files:
             name, column = key.split(SEP)
-            values, closest = scored.setdefault(name, ({}, None))
+            values, _ = scored.setdefault(name, ({}, None))
             if column == MIN_ADE:
                 scored[name] = (values, kept[key])
             else:
@@ -96,13 +97,20 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, required=True)
     args = parser.parse_args(argv)
     bad = [s for s in args.sigmas if not 0 <= s <= 2]
-    if bad or args.rollouts < 1 or args.workers < 1:
-        parser.error(f"--sigmas within [0, 2] (got {bad}), --rollouts and --workers at least 1")
+    if bad:
+        parser.error(f"--sigmas: {bad} outside [0, 2]")
+    if args.rollouts < 1 or args.workers < 1:
+        parser.error(f"--rollouts {args.rollouts} and --workers {args.workers}: each at least 1")
     try:
         folds = json.loads(args.folds.read_text())["folds"]
         fold_reactions = {fold["held_out"]: Reaction(**fold["reaction"]) for fold in folds}
     except (OSError, ValueError, KeyError, TypeError) as err:
         parser.error(f"--folds {args.folds}: not a cross-validation JSON with folds[].held_out and .reaction ({err})")
+    for held_out, reaction in fold_reactions.items():
+        for name, value in dataclasses.asdict(reaction).items():
+            if isinstance(value, bool) or not isinstance(value, int | float) or not 0 <= value < np.inf:
+                parser.error(f"--folds {args.folds}: fold {held_out}'s reaction.{name} = {value!r}: expected a "
+                             "finite number >= 0")
     body = Body(length_m=CART_LENGTH_M, width_m=CART_WIDTH_M)
     root = Path(args.data) if args.data else data_root(dataset=CITR)
     found = cases(find_experiments(root, fps=CITR_FPS), body)

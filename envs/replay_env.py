@@ -204,6 +204,7 @@ class ReplayCrowdEnv(CrowdEnv):
             raise EnvInputError(f"reaction_traits={reaction_traits!r} needs pedestrians='reactive' (got "
                                 f"{pedestrians!r}): pedestrians of a log do not react")
         self.reaction_traits = reaction_traits
+        self.spread = fitted_spread() if reaction_traits == "drawn" else None  # a broken spread file fails here
         check_flag("ego", ego)
         if benchmark_windows and ego:
             raise EnvInputError("benchmark_windows=True is a spectator mode: pass ego=False")
@@ -264,8 +265,8 @@ class ReplayCrowdEnv(CrowdEnv):
             self.ego_velocity_mps = np.zeros(2)
         if self.reactive is not None:
             agents = self.reactive.routes.present.shape[1]
-            self.reactive.reset(self.index, None if self.reaction_traits == "fitted"
-                                else draw_traits(self.np_random, agents, fitted_spread()))
+            self.reactive.reset(self.index, None if self.spread is None else draw_traits(self.np_random, agents,
+                                                                                         self.spread))
         first = max(0, self.index - self.t_obs + 1)
         return [self.replay.frame(i) for i in range(first, self.index + 1)]
 

@@ -82,7 +82,8 @@ def test_drawn_traits_follow_the_seed_and_a_spread_of_zeros_walks_as_the_fitted_
     typical, fitted_walk = _crowd_walk(fitted, seed, 30)
     assert np.array_equal(typical, np.ones_like(typical))
     monkeypatch.setattr("envs.replay_env.fitted_spread", lambda: Spread())
-    none_drawn, zero_walk = _crowd_walk(drawn, seed, 30)
+    zero = gym.make("STCrowd-Zara1-v0", predictor="none", pedestrians="reactive", reaction_traits="drawn")
+    none_drawn, zero_walk = _crowd_walk(zero, seed, 30)
     assert np.array_equal(none_drawn, typical) and np.array_equal(zero_walk, fitted_walk)
 
 

@@ -17,7 +17,7 @@ from envs.common.reaction import (
     FIT_PATH,
     MEMORY_S,
     NOTICING,
-    REACTION,
+    REACTION_TIME,
     SPREAD_PATH,
     TRAIT_RANGE,
     TRAITS,
@@ -47,7 +47,7 @@ def test_the_reaction_starts_a_reaction_time_after_noticing_and_grows_over_one_s
                                                                                    noticed_s: float,
                                                                                    slowness: float) -> None:
     traits = typical(1)
-    traits[0, REACTION] = slowness  # its own reaction time: the fitted one times this
+    traits[0, REACTION_TIME] = slowness  # its own reaction time: the fitted one times this
     weight = float(reaction.weight(np.array([noticed_s]), traits)[0])
     reaction_s = reaction.reaction_s * slowness
     assert 0.0 <= weight <= 1.0

@@ -69,7 +69,7 @@ def _first_difference(plain: list, fast: list) -> str:
        spread=st.sampled_from([Spread(), Spread.even(0.5), Spread(room=1.0, patience=1.0)]))
 def test_drawn_crowds_walk_the_same_compiled_and_plain(body: Body, walls: bool, seed: int, walkers: int,
                                                         crowds: int, spread: Spread) -> None:
-    """... whether everybody is the fitted pedestrian or each has traits of its own."""
+    """Everybody the fitted pedestrian, or each with traits of its own: the same walks."""
     log, present = straight_logs(seed, walkers)
     routes = Routes(log, present, scene_with_walls() if walls else OpenGround(), body, 0.25)
     robots, lag = robot_paths(seed, crowds), [int(k) for k in np.random.default_rng(seed).integers(0, 4, crowds)]

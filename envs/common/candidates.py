@@ -84,7 +84,7 @@ class Step:
         present, off_log, chosen: (N, A) bool.  velocity_mps: (N, A, 2) velocities over the previous step [m/s].
         stuck, farthest, recent_m, detour: as ``ReactiveState`` (N, A, ...), for this step.
         weight: (N, A) how far each reacts to its crowd's robot in this step, in [0, 1].  room_m: (N, A) the room it
-            keeps [m].  aside_cost: (N, A) what a metre aside costs it.
+            keeps [m].  aside_cost: (N, A) what a metre aside costs it [1/m].
     """
 
     index: np.ndarray

@@ -106,7 +106,8 @@ class SpawnPoints:
     start's room from the pedestrians is measured only for the points near one (``spawn_start_goal``)."""
 
     def __init__(self, xy_m: np.ndarray):
-        self.xy_m = xy_m
+        self.xy_m = np.array(xy_m, np.float64)
+        self.xy_m.setflags(write=False)  # the tree holds these points: change them through a new SpawnPoints
         self._tree = cKDTree(xy_m) if len(xy_m) else None
 
     def room_m(self, peds_xy_m: np.ndarray) -> np.ndarray:

@@ -15,9 +15,10 @@ the reactive pedestrians (``envs.common.reactive`` does the walking).
   or waits and passes behind the robot rather than stepping round it in front.
 - **People differ.** Each pedestrian carries four traits (``TRAITS``, one row of an (A, 4) array), factors on the
   fitted reaction: its noticing distance (``hearing_m``), its reaction time (``reaction_s``), the room it keeps and
-  how dear standing aside is to it (``aside_cost``: the dearer, the more it waits). ``TYPICAL`` (every factor 1) is
+  how dear standing aside is to it (``aside_cost``: the dearer, the more it waits). ``typical`` (every factor 1) is
   the fitted pedestrian, bit for bit; ``draw_traits`` draws each factor from exp(N(0, sigma)) with the sigmas of a
-  ``Spread`` (``fitted_spread``: chosen by the cross-validated realism score, ``benchmarks/fit_spread.py``).
+  ``Spread`` (``fitted_spread``: the sigma whose rollouts score the highest realism with the shipped reaction on
+  CITR, ``benchmarks/fit_spread.py``, which also measures what it is worth cross-validated: nothing measurable).
 
 The values are fitted on CITR's pedestrians reacting to a golf cart (``benchmarks/fit_reaction.py``, written to
 ``reaction_fit.json`` beside this module, which ``fitted_reaction`` reads); they are not a safety rule. The safety
@@ -44,7 +45,7 @@ MEMORY_S: Final[float] = 2.0  # a pedestrian that stops noticing the robot keeps
 MOVING_MPS: Final[float] = 0.2  # walking direction: its velocity when faster than this, else its route's [m/s]
 TRAITS: Final[tuple[str, ...]] = ("noticing", "reaction", "room", "patience")
 """the columns of a traits array: factors on ``hearing_m``, ``reaction_s``, the room kept and ``aside_cost``"""
-NOTICING, REACTION, ROOM, PATIENCE = range(len(TRAITS))
+NOTICING, REACTION_TIME, ROOM, PATIENCE = range(len(TRAITS))
 TRAIT_RANGE: Final[tuple[float, float]] = (0.25, 4.0)  # a drawn factor is kept within this [-]
 
 
@@ -79,9 +80,9 @@ class Reaction:
         return max(1, round(self.anticipation_s / STEP_S))
 
     def weight(self, noticed_s: np.ndarray, traits: np.ndarray) -> np.ndarray:
-        """(A,) how far each pedestrian reacts over this step, in [0, 1], from the time ``noticed_s`` (A,) it has had
-        the robot in mind at the end of the step [s] and its ``traits`` (A, 4)."""
-        return np.clip((noticed_s - self.reaction_s * traits[..., REACTION]) / STEP_S, 0.0, 1.0)
+        """(...) how far each pedestrian reacts over this step, in [0, 1], from the time ``noticed_s`` (...) it has had
+        the robot in mind at the end of the step [s] and its ``traits`` (..., 4)."""
+        return np.clip((noticed_s - self.reaction_s * traits[..., REACTION_TIME]) / STEP_S, 0.0, 1.0)
 
     def room_m(self, robot_velocity_mps: np.ndarray, robot_heading: np.ndarray, walking: np.ndarray,
                coming: np.ndarray) -> np.ndarray:
@@ -136,8 +137,8 @@ def fitted_reaction() -> Reaction:
 
 
 def notices(reaction: Reaction, gap_m: np.ndarray, bearing_rad: np.ndarray, traits: np.ndarray) -> np.ndarray:
-    """(A,) bool: pedestrians that notice the robot, from the gap to its body (A,) [m], the angle (A,) [rad]
-    between their walking direction and the direction to the body's nearest point, and their ``traits`` (A, 4)."""
+    """(...) bool: pedestrians that notice the robot, from the gap to its body (...) [m], the angle (...) [rad]
+    between their walking direction and the direction to the body's nearest point, and their ``traits`` (..., 4)."""
     return ((gap_m <= reaction.hearing_m * traits[..., NOTICING])
             | (np.abs(bearing_rad) <= np.radians(reaction.fov_deg)))
 
@@ -148,7 +149,6 @@ def attend(noticed_s: np.ndarray, unseen_s: np.ndarray, noticing: np.ndarray) ->
     unseen = np.where(noticing, 0.0, unseen_s + STEP_S)
     kept = noticing | ((noticed_s > 0) & (unseen <= MEMORY_S))
     return np.where(kept, noticed_s + STEP_S, 0.0), np.where(kept, unseen, 0.0)
-
 
 
 def typical(agents: int) -> np.ndarray:

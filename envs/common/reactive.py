@@ -52,7 +52,7 @@ from envs.common.reaction import (
     MOVING_MPS,
     NOTICING,
     PATIENCE,
-    REACTION,
+    REACTION_TIME,
     ROOM,
     TRAITS,
     Reaction,
@@ -95,7 +95,8 @@ class ReactiveState:
         noticed_s: (A,) how long it has had the robot in mind [s] (0: it has not noticed it).
         unseen_s: (A,) how long since it last noticed the robot, while it keeps it in mind [s].
         weight: (A,) how far it reacted to the robot in the last step, in [0, 1].
-        traits: (A, 4) its factors on the fitted reaction (``reaction.TRAITS``), drawn when the episode starts.
+        traits: (A, 4) its factors on the fitted reaction (``reaction.TRAITS``), set at the reset (all 1: the fitted
+            pedestrian).
     """
 
     xy_m: np.ndarray
@@ -292,7 +293,7 @@ def advance_compiled(routes: Routes, old: ReactiveState, index: np.ndarray, robo
     walking, noticed, unseen, weight = attention(
         tables, old.present, old.xy_m, old.velocity_mps, old.tau, old.noticed_s, old.unseen_s, rows,
         np.c_[np.cos(-robot.heading_rad), np.sin(-robot.heading_rad)], float(np.radians(reaction.fov_deg)),
-        reaction.hearing_m * old.traits[..., NOTICING], reaction.reaction_s * old.traits[..., REACTION])
+        reaction.hearing_m * old.traits[..., NOTICING], reaction.reaction_s * old.traits[..., REACTION_TIME])
     room = _room(routes, old, robot, walking)
     lingering, present, off_log, start, tau, farthest, recent, detour, offset, xy, clear = leave(
         tables, routes.present, index, rows, weight, room, old.xy_m, old.velocity_mps, old.present, old.off_log,

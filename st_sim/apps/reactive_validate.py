@@ -120,8 +120,8 @@ def variety_of(args: argparse.Namespace) -> Variety:
     """The rollouts' variety: ``--pace-sigma`` and the traits of ``--trait-sigma`` or the fitted spread."""
     try:
         spread = fitted_spread() if args.trait_sigma is None else Spread.even(args.trait_sigma)
-    except ConfigError as err:
-        raise CliError(f"--trait-sigma: {err}") from None
+    except ConfigError as err:  # the shipped spread file, or the flag
+        raise CliError(str(err) if args.trait_sigma is None else f"--trait-sigma: {err}") from None
     return Variety(args.pace_sigma, spread)
 
 

@@ -171,7 +171,7 @@ class Variety:
     pace drawn from N(1, ``pace_sigma``) (kept within ``PACE_RANGE``), blind and reactive alike, and a reactive
     pedestrian also draws its traits with ``spread`` (``reaction.draw_traits``; a sub-goal model has none). Zero
     sigmas: the deterministic models. The pace's default is chosen, not fitted: a tenth of a pedestrian's pace; the
-    traits' is the environments' (``reaction.fitted_spread``), which ``reactive-validate`` passes."""
+    traits' default is no spread (``reactive-validate`` passes the environments', ``reaction.fitted_spread``)."""
 
     pace_sigma: float = 0.1
     spread: Spread = field(default_factory=Spread)

@@ -69,8 +69,8 @@ class StepArrays(NamedTuple):
     Attributes:
         index: (N,) int64.  start, xy: (N, A, 2) [m] (``xy`` updated as they choose).  present, off_log, detour:
             (N, A) bool.  velocity: (N, A, 2) [m/s].  stuck: (N, A) int64.  farthest: (N, A).  recent: (N, A, R) [m].
-            weight: (N, A).  room: (N, A) [m].  aside_cost: (N, A).  robot: (N, 8) from x, y, to x, y, cos, sin of its
-            heading, velocity x, y.  tau, offset: (N, A) route points and sides [m] (updated as they choose).
+            weight: (N, A).  room: (N, A) [m].  aside_cost: (N, A) [1/m].  robot: (N, 8) from x, y, to x, y, cos,
+            sin of its heading, velocity x, y.  tau, offset: (N, A) route points and sides [m] (updated as they choose).
     """
 
     index: np.ndarray
