@@ -34,8 +34,9 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
+from envs.common.errors import ConfigError
 from envs.common.footprint import Body
-from envs.common.reaction import FIT_PATH, TRAITS, Reaction, Spread, fitted_reaction
+from envs.common.reaction import FIT_PATH, TRAITS, Reaction, Spread, fitted_reaction, reaction_of
 from replays import strict_json
 from replays.atomic import atomic_path, write_text_atomic
 from replays.citr import CART_LENGTH_M, CART_WIDTH_M, CITR_FPS, find_experiments
@@ -103,14 +104,12 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"--rollouts {args.rollouts} and --workers {args.workers}: each at least 1")
     try:
         folds = json.loads(args.folds.read_text())["folds"]
-        fold_reactions = {fold["held_out"]: Reaction(**fold["reaction"]) for fold in folds}
+        fold_reactions = {fold["held_out"]: reaction_of(fold["reaction"], f"--folds {args.folds}",
+                                                        f"folds[{i}].reaction") for i, fold in enumerate(folds)}
+    except ConfigError as err:
+        parser.error(str(err))
     except (OSError, ValueError, KeyError, TypeError) as err:
         parser.error(f"--folds {args.folds}: not a cross-validation JSON with folds[].held_out and .reaction ({err})")
-    for held_out, reaction in fold_reactions.items():
-        for name, value in dataclasses.asdict(reaction).items():
-            if isinstance(value, bool) or not isinstance(value, int | float) or not 0 <= value < np.inf:
-                parser.error(f"--folds {args.folds}: fold {held_out}'s reaction.{name} = {value!r}: expected a "
-                             "finite number >= 0")
     body = Body(length_m=CART_LENGTH_M, width_m=CART_WIDTH_M)
     root = Path(args.data) if args.data else data_root(dataset=CITR)
     found = cases(find_experiments(root, fps=CITR_FPS), body)

@@ -108,7 +108,7 @@ class SpawnPoints:
     def __init__(self, xy_m: np.ndarray):
         self.xy_m = np.array(xy_m, np.float64)
         self.xy_m.setflags(write=False)  # the tree holds these points: change them through a new SpawnPoints
-        self._tree = cKDTree(xy_m) if len(xy_m) else None
+        self._tree = cKDTree(self.xy_m) if len(self.xy_m) else None
 
     def room_m(self, peds_xy_m: np.ndarray) -> np.ndarray:
         """(M,) distance [m] from each point to the nearest pedestrian (inf with none)."""

@@ -32,7 +32,7 @@ import json
 from dataclasses import dataclass, fields
 from functools import cache
 from pathlib import Path
-from typing import Final
+from typing import Any, Final
 
 import numpy as np
 
@@ -102,19 +102,28 @@ def read_reaction(path: Path) -> Reaction:
     """The reaction in a fit file (``{"params": {field: number, ...}}``, as ``benchmarks/fit_reaction.py`` writes);
     ``ConfigError`` naming the file and the field when it cannot be read."""
     try:
-        params = json.loads(Path(path).read_text())["params"]
-        values = {field.name: float(params[field.name]) for field in fields(Reaction)}
+        fit = json.loads(Path(path).read_text())
     except FileNotFoundError:
         raise ConfigError(f"{path}: no such reaction fit file") from None
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
         raise ConfigError(f"{path}: not a readable JSON reaction fit ({err})") from err
+    if not isinstance(fit, dict) or "params" not in fit:
+        raise ConfigError(f"{path}: no params (a reaction fit names every field of Reaction)")
+    return reaction_of(fit["params"], str(path), "params")
+
+
+def reaction_of(params: Any, source: str, key: str) -> Reaction:
+    """The reaction of ``params`` (``{field: number, ...}``, found at ``key`` in ``source``); ``ConfigError`` naming
+    the source, the key and the field when a field is missing or not a finite number >= 0."""
+    try:
+        values = {field.name: float(params[field.name]) for field in fields(Reaction)}
     except KeyError as err:
-        raise ConfigError(f"{path}: no params.{err.args[0]} (a reaction fit names every field of Reaction)") from None
+        raise ConfigError(f"{source}: no {key}.{err.args[0]} (a reaction fit names every field of Reaction)") from None
     except (TypeError, ValueError) as err:
-        raise ConfigError(f"{path}: params must map every field of Reaction to a number ({err})") from err
+        raise ConfigError(f"{source}: {key} must map every field of Reaction to a number ({err})") from err
     bad = [name for name, value in values.items() if not np.isfinite(value) or value < 0]
     if bad:
-        raise ConfigError(f"{path}: params.{bad[0]} = {values[bad[0]]}: expected a finite number >= 0")
+        raise ConfigError(f"{source}: {key}.{bad[0]} = {values[bad[0]]}: expected a finite number >= 0")
     return Reaction(**values)
 
 
