@@ -67,7 +67,7 @@ def paired_lines(rows: list[dict]) -> list[str]:
                 lines.append(f"- MPC singular vs MPC {other}, {kind}: {test['a_collisions']} vs {test['b_collisions']} "
                              f"of {test['n']}; only singular {test['only_a']}, only {other} {test['only_b']}; "
                              f"one-sided McNemar p = {test['p_value']:.4f}")
-    for learned in ("ppo", "ppo-reactive"):
+    for learned in ("ppo", "ppo-reactive", "ppo-suite"):
         ppo = {r["predictor"]: r for r in rows if r["policy"] == learned}
         if {"singular", "none"} <= set(ppo):
             test = paired_success_test(ppo["singular"]["episodes"], ppo["none"]["episodes"])

@@ -13,7 +13,7 @@ from envs.common.terrain import Terrain
 from replays.scenes import Scene
 from st_sim.apps.cli import main
 from st_sim.apps.navigation.episodes import SEE_EGO_KWARG, NavRun, accepts_keyword, run_navigation
-from st_sim.apps.navigation.ppo import SHIPPED, SHIPPED_REACTIVE, PolicyFileError, load_policy
+from st_sim.apps.navigation.ppo import SHIPPED, SHIPPED_REACTIVE, SHIPPED_SUITE, PolicyFileError, load_policy
 
 
 def test_navigate_prints_intervals_writes_json_and_recordings_and_repeats(tmp_path: Path,
@@ -55,7 +55,7 @@ def test_terrain_cost_to_go_goes_around_a_wall(toy_scene: Scene) -> None:
 
 
 def test_shipped_policies_load_by_name_and_a_broken_file_is_refused(tmp_path: Path) -> None:
-    for use_predictions, name in [*SHIPPED.items(), *SHIPPED_REACTIVE.items()]:
+    for use_predictions, name in [*SHIPPED.items(), *SHIPPED_REACTIVE.items(), *SHIPPED_SUITE.items()]:
         policy, features = load_policy(name)
         assert features.use_predictions == use_predictions
         assert policy.observation_space.shape == (features.size,)

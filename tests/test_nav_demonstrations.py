@@ -177,8 +177,9 @@ def test_an_empty_collection_is_refused_before_any_work() -> None:
 
 
 def test_a_stopped_training_continues_from_its_saved_state(tmp_path: Path) -> None:
-    """A finished 256-step run, started again with a 512-step budget, continues at 256; the finished run started again
-    with a budget it reached stands as it was; other settings and smaller budgets refuse."""
+    """A finished 256-step run, started again with a 512-step budget, continues at 256 (its wall time counted on from
+    the first segment's); the finished run started again with a budget it reached stands as it was; other settings
+    and smaller budgets refuse."""
     from st_sim.apps.navigation.train_ppo import main, parse_args
 
     args = ["--no-predictions", "--num-envs", "2", "--demo-steps", "0", "--save-every", "1", "--out",
@@ -190,6 +191,9 @@ def test_a_stopped_training_continues_from_its_saved_state(tmp_path: Path) -> No
     curve = json.loads((tmp_path / "run" / "curve.json").read_text())
     assert record["resumed_from"] == 256 and curve[:len(first)] == first
     assert curve[-1]["timesteps"] == 512
+    walls = [point["wall_s"] for point in curve]
+    assert walls == sorted(walls) and walls[len(first)] >= first[-1]["wall_s"], "the second segment restarted the clock"
+    assert record["wall_time_s"] >= first[-1]["wall_s"]
     finished = (tmp_path / "run" / "training.json").read_bytes()
     for budget in ("512", "300"):  # the same budget again, or one its last rollout passed: nothing moves
         main(parse_args([*args, "--timesteps", budget]))

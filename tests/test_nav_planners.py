@@ -64,12 +64,14 @@ def test_straight_planner_walks_into_the_crosser(open_world: NavWorld) -> None:
 
 
 AVOIDERS = [("orca", "none"), ("mpc", "cvm"), ("mpc", "singular"), ("ppo", "singular"), ("ppo", "none"),
-            ("ppo-reactive", "singular"), ("ppo-reactive", "none")]
+            ("ppo-reactive", "singular"), ("ppo-reactive", "none"), ("ppo-suite", "singular"), ("ppo-suite", "none"),
+            ("ppo-suite-shield", "singular")]
 
 
 @pytest.mark.parametrize(("planner", "predictor"), AVOIDERS,
                          ids=["orca-none", "mpc-cvm", "mpc-singular", "ppo-singular", "ppo-none",
-                              "ppo-reactive-singular", "ppo-reactive-none"])
+                              "ppo-reactive-singular", "ppo-reactive-none", "ppo-suite-singular", "ppo-suite-none",
+                              "ppo-suite-shield-singular"])
 def test_planner_avoids_the_crosser_and_moves_on(open_world: NavWorld, planner: str, predictor: str) -> None:
     if planner == "orca":
         pytest.importorskip("pyrvo", reason='ORCA needs the optional extra: pip install -e ".[orca]"')
@@ -79,7 +81,7 @@ def test_planner_avoids_the_crosser_and_moves_on(open_world: NavWorld, planner: 
 
 
 def test_every_planner_is_registered_and_unknown_names_fail(open_world: NavWorld) -> None:
-    assert set(PLANNERS) == {"straight", "orca", "mpc", "ppo", "ppo-reactive"}
+    assert set(PLANNERS) == {"straight", "orca", "mpc", "ppo", "ppo-reactive", "ppo-suite", "ppo-suite-shield"}
     with pytest.raises(ValueError, match="planner='teleport'"):
         make_planner("teleport", open_world, "none")
     with pytest.raises(ValueError, match="predictor='oracle'"):

@@ -4,9 +4,10 @@
     python -m st_sim benchmark --policy mypkg.policy:MyPolicy --out runs/bench/mine
 
 Modules, one concept each:
-- ``planners``: the registry (straight, orca, mpc, ppo, ppo-reactive) and the ``Planner`` interface (``reset``,
-  ``act``); ``policies``: any policy by spec (a shipped name, package.module:name, sb3:PATH.zip); ``sb3_zip``: a
-  stable-baselines3 model file read without running anything stored in it;
+- ``planners``: the registry (straight, orca, mpc, ppo, ppo-reactive, ppo-suite, ppo-suite-shield) and the
+  ``Planner`` interface (``reset``, ``act``); ``policies``: any policy by spec (a shipped name,
+  package.module:name, sb3:PATH.zip); ``sb3_zip``: a stable-baselines3 model file read without running anything
+  stored in it;
   ``straight``, ``orca``, ``mpc``, ``ppo``: one planner class each; ``shield``: another planner's commands vetted by
   the MPC over the forecasts;
 - ``predictors``: the predictor names (none, cvm, cvm-s, singular) and "none" (nobody moves);

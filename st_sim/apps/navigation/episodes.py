@@ -24,7 +24,7 @@ from replays.atomic import write_text_atomic
 from st_sim.apps.grid import Job
 from st_sim.apps.navigation.metrics import EpisodeTrace, Outcome, episode_metrics, outcome_of, summarize
 from st_sim.apps.navigation.mpc import MpcConfig
-from st_sim.apps.navigation.planners import Planner
+from st_sim.apps.navigation.planners import READS_POLICY_FILE, Planner
 from st_sim.apps.navigation.policies import load_policy
 from st_sim.apps.navigation.predictors import env_predictor
 from st_sim.apps.navigation.world import NavWorld, world_of
@@ -183,9 +183,9 @@ def planner_options(run: NavRun) -> dict[str, Any]:
     """
     if run.mpc is not None and run.policy != "mpc":
         raise ValueError(f"MPC settings given for the {run.policy} planner; they are the mpc planner's")
-    if run.policy_file is not None and run.policy not in ("ppo", "ppo-reactive"):
-        raise ValueError(f"a policy file ({run.policy_file}) given for the {run.policy} planner; only ppo and "
-                         "ppo-reactive read one")
+    if run.policy_file is not None and run.policy not in READS_POLICY_FILE:
+        raise ValueError(f"a policy file ({run.policy_file}) given for the {run.policy} planner; only "
+                         f"{', '.join(READS_POLICY_FILE)} read one")
     return {"cfg": run.mpc} if run.mpc is not None else {"policy": run.policy_file} if run.policy_file else {}
 
 

@@ -5,7 +5,8 @@
     action = policy.act(obs)             # (2,) velocity command [m/s], world frame, checked
 
 A spec is one of:
-- a shipped planner name (``planners.PLANNERS``: straight, orca, mpc, ppo, ppo-reactive) or a peer's
+- a shipped planner name (``planners.PLANNERS``: straight, orca, mpc, ppo, ppo-reactive,
+  ppo-suite, ppo-suite-shield) or a peer's
   (``planners.PEERS``: navground-hl, navground-orca, navground-hrvo, navground-sf, pysocialforce; ``peers``);
 - ``package.module:name``: a class or factory following the planner protocol (``act(obs) -> (2,)`` velocity,
   optionally ``reset()``), built as ``name(world, use_predictions)`` like the shipped planners when its signature
@@ -44,8 +45,9 @@ TRUST_HELP = ("an sb3: policy file: load it with stable-baselines3's own loader,
               "in the file runs")
 TRUST_HINT = ("--trust-policy-file loads a file you trust with stable-baselines3's own loader, which runs code "
               "stored in it")
-SPEC_HELP = ("a shipped planner (straight, orca, mpc, ppo, ppo-reactive), another project's (navground-hl, "
-             "navground-orca, navground-hrvo, navground-sf, pysocialforce: pip install -e \".[peers]\"), "
+SPEC_HELP = ("a shipped planner (straight, orca, mpc, ppo, ppo-reactive, ppo-suite, ppo-suite-shield), another "
+             "project's (navground-hl, navground-orca, navground-hrvo, navground-sf, pysocialforce: pip install -e "
+             "\".[peers]\"), "
              "package.module:name (a class or factory with act(obs) -> (2,) velocity), or sb3:PATH.zip (a "
              "stable-baselines3 model)")
 

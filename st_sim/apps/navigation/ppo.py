@@ -28,6 +28,8 @@ SHIPPED: dict[bool, str] = {True: "ppo-predictions", False: "ppo-no-predictions"
 """shipped policy name by whether it sees the predictions (trained on the simulated crossing)"""
 SHIPPED_REACTIVE: dict[bool, str] = {True: "ppo-reactive-predictions", False: "ppo-reactive-no-predictions"}
 """the same, fine-tuned in the reactive replays of ETH, HOTEL and ZARA2 (ZARA1 and UNIV held out)"""
+SHIPPED_SUITE: dict[bool, str] = {True: "ppo-suite-predictions", False: "ppo-suite-no-predictions"}
+"""the reactive ones trained on the navigation suite's train split of every scenario but ZARA1's and UNIV's"""
 
 
 class PolicyFileError(ValueError):
@@ -152,3 +154,16 @@ class ReactivePpoPlanner(PpoPlanner):
     """``PpoPlanner`` with the policies fine-tuned in reactive replays (``SHIPPED_REACTIVE``): "ppo-reactive"."""
 
     shipped = SHIPPED_REACTIVE
+
+
+class SuitePpoPlanner(PpoPlanner):
+    """``PpoPlanner`` with the policies trained on the suite's train split (``SHIPPED_SUITE``): "ppo-suite"."""
+
+    shipped = SHIPPED_SUITE
+
+
+def shielded_suite_ppo(world: NavWorld, use_predictions: bool = True) -> Any:
+    """"ppo-suite-shield": ``SuitePpoPlanner`` behind ``shield.ShieldedPlanner``."""
+    from st_sim.apps.navigation.shield import ShieldedPlanner
+
+    return ShieldedPlanner(world, use_predictions, SuitePpoPlanner(world, use_predictions))

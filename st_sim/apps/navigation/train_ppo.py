@@ -25,7 +25,8 @@ forecasts on a GPU where torch sees one (``auto``, the default) or where it is t
 
 Writes into --out: ``policy.pt`` (loadable with ``ppo.load_policy``), ``curve.png`` and ``curve.json`` (the
 learning curve: success, collision and return over the last 100 training episodes against env steps) and
-``training.json`` (config, wall time, final figures). ``--ship NAME`` also copies the policy into the
+``training.json`` (config, wall time, final figures; a resumed run's wall time sums its segments, its
+``env_steps_per_s`` is of the steps since ``resumed_from``). ``--ship NAME`` also copies the policy into the
 package's ``pretrained/`` folder and records it in the manifest. The two variants differ only in whether the
 features hold the predicted futures; same env, seed, budget and hyper-parameters.
 
@@ -162,10 +163,12 @@ def outcome(info: dict) -> str:
     return "timeout" if termination is None else "goal" if termination == "goal" else "collision"
 
 
-def curve_callback(cfg: TrainConfig, curve: list[dict], timing: dict[str, float]) -> Any:
+def curve_callback(cfg: TrainConfig, curve: list[dict], timing: dict[str, float], earlier_s: float = 0.0) -> Any:
     """A stable-baselines3 callback: progress bar, a curve point every rollout, the resumable state every
     ``cfg.save_every`` rollouts, a stop once ``cfg.minutes`` of wall time have passed; adds the wall time of the
-    rollouts (envs and the policy acting) and of the updates to ``timing["rollout_s"]`` and ``timing["update_s"]``."""
+    rollouts (envs and the policy acting) and of the updates to ``timing["rollout_s"]`` and ``timing["update_s"]``.
+    A point's ``wall_s`` counts from the run's start: ``earlier_s`` [s] is the wall time of the segments before a
+    resume."""
     from stable_baselines3.common.callbacks import BaseCallback
 
     class Curve(BaseCallback):
@@ -195,7 +198,8 @@ def curve_callback(cfg: TrainConfig, curve: list[dict], timing: dict[str, float]
             self.mark = now
             if self.recent:
                 kinds = [kind for kind, _ in self.recent]
-                curve.append({"timesteps": int(self.num_timesteps), "wall_s": round(time.monotonic() - self.started, 1),
+                wall_s = earlier_s + time.monotonic() - self.started
+                curve.append({"timesteps": int(self.num_timesteps), "wall_s": round(wall_s, 1),
                               "episodes": len(kinds),
                               "success": kinds.count("goal") / len(kinds),
                               "collision": kinds.count("collision") / len(kinds),
@@ -358,11 +362,12 @@ def main(cfg: TrainConfig) -> Path:
 
     # start: continue a saved run, clone the teacher (same demonstrations for both variants), or walk the path
     start = time.perf_counter()
-    cloning, resumed_from, curve = None, 0, []
+    cloning, resumed_from, curve, earlier_s = None, 0, [], 0.0
     saved = resumable_state(cfg)
     if saved is not None:
         model = CriticFirstPPO.load(saved[0], env=vec, device=device)
         resumed_from, curve = int(model.num_timesteps), saved[1]
+        earlier_s = curve[-1]["wall_s"] if curve else 0.0  # the saved segments' wall time, up to their last save
         rollout = cfg.n_steps * cfg.num_envs  # PPO learns whole rollouts: a budget of T ends within one past T
         if resumed_from >= cfg.timesteps + rollout:
             vec.close()
@@ -391,13 +396,14 @@ def main(cfg: TrainConfig) -> Path:
     # loop: rollouts -> PPO updates, a curve point per rollout, the resumable state every save_every rollouts
     learning, timing = time.perf_counter(), {"rollout_s": 0.0, "update_s": 0.0}
     if cfg.timesteps > resumed_from:
-        model.learn(total_timesteps=cfg.timesteps - resumed_from, callback=curve_callback(cfg, curve, timing),
-                    reset_num_timesteps=resumed_from == 0, tb_log_name=run_name)
+        model.learn(total_timesteps=cfg.timesteps - resumed_from,
+                    callback=curve_callback(cfg, curve, timing, earlier_s), reset_num_timesteps=resumed_from == 0,
+                    tb_log_name=run_name)
     learnt_s = max(time.perf_counter() - learning, 1e-9)
     steps_per_s = (model.num_timesteps - resumed_from) / learnt_s
     shares = {name.removesuffix("_s"): round(seconds / learnt_s, 3) for name, seconds in timing.items()}
     save_resumable(model, cfg, curve)
-    wall_time_s = time.perf_counter() - start
+    wall_time_s = earlier_s + time.perf_counter() - start
     vec.close()
     print(f"{model.num_timesteps - resumed_from} env steps learnt at {steps_per_s:.0f} env steps/s "
           f"(rollouts {100 * shares['rollout']:.0f} % of the time, updates {100 * shares['update']:.0f} %)")
