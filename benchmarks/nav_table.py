@@ -12,8 +12,8 @@ written to ``OUT/<env>[__<mode>]__<planner>__<predictor>__<N>ep_seed<seed>.json`
 an interrupted run resumes. Planners that ignore predictions (straight, ORCA) run once, with predictor "none".
 The script prints one markdown table per env and McNemar's paired tests of MPC with SingularTrajectory against
 MPC with CVM, CVM-S and no prediction (every collision, and the at-fault ones), of each learned policy (``ppo``,
-``ppo-reactive``) with predictions against without (successes), and of each with predictions against the MPC with
-SingularTrajectory (successes, at-fault collisions).
+``ppo-reactive``, ``ppo-suite``) with predictions against without (successes), and of each with predictions against
+the MPC with SingularTrajectory (successes, at-fault collisions).
 """
 
 from __future__ import annotations

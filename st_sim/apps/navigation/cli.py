@@ -41,7 +41,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
                      help="the robot senses, and the env forecasts, only the pedestrians within this many metres "
                           "(default: inf, everyone)")
     nav.add_argument("--policy-file", default=None, metavar="PATH",
-                     help="with --policy ppo: a trained policy (train_ppo's policy.pt) instead of the shipped one")
+                     help="with --policy ppo, ppo-reactive or ppo-suite: a trained policy (train_ppo's policy.pt) "
+                          "instead of the shipped one")
     nav.add_argument("--json", default=None, help="write settings, per-episode figures and the summary here")
     nav.add_argument("--rerun", default=None, help="write one Rerun recording per episode into this folder")
     nav.add_argument("--data-root", default=None, help="ETH/UCY folder (default: $STCROWD_DATA or the cache)")

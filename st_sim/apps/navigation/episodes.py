@@ -40,8 +40,8 @@ class NavRun:
     env_id: str = "STCrowd-SimCrossing-v1"
     """gym id of an STCrowd env with an ego"""
     policy: str = "mpc"
-    """a policy spec (``policies``): a shipped planner (straight, orca, mpc, ppo, ppo-reactive), package.module:name or
-    sb3:PATH.zip"""
+    """a policy spec (``policies``): a shipped planner (straight, orca, mpc, ppo, ppo-reactive, ppo-suite,
+    ppo-suite-shield), package.module:name or sb3:PATH.zip"""
     predictor: str = "singular"
     """none, cvm, cvm-s or singular"""
     episodes: int = 100

@@ -25,8 +25,9 @@ forecasts on a GPU where torch sees one (``auto``, the default) or where it is t
 
 Writes into --out: ``policy.pt`` (loadable with ``ppo.load_policy``), ``curve.png`` and ``curve.json`` (the
 learning curve: success, collision and return over the last 100 training episodes against env steps) and
-``training.json`` (config, wall time, final figures; a resumed run's wall time sums its segments, its
-``env_steps_per_s`` is of the steps since ``resumed_from``). ``--ship NAME`` also copies the policy into the
+``training.json`` (config, wall time, final figures; a resumed run's wall time sums its segments up to each one's
+last save, its ``env_steps_per_s`` is of the steps since ``resumed_from``; ``--minutes`` is a budget per
+segment). ``--ship NAME`` also copies the policy into the
 package's ``pretrained/`` folder and records it in the manifest. The two variants differ only in whether the
 features hold the predicted futures; same env, seed, budget and hyper-parameters.
 
