@@ -11,6 +11,7 @@ from pathlib import Path
 
 from replays import strict_json
 from replays.atomic import write_text_atomic
+from st_sim.apps.navigation.planners import READS_POLICY_FILE
 from st_sim.apps.navigation.policies import SPEC_HELP, TRUST_HELP, check_policy_spec
 from st_sim.apps.navigation.predictors import predictor_argument
 
@@ -41,7 +42,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
                      help="the robot senses, and the env forecasts, only the pedestrians within this many metres "
                           "(default: inf, everyone)")
     nav.add_argument("--policy-file", default=None, metavar="PATH",
-                     help="with --policy ppo, ppo-reactive or ppo-suite: a trained policy (train_ppo's policy.pt) "
+                     help=f"with --policy {', '.join(READS_POLICY_FILE)}: a trained policy (train_ppo's policy.pt) "
                           "instead of the shipped one")
     nav.add_argument("--json", default=None, help="write settings, per-episode figures and the summary here")
     nav.add_argument("--rerun", default=None, help="write one Rerun recording per episode into this folder")

@@ -36,7 +36,7 @@ from gymnasium import spaces
 
 from envs.view import fixed_view, frames_along_path, to_world, view_sizes, view_space
 from predictor.plugins import PluginError, describe_error, resolve_factory
-from st_sim.apps.navigation.planners import NAMED, make_planner
+from st_sim.apps.navigation.planners import NAMED, PEERS, PLANNERS, make_planner
 from st_sim.apps.navigation.world import NavWorld
 
 SB3_PREFIX = "sb3:"
@@ -45,11 +45,9 @@ TRUST_HELP = ("an sb3: policy file: load it with stable-baselines3's own loader,
               "in the file runs")
 TRUST_HINT = ("--trust-policy-file loads a file you trust with stable-baselines3's own loader, which runs code "
               "stored in it")
-SPEC_HELP = ("a shipped planner (straight, orca, mpc, ppo, ppo-reactive, ppo-suite, ppo-suite-shield), another "
-             "project's (navground-hl, navground-orca, navground-hrvo, navground-sf, pysocialforce: pip install -e "
-             "\".[peers]\"), "
-             "package.module:name (a class or factory with act(obs) -> (2,) velocity), or sb3:PATH.zip (a "
-             "stable-baselines3 model)")
+SPEC_HELP = (f"a shipped planner ({', '.join(PLANNERS)}), another project's ({', '.join(PEERS)}: pip install -e "
+             "\".[peers]\"), package.module:name (a class or factory with act(obs) -> (2,) velocity), or "
+             "sb3:PATH.zip (a stable-baselines3 model)")
 
 
 class PolicyError(ValueError):
