@@ -11,12 +11,19 @@ for tuning and a disjoint ``test`` for the figures you report, and may hold the 
 ``{"from": A, "below": B}``: every integer seed in [A, B) that is in neither list, in increasing order (so training
 never meets an episode that is scored). Results carry the suite's name and version, so a figure names the exact
 episodes it was measured on: a new scenario or a new val or test list is a new version; the train rule scores nothing
-and leaves the version as it is.
+and leaves the version as it is. They carry its ``content_sha256`` too (a hash of everything that decides an episode:
+seeds, scenarios, env ids and keywords), so two files that claim one name and version but differ are told apart.
+
+A suite file may come from anyone, so it names nothing that runs and no path: a scenario's ``env`` is one of
+STCrowd's registered ids (never ``module:Id``), and its ``env_kwargs`` are among ``SCENARIO_KEYWORDS``, each a
+JSON bool or a plain name (``check_scenario``); outputs (``rerun``) and data roots come from the user's command.
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
+import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from importlib import resources
@@ -27,6 +34,7 @@ import gymnasium as gym
 import numpy as np
 
 import envs  # noqa: F401  (registers the ids)
+from replays import strict_json
 
 SUITE_FORMAT = "stcrowd-nav-suite/1"
 SHIPPED_SUITE = "stcrowd-nav-1.0.json"
@@ -35,6 +43,13 @@ LISTED_SPLITS: tuple[str, ...] = ("val", "test")
 SPLITS: tuple[str, ...] = ("train", *LISTED_SPLITS)
 """every split: train (a rule, ``TrainSeeds``) and the published lists"""
 SEED_LIMIT = 2**63  # a train rule's range ends at most here [-]
+SCENARIO_KEYWORDS: dict[str, type] = {"pedestrians": str, "reaction_traits": str, "task": str, "scene": str,
+                                      "layout": str, "encounter": str, "pretrained": str, "ego": bool,
+                                      "benchmark_windows": bool, "pedestrians_see_ego": bool}
+"""the ``gym.make`` keywords a scenario may set, by the JSON type of their value; everything else (a path such as
+``rerun``, ``root`` or ``recording``, a predictor, a config object) is the user's to give, never a file's"""
+PLAIN_NAME = re.compile(r"[A-Za-z0-9_-]+(?:/[A-Za-z0-9_-]+)?")
+"""a string keyword's value: a name, or ``group/name`` (a shipped checkpoint); never a path or a ``module:name``"""
 
 
 class SuiteError(ValueError):
@@ -54,6 +69,31 @@ class Scenario:
     env: str
     env_kwargs: Mapping[str, Any]
     description: str = ""
+
+
+def check_scenario(env_id: Any, env_kwargs: Any, where: str) -> None:
+    """Refuse a scenario that would run code or write where a file says (``SuiteError`` starting with ``where``):
+    ``env_id`` must be one of STCrowd's registered ids (``envs.*`` entry points; a ``module:Id`` would make gymnasium
+    import ``module``), ``env_kwargs`` a dict of ``SCENARIO_KEYWORDS``, each of its type, strings ``PLAIN_NAME``s."""
+    entry = gym.registry.get(env_id) if isinstance(env_id, str) and ":" not in env_id else None
+    if entry is None or not str(entry.entry_point).startswith("envs."):
+        raise SuiteError(f"{where}: env {_shown(env_id)} is not one of STCrowd's registered env ids (STCrowd-...)")
+    if not isinstance(env_kwargs, dict):
+        raise SuiteError(f"{where}: env_kwargs must be an object of gym.make keywords")
+    for key, value in env_kwargs.items():
+        kind = SCENARIO_KEYWORDS.get(key)
+        if kind is None:
+            raise SuiteError(f"{where}: env_kwargs {_shown(key)} is not a keyword a scenario may set (only "
+                             f"{', '.join(SCENARIO_KEYWORDS)}; paths, outputs and predictors come from the command)")
+        if type(value) is not kind or (kind is str and not PLAIN_NAME.fullmatch(value)):
+            what = "true or false" if kind is bool else "a plain name (letters, digits, _ and -)"
+            raise SuiteError(f"{where}: env_kwargs[{key!r}] must be {what}, got {_shown(value)}")
+
+
+def _shown(value: Any, limit: int = 80) -> str:
+    """``repr(value)`` cut to ``limit`` characters."""
+    text = repr(value)
+    return text if len(text) <= limit else text[:limit] + "..."
 
 
 def env_kwargs_of(scenario: Scenario, predictor: Any) -> dict[str, Any]:
@@ -108,6 +148,8 @@ class Suite:
     """the file it was read from"""
     train: TrainSeeds | None = None
     """the train split's rule (None: the file states none)"""
+    content_sha256: str = ""
+    """hex SHA-256 of what decides the suite's episodes (``content_hash``)"""
 
     def __repr__(self) -> str:
         return f"Suite({self.name} {self.version}: {len(self.scenarios)} scenarios)"
@@ -200,7 +242,17 @@ def _parse(raw: Any, path: Path) -> Suite:
     repeated = sorted({name for name in names if names.count(name) > 1})
     if repeated:
         raise fail(f"scenario name {repeated[0]!r} is used twice")
-    return Suite(raw["name"], raw["version"], parsed, lists, episodes, path, train)
+    content = {"name": raw["name"], "version": raw["version"], "episodes": episodes, "seeds": seeds,
+               "scenarios": [{"name": sc.name, "env": sc.env, "env_kwargs": dict(sc.env_kwargs)} for sc in parsed]}
+    return Suite(raw["name"], raw["version"], parsed, lists, episodes, path, train, content_hash(content))
+
+
+def content_hash(content: dict[str, Any]) -> str:
+    """Hex SHA-256 of a suite's content as canonical JSON (sorted keys, no spaces): name, version, default episodes,
+    seeds (the lists and the train rule) and each scenario's name, env id and keywords; descriptions and notes are
+    left out, so rewording one changes nothing."""
+    text = strict_json.dumps(content, sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(text.encode()).hexdigest()
 
 
 def _is_int(value: Any) -> bool:
@@ -243,12 +295,12 @@ def _scenario(entry: Any, index: int, fail: Any) -> Scenario:
     if not isinstance(entry, dict):
         raise fail(f"{where} must be an object with name, env, env_kwargs")
     name, env_id, kwargs = entry.get("name"), entry.get("env"), entry.get("env_kwargs", {})
-    if not isinstance(name, str) or not name or "/" in name:
-        raise fail(f"{where}.name must be a non-empty string without '/', got {name!r}")
-    if not isinstance(env_id, str) or env_id not in gym.registry:
-        raise fail(f"{where} ({name}): env {env_id!r} is not a registered gym id")
-    if not isinstance(kwargs, dict):
-        raise fail(f"{where} ({name}): env_kwargs must be an object of gym.make keywords")
-    if "predictor" in kwargs:
+    if not isinstance(name, str) or not PLAIN_NAME.fullmatch(name) or "/" in name:
+        raise fail(f"{where}.name must be a plain name (letters, digits, _ and -), got {_shown(name)}")
+    if isinstance(kwargs, dict) and "predictor" in kwargs:
         raise fail(f"{where} ({name}): env_kwargs must not set the predictor (the benchmark's --predictor does)")
+    try:
+        check_scenario(env_id, kwargs, f"{where} ({name})")
+    except SuiteError as err:
+        raise fail(str(err)) from None
     return Scenario(name, env_id, kwargs, str(entry.get("description", "")))

@@ -185,12 +185,18 @@ class Scene:
 
 def apply_homography(H: np.ndarray, points: np.ndarray) -> np.ndarray:
     """Apply a 3x3 projective map to (..., 2) points; returns (..., 2) float64. An affine map (last row 0, 0, 1:
-    every synthetic layout's) skips the perspective division."""
+    every synthetic layout's) skips the perspective division.
+
+    Each coordinate is its sum of products written out, the same bits on every CPU and for every batch (a matrix
+    product's rounding depends on the BLAS kernel the CPU gets, with or without fused multiply-adds)."""
     points = np.asarray(points, dtype=np.float64)
+    x, y = points[..., 0], points[..., 1]
+    u = x * H[0, 0] + y * H[0, 1] + H[0, 2]
+    v = x * H[1, 0] + y * H[1, 1] + H[1, 2]
     if H[2, 0] == 0.0 and H[2, 1] == 0.0 and H[2, 2] == 1.0:
-        return points @ H[:2, :2].T + H[:2, 2]
-    mapped = points @ H[:, :2].T + H[:, 2]
-    return mapped[..., :2] / mapped[..., 2:3]
+        return np.stack([u, v], axis=-1)
+    w = x * H[2, 0] + y * H[2, 1] + H[2, 2]
+    return np.stack([u / w, v / w], axis=-1)
 
 
 @cache

@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 from rrd_files import logged_steps, read_rrd
 
 from st_sim.apps.cli import main
-from st_sim.apps.navigation.benchmark import BenchmarkRun, run_benchmark
+from st_sim.apps.navigation.benchmark import BenchmarkRun, run_benchmark, summary_of
 from st_sim.apps.navigation.episode_recording import chosen
 from st_sim.apps.navigation.episode_replay import differences, replay_episode
 
@@ -42,7 +42,8 @@ def runs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[Path, dict
 def test_episode_reproduces_the_runs_line(runs: dict[str, tuple[Path, dict]], name: str, scenario: str) -> None:
     """The second episode (the first ran before it in the same env and policy) comes out figure for figure."""
     folder, _ = runs[name]
-    expected, measured, path = replay_episode(folder, scenario, 1)
+    policy = RUNS[name][0] if name == "keep-clear" else None  # a folder names no code: the user gives it
+    expected, measured, path = replay_episode(folder, scenario, 1, policy=policy)
     assert path is None and differences(expected, measured) == [], f"{name} on {scenario}"
     assert measured == expected
 
@@ -98,13 +99,29 @@ def test_a_figure_that_differs_fails_the_command_naming_it(runs: dict[str, tuple
                                                            capsys) -> None:
     folder, _ = runs["straight"]
     edited = json.loads((folder / "summary.json").read_text())
-    line = edited["scenarios"][2]["episodes"][1]
+    scenario = edited["scenarios"][2]
+    line = scenario["episodes"][1]
     line["min_distance_m"] = line["min_distance_m"] + 0.5
+    scenario["summary"] = summary_of(scenario["episodes"])  # consistent, or the reader refuses the folder
+    edited["summary"] = summary_of([e for s in edited["scenarios"] for e in s["episodes"]])
     (tmp_path / "summary.json").write_text(json.dumps(edited))
     assert main(["episode", str(tmp_path), edited["scenarios"][2]["name"], "1"]) == 1
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "min_distance_m:" in err and "does not reproduce" in err, err
     assert "steps" not in err.split("reproduce", 1)[1].split("(the code")[0], "only the edited figure is named"
+
+
+def test_verify_re_runs_the_first_episodes_of_each_scenario_and_fails_on_one_that_differs(
+        runs: dict[str, tuple[Path, dict]], tmp_path: Path, capsys) -> None:
+    folder, _ = runs["straight"]
+    assert main(["verify", str(folder), "--per-scenario", "2"]) == 0
+    assert capsys.readouterr().out.count("2 of 2 episodes reproduce") == len(SCENARIOS)
+    edited = json.loads((folder / "summary.json").read_text())
+    lines = edited["scenarios"][2]["episodes"]
+    lines[0]["seed"], lines[1]["seed"] = lines[1]["seed"], lines[0]["seed"]  # each line now names another episode
+    (tmp_path / "summary.json").write_text(json.dumps(edited))
+    assert main(["verify", str(tmp_path), "--scenarios", edited["scenarios"][2]["name"]]) == 1
+    assert "1 episodes do not reproduce" in capsys.readouterr().err
 
 
 def test_unknown_scenarios_and_episodes_are_one_line_errors(runs: dict[str, tuple[Path, dict]], tmp_path: Path,

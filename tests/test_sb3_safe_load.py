@@ -20,6 +20,7 @@ import pytest
 import torch
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from sb3_files import ACTIONS, ENV, KEYS, data_of, make_env, outcome, rewrite, with_data
 from stable_baselines3.common.policies import MultiInputActorCriticPolicy
 
 import envs  # noqa: F401  (registers the ids)
@@ -28,9 +29,6 @@ from st_sim.apps.navigation.policies import PolicyError, load_policy
 from st_sim.apps.navigation.sb3_zip import Sb3ZipError, load_sb3_zip
 from st_sim.apps.navigation.world import world_of
 
-ENV = "STCrowd-SimFrontalApproach-v1"  # 40 pedestrian slots, as the corridor; quicker to step
-KEYS = ["ego", "history", "history_mask"]
-ACTIONS = gym.spaces.Box(-1.5, 1.5, (2,), np.float32)  # the env's
 TRAIN_STEPS = 64  # env steps of training per model [-]
 OFF_POLICY = {"learning_starts": 16, "batch_size": 16, "buffer_size": 1000}
 KINDS: dict[str, tuple[str, str, dict[str, Any]]] = {
@@ -66,12 +64,6 @@ class CustomPolicy(MultiInputActorCriticPolicy):
 
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
-
-
-def make_env(policy: str) -> gym.Env:
-    """The env with the keys a model reads; flattened into a Box for an MlpPolicy."""
-    env = gym.wrappers.FilterObservation(gym.make(ENV, predictor="none"), KEYS)
-    return gym.wrappers.FlattenObservation(env) if policy == "MlpPolicy" else env
 
 
 @pytest.fixture(scope="module")
@@ -114,37 +106,9 @@ def sb3_load(kind: str, path: Path) -> Any:
     return getattr(stable_baselines3, KINDS[kind][0]).load(path, device="cpu")
 
 
-def rewrite(source: Path, target: Path, members: dict[str, bytes]) -> Path:
-    """A copy of the zip ``source`` with ``members`` replaced."""
-    with zipfile.ZipFile(source) as original, zipfile.ZipFile(target, "w") as copy:
-        for info in original.infolist():
-            copy.writestr(info.filename, members.get(info.filename, original.read(info.filename)))
-    return target
-
-
-def data_of(path: Path) -> dict[str, Any]:
-    with zipfile.ZipFile(path) as archive:
-        return json.loads(archive.read("data"))
-
-
-def with_data(source: Path, target: Path, data: dict[str, Any]) -> Path:
-    return rewrite(source, target, {"data": json.dumps(data).encode()})
-
-
 def pickled(marker: Path) -> str:
     """A payload as SB3 stores a pickled field (base64)."""
     return base64.b64encode(pickle.dumps(Payload(marker))).decode()
-
-
-def outcome(path: Path) -> str:
-    """"loaded", or the refusal's message (checked to be one line naming the file)."""
-    try:
-        load_sb3_zip(path, ACTIONS)
-    except Sb3ZipError as err:
-        message = str(err)
-        assert "\n" not in message and message.startswith(f"{path}: "), message
-        return message
-    return "loaded"
 
 
 @pytest.mark.parametrize("kind", list(KINDS))

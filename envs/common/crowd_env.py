@@ -56,6 +56,7 @@ from envs.common.tracks import Frame, TrackBuffer, lookup
 from predictor.devices import DeviceError, check_device_name
 from replays.constants import FORECAST_LIMIT_M, POSITION_LIMIT_M, STEP_S, T_PRED
 from replays.scenes import Scene
+from st_sim.sim.exact import length
 from st_sim.sim.sweep import Contact, closest_approach, first_contact
 
 EGO_FIELDS = ("x_m", "y_m", "vx_mps", "vy_mps", "goal_x_m", "goal_y_m")  # layout of obs["ego"]
@@ -258,7 +259,7 @@ class CrowdEnv(gym.Env):
         rows = targets = self._predicted_rows()
         if self.ego and (math.isfinite(self.cfg.sensor_range_m) or self.cfg.forecast_nearest is not None):
             ego_m = np.clip(self.ego_xy_m, -self._ego_high[:2], self._ego_high[:2]).astype(np.float32)
-            distance_m = np.linalg.norm(history[:, -1].astype(np.float64) - ego_m, axis=1)
+            distance_m = length(history[:, -1].astype(np.float64) - ego_m)
             far = distance_m > self.cfg.sensor_range_m
             history[far], mask[far] = 0.0, False
             rows = targets = rows[~far[rows]]
@@ -350,7 +351,7 @@ class CrowdEnv(gym.Env):
         contact = first_contact(self._previous_xy_m, self.ego_xy_m, start, now.xy_m[stayed], now.ids[stayed],
                                 reach_m, STEP_S)
         if contact is None:  # newcomers, where they appear
-            new = ~stayed & (np.linalg.norm(now.xy_m - self.ego_xy_m, axis=1) < reach_m)
+            new = ~stayed & (length(now.xy_m - self.ego_xy_m) < reach_m)
             if new.any():
                 contact = Contact(STEP_S, self.ego_xy_m.copy(), self.ego_velocity_mps.copy(), now.ids[new],
                                   now.xy_m[new], np.full((int(new.sum()), 2), np.nan))  # their velocity: unknown
@@ -422,12 +423,12 @@ class CrowdEnv(gym.Env):
         The collision kinds exclude each other (a step that touched both counts as a pedestrian collision),
         so a step costs the collision weight at most once.
         """
-        distance_m = float(np.linalg.norm(self.goal_m - self.ego_xy_m))
+        distance_m = float(length(self.goal_m - self.ego_xy_m))
         self._contact, wall, closest_m = self._ego_contact()
         pedestrian = self._contact is not None
         walkable = bool(self.scene.is_walkable(self.ego_xy_m))
         gap_m = self._nearest_now_m() - self.cfg.ego_radius_m - self.cfg.pedestrian_radius_m
-        parts = {"progress": float(np.linalg.norm(self.goal_m - previous_xy_m)) - distance_m,
+        parts = {"progress": float(length(self.goal_m - previous_xy_m)) - distance_m,
                  "goal": float(distance_m <= self.cfg.goal_radius_m),
                  "pedestrian_collision": float(pedestrian), "wall_collision": float(wall and not pedestrian),
                  "off_map": float(not walkable), "time": 1.0,
@@ -446,13 +447,13 @@ class CrowdEnv(gym.Env):
         mean = self._obs["futures"][predicted].mean(axis=1)  # (P, 12, 2)
         ahead = STEP_S * np.arange(1, T_PRED + 1)[:, None] * self.ego_velocity_mps  # (12, 2)
         reach = self.cfg.ego_radius_m + self.cfg.pedestrian_radius_m
-        meets = (np.linalg.norm(mean - (self.ego_xy_m + ahead), axis=-1) < reach).any(axis=0)  # (12,)
-        return float(0.5 ** np.argmax(meets)) if meets.any() else 0.0
+        meets = (length(mean - (self.ego_xy_m + ahead)) < reach).any(axis=0)  # (12,)
+        return float(np.ldexp(1.0, -int(np.argmax(meets)))) if meets.any() else 0.0
 
     def _nearest_now_m(self) -> float:
         """Centre distance from the ego to the nearest pedestrian of the newest frame [m] (inf: nobody)."""
         xy_m = self.tracks.now.xy_m
-        return float(np.linalg.norm(xy_m - self.ego_xy_m, axis=1).min()) if len(xy_m) else np.inf
+        return float(length(xy_m - self.ego_xy_m).min()) if len(xy_m) else np.inf
 
     def _log_rerun(self, info: dict[str, Any], reward: float) -> None:
         """Append this step to the Rerun recording (``rerun=`` path or "spawn"); one recording per env."""

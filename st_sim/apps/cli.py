@@ -193,7 +193,7 @@ def write_json_atomic(path: Path, data: dict) -> None:
 COMMANDS = {"evaluate": run_evaluate, "demo": run_demo, "plot": run_plot, "figures": run_figures,
             "navigate": navigation_cli.run, "reactive-validate": reactive_validate.run,
             "benchmark": benchmark_cli.run_benchmark_command, "leaderboard": benchmark_cli.run_leaderboard_command,
-            "episode": episode_replay.run}
+            "episode": episode_replay.run, "verify": episode_replay.run_verify}
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -256,6 +256,7 @@ def build_parser() -> argparse.ArgumentParser:
     navigation_cli.add_parser(commands)
     benchmark_cli.add_parsers(commands)
     episode_replay.add_parser(commands)
+    episode_replay.add_verify_parser(commands)
     reactive_validate.add_parser(commands)
     demo = commands.add_parser("demo", help="simulated crossing with an ego robot and predictions (no data needed)")
     demo.add_argument("--steps", type=positive_int, default=150,

@@ -19,7 +19,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from st_sim.sim.config import WALL_RADIUS_M
-from st_sim.sim.pairs import Neighbours, dot
+from st_sim.sim.exact import dot, length, total
+from st_sim.sim.pairs import Neighbours
 from st_sim.sim.walls import NearbyWalls
 
 SWEEPS = 4  # most Jacobi sweeps over all constraints per substep
@@ -118,7 +119,7 @@ class Constraints:
 
         def closing() -> np.ndarray:
             """(C,) closing speed of every constraint at the current velocities v [m/s]."""
-            return (v[slots].reshape(-1, 4) * coef).sum(axis=1)
+            return total(v[slots].reshape(-1, 4) * coef, axis=1)
 
         for _ in range(SWEEPS):
             load = np.maximum(np.bincount(bodies, np.repeat(excess > 0, 2), minlength=n + 1), 1.0)
@@ -140,7 +141,7 @@ class Constraints:
                 break
             if round_ < SLIDE_PASSES:
                 own = v[slots[stuck.repeat(4)]].reshape(-1, 4) * coef[stuck]  # (S, 4): i's and j's closing parts
-                toward = np.maximum(np.stack([own[:, :2].sum(axis=1), own[:, 2:].sum(axis=1)], axis=1), 0.0)
+                toward = np.maximum(np.stack([own[:, 0] + own[:, 1], own[:, 2] + own[:, 3]], axis=1), 0.0)
                 give_up = np.repeat(toward, 2, axis=1) * coef[stuck] * slot_gives[stuck]  # approach, along the normal
                 v -= np.bincount(slots[stuck.repeat(4)], give_up.ravel(), minlength=size)
                 continue
@@ -185,7 +186,7 @@ def keep_apart(velocity_mps: np.ndarray, radius_m: np.ndarray, yielding: np.ndar
             joins two crowds); each crowd gets the velocities it would get alone. None: one crowd.
     """
     yielding = np.asarray(yielding, dtype=np.float64)
-    speed = np.sqrt(dot(velocity_mps, velocity_mps))
+    speed = length(velocity_mps)
     # a push hands a body at most about the speed of whoever pushes it: start from the fastest body that can
     # reach it within the substep
     touching = nb.dist_m < nb.contact_m + SKIN_M + dt_s * (speed[nb.i] + speed[nb.j])
@@ -196,7 +197,7 @@ def keep_apart(velocity_mps: np.ndarray, radius_m: np.ndarray, yielding: np.ndar
     for _ in range(GROW_ROUNDS):
         system = Constraints.of(reach_mps, radius_m, yielding, nb, walls, dt_s, give_m)
         safe = system.settle(velocity_mps, yielding)
-        speed = np.sqrt(dot(safe, safe))
+        speed = length(safe)
         outgrown = speed > REACH_FACTOR * reach_mps + SKIN_M / (2 * dt_s)
         if not outgrown.any():
             break  # no pair or wall left out of the constraints can be reached at these speeds

@@ -23,6 +23,7 @@ from typing import Final
 
 import numpy as np
 
+from st_sim.sim.exact import cos_sin, length
 from st_sim.sim.groups import ABREAST_M
 from st_sim.sim.layout import Layout
 from st_sim.sim.navigation import NavigationField
@@ -48,7 +49,7 @@ class EgoMotion:
 
     def arrival_s(self, distance_m: float) -> float:
         """Time from now until the ego has driven ``distance_m`` along its route [s]."""
-        ramp_m = self.speed_mps ** 2 / (2 * self.accel_mps2)
+        ramp_m = self.speed_mps * self.speed_mps / (2 * self.accel_mps2)  # not ** 2: libm's pow
         if distance_m <= ramp_m:
             return self.lead_s + float(np.sqrt(2 * distance_m / self.accel_mps2))
         return self.lead_s + self.speed_mps / self.accel_mps2 + (distance_m - ramp_m) / self.speed_mps
@@ -145,7 +146,7 @@ class EncounterPlan:
         centre = self.meeting_m - back_m[:, None] * self.heading  # (K, 2)
         members = centre[:, None] + abreast_m[None, :, None] * right  # (K, n, 2)
         flat = members.reshape(-1, 2)
-        fits = nav.startable_at(flat) & (np.linalg.norm(flat - self.ego_start_m, axis=1) >= keep_clear_m)
+        fits = nav.startable_at(flat) & (length(flat - self.ego_start_m) >= keep_clear_m)
         fitting = np.flatnonzero(fits.reshape(len(back_m), n).all(axis=1))
         if not fitting.size:
             raise PopulationError(f"encounter {self.name}: no room for {n} pedestrian(s) on their line to the "
@@ -179,9 +180,9 @@ def draw_encounter(name: str, layout: Layout, rng: np.random.Generator) -> Encou
     xmin, ymin, xmax, ymax = layout.bounds_m
     centre = np.array([(xmin + xmax) / 2, (ymin + ymax) / 2])
     to_exit = layout.exits[exit_idx].centre_m - centre
-    heading = to_exit / np.linalg.norm(to_exit)
-    turn = side * np.radians(angle_deg)
-    route = np.array([[np.cos(turn), -np.sin(turn)], [np.sin(turn), np.cos(turn)]]) @ heading
+    heading = to_exit / length(to_exit)
+    cos, sin = cos_sin(side * angle_deg * (np.pi / 180.0))
+    route = np.array([cos * heading[0] - sin * heading[1], sin * heading[0] + cos * heading[1]])
     start = centre + shift_m - spec.route_m / 2 * route
     meeting = start + meet_m * route + offset_m * right_of(heading[None])[0]
     return EncounterPlan(name, start, start + spec.route_m * route, meeting, meet_m, heading, exit_idx, angle_deg,

@@ -12,8 +12,9 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from st_sim.sim.config import PopulationConfig
+from st_sim.sim.exact import dot, length
 from st_sim.sim.layout import Period
-from st_sim.sim.pairs import dot, right_of
+from st_sim.sim.pairs import right_of
 
 ABREAST_M = 0.7  # centre distance of neighbouring members walking abreast [m]
 LATERAL_PULL_PER_M = 1.0  # turn toward the group's centre line, per metre of sideways offset [1/m]
@@ -89,7 +90,7 @@ def cohesion(xy_m: np.ndarray, direction: np.ndarray, speed_mps: np.ndarray, gro
     ahead = dot(to_centre, e)
     sideways = to_centre - ahead[:, None] * e
     bent = e + LATERAL_PULL_PER_M * sideways
-    norm = np.sqrt(dot(bent, bent))
+    norm = length(bent)
     walking = dot(e, e) > 0
     new_direction, new_speed = direction.copy(), speed_mps.copy()
     new_direction[member[walking]] = bent[walking] / np.maximum(norm[walking], 1e-9)[:, None]

@@ -13,6 +13,7 @@ import numpy as np
 from replays.scenes import Scene
 from st_sim.sim.checks import check_memory
 from st_sim.sim.config import MAP_PX_M, WALL_RADIUS_M
+from st_sim.sim.exact import length, total
 
 T = TypeVar("T")
 MIN_ROUTE_M = 2.0  # an entry's pedestrians head only to exits whose centre is farther than this [m]
@@ -87,7 +88,7 @@ class Region:
     @property
     def centre_m(self) -> np.ndarray:
         """(2,) vertex mean [m]."""
-        return self.polygon_m.mean(axis=0)
+        return total(self.polygon_m, axis=0) / len(self.polygon_m)
 
     @cached_property
     def _edges(self) -> tuple[np.ndarray, np.ndarray]:
@@ -164,7 +165,7 @@ class Layout:
         if not self.routes:
             exit_centres = np.array([r.centre_m for r in self.exits]).reshape(-1, 2)
             self.routes = tuple(
-                tuple(np.flatnonzero(np.linalg.norm(exit_centres - e.centre_m, axis=1) > MIN_ROUTE_M).tolist())
+                tuple(np.flatnonzero(length(exit_centres - e.centre_m) > MIN_ROUTE_M).tolist())
                 for e in self.entries
             )
         if len(self.routes) != len(self.entries) or not all(self.routes):

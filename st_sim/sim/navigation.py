@@ -16,6 +16,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import dijkstra
 
 from st_sim.sim.checks import check_memory
+from st_sim.sim.exact import length
 from st_sim.sim.layout import MIN_ROUTE_M, Layout
 from st_sim.sim.walls import WallGrid
 
@@ -135,7 +136,7 @@ def _grid_graph(free: np.ndarray, cell_m: float) -> coo_matrix:
         ib = index[dy:, max(0, dx): width - max(0, -dx) or None][ok]
         rows += [ia, ib]
         cols += [ib, ia]
-        weights += [np.full(2 * ia.size, cell_m * np.hypot(dx, dy))]
+        weights += [np.full(2 * ia.size, cell_m * np.sqrt(dx * dx + dy * dy))]
     return coo_matrix((np.concatenate(weights), (np.concatenate(rows), np.concatenate(cols))),
                       shape=(free.size, free.size)).tocsr()
 
@@ -156,17 +157,18 @@ def _descent_directions(dist: np.ndarray, free: np.ndarray, centres: np.ndarray,
             if dy == 0 and dx == 0:
                 continue
             neighbour = padded[reach + dy: reach + dy + height, reach + dx: reach + dx + width]
+            step = np.sqrt(dx * dx + dy * dy)
             with np.errstate(invalid="ignore"):
-                slope = (dist - neighbour) / np.hypot(dx, dy)
+                slope = (dist - neighbour) / step
             better = slope > best_slope
             best_slope[better] = slope[better]
-            best[better] = np.array([dx, dy]) / np.hypot(dx, dy)
+            best[better] = np.array([dx, dy]) / step
     at_goal = free & (dist == 0)
     to_goal = goal_m - centres[at_goal]
-    best[at_goal] = to_goal / np.maximum(np.linalg.norm(to_goal, axis=1, keepdims=True), 1e-9)
+    best[at_goal] = to_goal / np.maximum(length(to_goal), 1e-9)[:, None]
     best[~np.isfinite(dist)] = 0.0
     smooth = np.stack([ndimage.uniform_filter(best[..., k], size=3, mode="constant") for k in range(2)], axis=-1)
-    norm = np.linalg.norm(smooth, axis=-1, keepdims=True)
+    norm = length(smooth)[..., None]
     unit = np.where(norm > 1e-6, smooth / np.maximum(norm, 1e-9), 0.0)
     nearest = ndimage.distance_transform_edt(~free, return_distances=False, return_indices=True)
     return unit[nearest[0], nearest[1]]

@@ -11,19 +11,15 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from st_sim.sim.exact import dot, exp, length
 from st_sim.sim.layout import Period
 
 SQUEEZE_M = 0.05  # a walker may brush past another this much inside body contact (shoulders turn) [m]
 
 
-def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Row-wise dot product of (M, 2) arrays -> (M,)."""
-    return a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1]
-
-
 def cap_speed(velocity_mps: np.ndarray, max_speed_mps: np.ndarray) -> np.ndarray:
     """Scale down rows of (N, 2) velocities whose norm exceeds max_speed_mps (N,) [m/s]."""
-    speed = np.sqrt(dot(velocity_mps, velocity_mps))
+    speed = length(velocity_mps)
     scale = np.minimum(1.0, max_speed_mps / np.maximum(speed, 1e-9))
     return velocity_mps * scale[:, None]
 
@@ -76,7 +72,7 @@ class Neighbours:
         offset = xy_m[j] - xy_m[i]
         if period is not None:
             offset = period.nearest_image(offset)
-        dist = np.sqrt(dot(offset, offset))
+        dist = length(offset)
         keep = dist < cutoff[i]
         i, j, offset, dist = i[keep], j[keep], offset[keep], dist[keep]
         return cls(i, j, offset, dist, offset / np.maximum(dist, 1e-9)[:, None], radius_m[i] + radius_m[j])
@@ -189,7 +185,7 @@ def oncoming_urge(nb: Neighbours, facing: Facing, n: int, margin_m: float, decay
     for me, ahead, across in ((nb.i, facing.ahead_i, facing.across_i), (nb.j, facing.ahead_j, facing.across_j)):
         oncoming = ~facing.same_way & (ahead > 0) & (across < nb.contact_m + margin_m)
         gap = np.maximum(ahead[oncoming] - nb.contact_m[oncoming], 0.0)
-        urge += np.bincount(me[oncoming], np.exp(-gap / decay_m), minlength=n)
+        urge += np.bincount(me[oncoming], exp(-gap / decay_m), minlength=n)
     return np.minimum(urge, 1.0)
 
 

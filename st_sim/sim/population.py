@@ -9,6 +9,7 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from st_sim.sim.config import PopulationConfig
+from st_sim.sim.exact import cos_sin, dot, length
 from st_sim.sim.layout import MIN_ROUTE_M, Period, Region
 from st_sim.sim.navigation import NavigationField
 
@@ -152,7 +153,7 @@ def _lattice_sites(nav: NavigationField, spacing_m: float, blocked_m: np.ndarray
     if region is not None:
         ok &= region.contains(sites)
     for point, gap in zip(blocked_m, blocked_gap_m, strict=True):
-        ok &= np.linalg.norm(sites - point, axis=1) >= gap
+        ok &= length(sites - point) >= gap
     return sites[ok]
 
 
@@ -182,7 +183,7 @@ def lattice_positions(nav: NavigationField, n: int, diameter_m: float, max_gap_m
     chosen = sites[rng.permutation(len(sites))[:n]]
     angle = rng.uniform(0.0, 2 * np.pi, len(chosen))
     reach = 0.5 * gap * np.sqrt(rng.random(len(chosen)))
-    moved = chosen + reach[:, None] * np.stack([np.cos(angle), np.sin(angle)], axis=-1)
+    moved = chosen + reach[:, None] * np.stack(cos_sin(angle), axis=-1)
     inside = nav.startable_at(moved) & (True if region is None else region.contains(moved))
     placed = np.where(inside[:, None], moved, chosen)
     return placed if period is None else period.wrap(placed)
@@ -233,20 +234,20 @@ def spawn_points(regions: list[Region], counts: np.ndarray, allowed: np.ndarray,
     for c, (xy, direction) in enumerate(zip(others_m, others_heading, strict=True)):
         bodies[c, :len(xy)], body_heading[c, :len(xy)] = xy, direction
     offset = bodies[crowd] - candidates[:, None, :]  # (M, K, 2)
-    ahead = np.einsum("ckx,cx->ck", offset, heading)
+    ahead = dot(offset, heading[:, None])
     across = np.abs(offset[..., 0] * heading[:, None, 1] - offset[..., 1] * heading[:, None, 0])
     clear = clearance_m[crowd][:, None]
     oncoming = np.zeros(ahead.shape, bool)
-    for c, direction in enumerate(others_heading):  # a matrix product, as in any crowd's own (ulp-exact signs)
+    for c, direction in enumerate(others_heading):
         rows = crowd == c
-        oncoming[rows, :len(direction)] = heading[rows] @ direction.T < 0
+        oncoming[rows, :len(direction)] = dot(heading[rows, None], direction[None]) < 0
     in_path = oncoming & (ahead > 0) & (ahead < lane_m) & (across < clear)
-    roomy = (np.hypot(offset[..., 0], offset[..., 1]) >= clear).all(axis=1) & ~in_path.any(axis=1)
+    roomy = (length(offset) >= clear).all(axis=1) & ~in_path.any(axis=1)
     candidates, exit_idx, origin, crowd = candidates[roomy], exit_idx[roomy], origin[roomy], crowd[roomy]
     chosen_by_crowd = []
     for c, row in enumerate(counts):  # first come, first served among each crowd's new ones
         rows = np.flatnonzero(crowd == c)
-        apart = np.linalg.norm(candidates[rows, None] - candidates[None, rows], axis=-1) >= clearance_m[c]
+        apart = length(candidates[rows, None] - candidates[None, rows]) >= clearance_m[c]
         chosen, open_ = [], np.ones(len(rows), bool)
         for r in np.flatnonzero(row).tolist():
             mine, taken = origin[rows] == r, 0

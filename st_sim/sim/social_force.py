@@ -11,11 +11,11 @@ from __future__ import annotations
 import numpy as np
 
 from st_sim.sim.config import WALL_RADIUS_M, SocialForceConfig
+from st_sim.sim.exact import exp, length
 from st_sim.sim.pairs import (
     Facing,
     Neighbours,
     closest_approach,
-    dot,
     headway_m,
     oncoming_urge,
     pair_sum,
@@ -35,8 +35,8 @@ def density_speed(nb: Neighbours, preferred_speed_mps: np.ndarray, cfg: SocialFo
     n = len(preferred_speed_mps)
     close = nb.dist_m < cfg.density_radius_m
     count = 1.0 + np.bincount(nb.i[close], minlength=n) + np.bincount(nb.j[close], minlength=n)
-    rho = count / (np.pi * cfg.density_radius_m**2)
-    factor = 1.0 - np.exp(-WEIDMANN_GAMMA_M2 * (1.0 / rho - 1.0 / cfg.jam_density_per_m2))
+    rho = count / (np.pi * cfg.density_radius_m * cfg.density_radius_m)
+    factor = 1.0 - exp(-WEIDMANN_GAMMA_M2 * (1.0 / rho - 1.0 / cfg.jam_density_per_m2))
     return preferred_speed_mps * np.clip(factor, 0.0, 1.0)
 
 
@@ -48,8 +48,8 @@ def agent_repulsion(nb: Neighbours, facing: Facing, velocity_mps: np.ndarray, cf
     phi = angle between its desired direction and the direction to the other agent.
     """
     apart = closest_approach(nb, velocity_mps, cfg.look_ahead_s)
-    dist = np.sqrt(dot(apart, apart))
-    magnitude = cfg.agent_strength_mps2 * np.exp((nb.contact_m - dist) / cfg.agent_range_m) / np.maximum(dist, 1e-6)
+    dist = length(apart)
+    magnitude = cfg.agent_strength_mps2 * exp((nb.contact_m - dist) / cfg.agent_range_m) / np.maximum(dist, 1e-6)
     half_lambda = (1.0 - cfg.anisotropy) / 2
     inv_dist = 1.0 / np.maximum(nb.dist_m, 1e-6)
     push_i = magnitude * (cfg.anisotropy + half_lambda * (1.0 + facing.ahead_i * inv_dist))
@@ -61,7 +61,7 @@ def wall_repulsion(walls: NearbyWalls, radius_m: np.ndarray, cfg: SocialForceCon
     """Exponential repulsion from the nearest wall, zero beyond cfg.wall_cutoff_m, (N, 2) [m/s^2]."""
     to_wall, dist = walls.nearest
     magnitude = np.where(dist < cfg.wall_cutoff_m,
-                         cfg.wall_strength_mps2 * np.exp((radius_m + WALL_RADIUS_M - dist) / cfg.wall_range_m), 0.0)
+                         cfg.wall_strength_mps2 * exp((radius_m + WALL_RADIUS_M - dist) / cfg.wall_range_m), 0.0)
     return -magnitude[:, None] * to_wall
 
 

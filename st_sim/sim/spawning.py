@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from st_sim.sim.config import CrowdConfig, PopulationConfig
+from st_sim.sim.exact import length
 from st_sim.sim.groups import companion_offsets, form_groups, unit_sizes
 from st_sim.sim.layout import Layout, Region
 from st_sim.sim.navigation import NavigationField
@@ -91,7 +92,7 @@ def initial_crowd(nav: NavigationField, layout: Layout, cfg: CrowdConfig, n: int
 
 
 def _clear(xy_m: np.ndarray, others_m: np.ndarray, clearance_m: float) -> bool:
-    return bool(others_m.size == 0 or np.min(np.linalg.norm(others_m - xy_m, axis=1)) >= clearance_m)
+    return bool(others_m.size == 0 or np.min(length(others_m - xy_m)) >= clearance_m)
 
 
 def route_mask(layout: Layout) -> np.ndarray:

@@ -24,11 +24,13 @@ from __future__ import annotations
 import numpy as np
 
 from st_sim.sim.config import WALL_RADIUS_M, SpeedModelConfig
-from st_sim.sim.pairs import Directed, Neighbours, dot, free_walk_m, pair_sum, right_of
+from st_sim.sim.exact import cos_sin, dot, exp, length, total
+from st_sim.sim.pairs import Directed, Neighbours, free_walk_m, pair_sum, right_of
 from st_sim.sim.walls import NearbyWalls
 
 PASS_MARGIN_M = 0.3  # a walker counts as in one's path up to this far beyond body contact, sideways [m]
 TURNS_RAD = (0.0, 0.45, -0.45, 0.9, -0.9)  # headings tried, relative to the pushed one, first kept on ties [rad]
+TURNS_COS, TURNS_SIN = (values[:, None] for values in cos_sin(np.array(TURNS_RAD)))  # (K, 1) each
 MIN_PROGRESS_MPS = 1e-3  # a heading must bring one this fast toward the goal, else one stands still [m/s]
 
 
@@ -43,8 +45,8 @@ def neighbour_push(nb: Neighbours, ahead_m: np.ndarray, velocity_mps: np.ndarray
     t_near = np.minimum(np.maximum(-dot(nb.offset_m, closing) / np.maximum(dot(closing, closing), 1e-9), 0.0),
                         cfg.look_ahead_s)
     apart = nb.offset_m + t_near[:, None] * closing
-    dist = np.sqrt(dot(apart, apart))
-    weight = cfg.agent_strength * np.exp((nb.contact_m - dist) / cfg.agent_range_m) / np.maximum(dist, 1e-6)
+    dist = length(apart)
+    weight = cfg.agent_strength * exp((nb.contact_m - dist) / cfg.agent_range_m) / np.maximum(dist, 1e-6)
     dist_now = np.maximum(nb.dist_m, 1e-6)
     view = 0.5 * (1.0 + ahead_m / np.concatenate([dist_now, dist_now]))
     p = len(nb.i)
@@ -71,7 +73,7 @@ def sidestep_urge(pairs: Directed, ahead_m: np.ndarray, across_m: np.ndarray, di
     gap = np.maximum(ahead_m[near][blocking] - pairs.contact_m[near][blocking], 0.0)
     oncoming = dot(direction[me], direction[other]) < 0
     side = np.where(oncoming | (across_m[near][blocking] > 0), 1.0, -1.0)
-    urge = np.bincount(me, side * np.exp(-gap / closing / horizon_s), minlength=len(direction))
+    urge = np.bincount(me, side * exp(-gap / closing / horizon_s), minlength=len(direction))
     return np.minimum(np.maximum(urge, -1.0), 1.0)
 
 
@@ -80,8 +82,8 @@ def wall_push(walls: NearbyWalls, radius_m: np.ndarray, cfg: SpeedModelConfig) -
     cfg.wall_cutoff_m (both sides of a door push)."""
     near = walls.distinct() & (walls.dist_m < cfg.wall_cutoff_m)
     gap = np.where(near, walls.dist_m, np.inf) - radius_m[:, None] - WALL_RADIUS_M
-    weight = cfg.wall_strength * np.exp(-gap / cfg.wall_range_m)
-    return -(weight[..., None] * walls.to_wall).sum(axis=1)
+    weight = cfg.wall_strength * exp(-gap / cfg.wall_range_m)
+    return -total(weight[..., None] * walls.to_wall, axis=1)
 
 
 def best_heading(pairs: Directed, walls: NearbyWalls, heading: np.ndarray, direction: np.ndarray,
@@ -96,12 +98,12 @@ def best_heading(pairs: Directed, walls: NearbyWalls, heading: np.ndarray, direc
     near = speed_limiting(pairs, preferred_speed_mps, time_gap_s)
     ahead0, across0 = near.ahead_across(heading)
     normal = np.stack([-heading[:, 1], heading[:, 0]], axis=-1)  # heading turned 90 degrees to the left
-    c, s = np.cos(TURNS_RAD)[:, None], np.sin(TURNS_RAD)[:, None]
+    c, s = TURNS_COS, TURNS_SIN
     row = (np.arange(k)[:, None] * n + near.me[None, :]).ravel()
     people = free_walk_m(row, (c * ahead0 + s * across0).ravel(), (c * across0 - s * ahead0).ravel(),
                          np.tile(near.contact_m, k), k * n).reshape(k, n)
-    toward = (c[:, :, None] * np.einsum("nwx,nx->nw", walls.to_wall, heading)[None]
-              + s[:, :, None] * np.einsum("nwx,nx->nw", walls.to_wall, normal)[None])  # (K, N, W)
+    toward = (c[:, :, None] * dot(walls.to_wall, heading[:, None])[None]
+              + s[:, :, None] * dot(walls.to_wall, normal[:, None])[None])  # (K, N, W)
     free = np.minimum(people, walls.free_walk_m(toward, radius_m + WALL_RADIUS_M))
     speed = np.minimum(np.maximum(free / time_gap_s, 0.0), preferred_speed_mps)
     score = speed * (c * dot(heading, direction) + s * dot(normal, direction))
@@ -131,7 +133,7 @@ def plan(velocity_mps: np.ndarray, direction: np.ndarray, preferred_speed_mps: n
     sidestep = sidestep_urge(pairs, ahead, across, direction, velocity_mps, preferred_speed_mps, cfg.look_ahead_s)
     heading = (direction + neighbour_push(nb, ahead, velocity_mps, cfg) + wall_push(walls, radius_m, cfg)
                + cfg.keep_right * sidestep[:, None] * right_of(direction))
-    norm = np.sqrt(dot(heading, heading))
+    norm = length(heading)
     heading = np.where(norm[:, None] > 1e-9, heading / np.maximum(norm, 1e-9)[:, None], 0.0)
     return best_heading(pairs, walls, heading, direction, preferred_speed_mps, radius_m, cfg.time_gap_s)
 
@@ -142,7 +144,7 @@ def walk(heading: np.ndarray, velocity_mps: np.ndarray, preferred_speed_mps: np.
     toward min(v0, free walk / time gap) x heading within the relaxation time."""
     near = speed_limiting(Directed.of(nb), preferred_speed_mps, cfg.time_gap_s)
     ahead, across = near.ahead_across(heading)
-    toward = np.einsum("nwx,nx->nw", walls.to_wall, heading)
+    toward = dot(walls.to_wall, heading[:, None])
     free = np.minimum(free_walk_m(near.me, ahead, across, near.contact_m, len(heading)),
                       walls.free_walk_m(toward, radius_m + WALL_RADIUS_M))
     speed = np.minimum(np.maximum(free / cfg.time_gap_s, 0.0), preferred_speed_mps)

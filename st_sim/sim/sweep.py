@@ -13,6 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from st_sim.sim.exact import dot, length
+
 TOUCH_SLACK_M = 0.05  # pedestrians this far beyond the contact distance at the impact count as touched too [m]
 
 
@@ -31,9 +33,9 @@ def first_touch(offset_from_m: np.ndarray, offset_to_m: np.ndarray, reach_m: flo
     change = np.asarray(offset_to_m, np.float64) - start
     reach = np.asarray(reach_m, np.float64)
     # |start + t change|^2 = reach^2  <=>  a t^2 + 2 b t + c = 0
-    a = (change ** 2).sum(-1)
-    b = (start * change).sum(-1)
-    c = (start ** 2).sum(-1) - reach ** 2
+    a = dot(change, change)
+    b = dot(start, change)
+    c = dot(start, start) - reach ** 2
     with np.errstate(invalid="ignore", divide="ignore"):
         root = (-b - np.sqrt(np.maximum(b * b - a * c, 0.0))) / a  # the earlier of the two crossings
     touch = np.where(c < 0, 0.0, np.where((a > 0) & (b < 0) & (b * b - a * c > 0) & (root <= 1.0), root, np.nan))
@@ -51,11 +53,11 @@ def closest_approach(offset_from_m: np.ndarray, offset_to_m: np.ndarray) -> tupl
     """
     start = np.asarray(offset_from_m, np.float64)
     change = np.asarray(offset_to_m, np.float64) - start
-    a = (change ** 2).sum(-1)
+    a = dot(change, change)
     with np.errstate(invalid="ignore", divide="ignore"):
-        t = np.where(a > 0, np.clip(-(start * change).sum(-1) / a, 0.0, 1.0), 0.0)
+        t = np.where(a > 0, np.clip(-dot(start, change) / a, 0.0, 1.0), 0.0)
     closest = start + t[..., None] * change
-    return np.sqrt((closest ** 2).sum(-1)), t
+    return length(closest), t
 
 
 @dataclass(frozen=True, eq=False)
@@ -99,7 +101,7 @@ def first_contact(robot_from_m: np.ndarray, robot_to_m: np.ndarray, peds_from_m:
     t = float(np.nanmin(touch))
     robot_m = robot_from_m + t * (robot_to_m - robot_from_m)
     peds_m = peds_from_m + t * (peds_to_m - peds_from_m)
-    near = np.linalg.norm(peds_m - robot_m, axis=1) < reach_m + TOUCH_SLACK_M
+    near = length(peds_m - robot_m) < reach_m + TOUCH_SLACK_M
     near |= touch == t  # the first one touches by definition, whatever the rounding
     return Contact(start_s + t * duration_s, robot_m, (robot_to_m - robot_from_m) / duration_s,
                    np.asarray(ids)[near], peds_m[near], (peds_to_m[near] - peds_from_m[near]) / duration_s)

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from st_sim.sim.checks import check_memory
+from st_sim.sim.exact import dot, length
 
 MAX_WALLS_PER_CELL = 8  # a cell keeps at most this many walls, the nearest ones
 DISTINCT_M = 0.01  # two walls whose nearest points are closer than this are one wall for a push [m]
@@ -19,7 +20,7 @@ DISTINCT_M = 0.01  # two walls whose nearest points are closer than this are one
 def point_segment(xy_m: np.ndarray, a_m: np.ndarray, b_m: np.ndarray) -> np.ndarray:
     """Nearest points (..., 2) [m] of segments a_m-b_m (..., 2) to points xy_m (..., 2)."""
     ab, ap = b_m - a_m, xy_m - a_m
-    t = (ap[..., 0] * ab[..., 0] + ap[..., 1] * ab[..., 1]) / np.maximum(ab[..., 0] ** 2 + ab[..., 1] ** 2, 1e-12)
+    t = dot(ap, ab) / np.maximum(dot(ab, ab), 1e-12)
     return a_m + np.minimum(np.maximum(t, 0.0), 1.0)[..., None] * ab
 
 
@@ -40,7 +41,7 @@ class NearbyWalls:
         before it, so that two segments meeting at a joint count once."""
         finite = np.isfinite(self.dist_m)
         point = np.where(finite[..., None], self.to_wall * np.where(finite, self.dist_m, 0.0)[..., None], 1e9)
-        gap = np.linalg.norm(point[:, :, None] - point[:, None, :], axis=-1)  # (N, K, K); empty slots far away
+        gap = length(point[:, :, None] - point[:, None, :])  # (N, K, K); empty slots far away
         earlier = np.tril(np.ones(gap.shape[1:], bool), k=-1)
         return finite & ~((gap < DISTINCT_M) & earlier).any(axis=2)
 
@@ -90,8 +91,8 @@ class WallGrid:
         dist = np.full((centres.shape[0], max(len(self.walls_m), 1)), np.inf)
         for w0 in range(0, len(self.walls_m), 64):  # chunks keep the (cells, walls, 2) temporaries small
             seg = self.walls_m[w0: w0 + 64]
-            dist[:, w0: w0 + len(seg)] = np.linalg.norm(centres - point_segment(centres, seg[:, 0], seg[:, 1]), axis=-1)
-        order = np.argsort(dist, axis=1)[:, :MAX_WALLS_PER_CELL]
+            dist[:, w0: w0 + len(seg)] = length(centres - point_segment(centres, seg[:, 0], seg[:, 1]))
+        order = np.argsort(dist, axis=1, kind="stable")[:, :MAX_WALLS_PER_CELL]  # ties in index order, on any CPU
         within = np.take_along_axis(dist, order, axis=1) <= reach_m + cell_m / np.sqrt(2)
         k_used = max(int(within.sum(axis=1).max(initial=0)), 1)
         self.cell_walls = np.where(within, order, -1)[:, :k_used].reshape(*shape, k_used)  # (Gy, Gx, K), -1 = empty
@@ -104,7 +105,7 @@ class WallGrid:
         walls = self.cell_walls[iy, ix]  # (N, K)
         seg = self.walls_m[np.maximum(walls, 0)]  # (N, K, 2, 2)
         offset = point_segment(xy_m[:, None, :], seg[..., 0, :], seg[..., 1, :]) - xy_m[:, None, :]
-        dist = np.sqrt(offset[..., 0] ** 2 + offset[..., 1] ** 2)
+        dist = length(offset)
         dist[walls < 0] = np.inf
         return NearbyWalls(offset / np.maximum(dist, 1e-9)[..., None], dist)
 

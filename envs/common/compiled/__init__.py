@@ -19,11 +19,11 @@ path spends its time calling numpy, not computing. Here the same arithmetic runs
 
 The plain path stays the reference (``Routes(..., compiled=False)``): ``tests/test_reactive_compiled.py`` walks both
 on drawn crowds and on the replays and asserts every state equal, bit for bit, and ``benchmarks/bench_reactive.py
---digest`` compares whole episodes. One difference is allowed and stated: on a scene whose image homography is
-projective (ETH, HOTEL; UCY's are affine) numpy maps points to pixels with a BLAS product whose rounding depends on
-the batch, so a point within a rounding error of a pixel's edge may be looked up in the neighbouring pixel (the plain
-path itself does so from one batch size to another). Kernels compile on first use (a few minutes of one core) and
-are cached on disk (``cache=True``, in this package's ``__pycache__``); a process pays a second or two to load them.
+--digest`` compares whole episodes. Both paths map points to pixels with the homography written out in one order
+(``replays.scenes.apply_homography``; no BLAS product, whose rounding depended on the batch and the CPU), so they look
+up the same pixel even for a point within a rounding error of a pixel's edge. Kernels compile on first use (a few
+minutes of one core) and are cached on disk (``cache=True``, in this package's ``__pycache__``); a process pays a
+second or two to load them.
 numba re-compiles a kernel when its own file changes, not when a constant or function it took from another file does,
 so ``drop_stale_caches`` deletes the cached kernels whenever any file they depend on (``SOURCES``) has changed.
 

@@ -9,13 +9,17 @@ pool or a Ray cluster (``st_sim.apps.grid``). A chunk appends one JSON line per 
 so a run that is killed keeps every finished episode, and the same command resumes it.
 
 Layout of the output folder:
-    run.json                            what was asked, and the policy's fingerprint (``fingerprint``): a different
-                                        run, or the same spec pointing at another model or other code, is refused
+    run.json                            the run's identity (``RUN_IDENTITY``): what was asked, the suite's content
+                                        hash, the benchmark version, STCrowd's version and source hash, and what the
+                                        policy and the predictor are (``fingerprint``: their code, every file they
+                                        read while loading and during the first episode); a resume whose identity
+                                        differs in any part is refused, naming it. Beside it ``ran_on``, a record of
+                                        each machine that ran part of the run (``provenance``), not compared
     parts/<scenario>/<first>.jsonl      one chunk's episodes, appended as they finish
     parts/<scenario>/<first>.json       the chunk's timing, written when it is complete
     recordings/<scenario>/<episode>.rrd a Rerun recording of each episode ``--record`` chose (``episode_recording``)
     episodes.jsonl                      every episode, one JSON line each, in suite order
-    summary.json                        policy, its fingerprint, suite, version, split, the scenario set; per
+    summary.json                        the identity, the scenario set; per
                                         scenario its env, keywords, episodes, summary and timing; the pooled summary
                                         and timing (``RESULT_FORMAT``); one line per top-level key
 
@@ -32,7 +36,6 @@ import math
 import os
 import time
 from dataclasses import dataclass
-from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 from typing import Any
 
@@ -45,16 +48,32 @@ from replays.atomic import write_text_atomic
 from st_sim.apps.grid import Job, run_jobs
 from st_sim.apps.navigation.episode_recording import BenchmarkRecorder
 from st_sim.apps.navigation.episodes import run_episode
-from st_sim.apps.navigation.fingerprint import fingerprint_changes, policy_fingerprint
+from st_sim.apps.navigation.fingerprint import (
+    ReadAudit,
+    fingerprint_changes,
+    policy_fingerprint,
+    predictor_fingerprint,
+    stcrowd_identity,
+)
 from st_sim.apps.navigation.metrics import episode_metrics, summarize
 from st_sim.apps.navigation.policies import FIXED_VIEW_HINT, SB3_PREFIX, PolicyError, load_policy, observation_fits
+from st_sim.apps.navigation.provenance import machine_record
 from st_sim.apps.navigation.world import world_of
 
 CHUNK_EPISODES = 25  # episodes of one scenario per grid job [-]
 SIGNIFICANT_DIGITS = 6  # figures are written with this many significant digits [-]
 RESULT_FORMAT = "stcrowd-nav-benchmark/1"
-RUN_IDENTITY = ("policy", "fingerprint", "predictor", "suite", "suite_version", "split", "scenarios", "episodes")
-"""settings that must match for a rerun to resume the runs already in an output folder"""
+BENCHMARK_VERSION = "2"
+"""the version of what the metrics mean (docs: Benchmark your policy, "Versions"): 1, the suite as published on
+2026-11-27; 2, from 2026-11-28, a pedestrian collision at the robot's fault when the robot closed the gap. Bumped
+whenever a metric changes meaning; results of different versions are never tabled or paired together"""
+RUN_IDENTITY = ("policy", "fingerprint", "predictor", "predictor_fingerprint", "trust_policy_file", "suite",
+                "suite_version", "suite_sha256", "benchmark_version", "stcrowd", "split", "scenarios", "episodes")
+"""what must match for a rerun to resume the runs already in an output folder"""
+RAN_ON = "ran_on"
+"""the key of ``run.json`` and ``summary.json`` listing the machines that ran the run (``provenance``)"""
+FINGERPRINTS = ("fingerprint", "predictor_fingerprint", "stcrowd")
+"""identity parts that are dicts of named parts, compared part by part"""
 
 
 class BenchmarkError(RuntimeError):
@@ -201,25 +220,43 @@ def _portable(policy: str) -> str:
 def check_run(run: BenchmarkRun, suite: Suite) -> dict[str, Any]:
     """Every check that can fail before any episode: the split, episodes and scenarios exist, the policy builds, a
     policy that declares its observation space fits every scenario's env (else ``PolicyError`` naming the scenarios
-    that fit, if any), and the output folder holds no other run, nor this spec pointing at another model or other
-    code (``BenchmarkError`` naming what changed). Returns the run's identity (``run.json``)."""
-    suite.seeds_of(run.split, run.episodes)
+    that fit, if any), and the output folder holds no other run (``BenchmarkError`` naming each part of the identity
+    that differs). Returns the run's identity (``run.json``): the policy and the predictor are identified by what
+    they read while the first scenario's env is made, the policy built and the first episode run (``ReadAudit``)."""
+    seeds = suite.seeds_of(run.split, run.episodes)
     scenarios = suite.select(run.scenarios)
-    env = make_scenario_env(scenarios[0], "none", run.data_root)
+    outside = [run.out, _data_root_or_none(run.data_root)]
+    with ReadAudit(outside) as predictor_audit:
+        env = make_scenario_env(scenarios[0], run.predictor, run.data_root)
     try:
-        policy = load_policy(run.policy, world_of(env), run.predictor, trust_file=run.trust_policy_file)
+        world = world_of(env)
+        with ReadAudit(outside) as policy_audit:
+            policy = load_policy(run.policy, world, run.predictor, trust_file=run.trust_policy_file)
+            if policy.observation_space is None or observation_fits(policy.observation_space, env.observation_space):
+                run_episode(env, policy, world, seeds[0])
     finally:
         env.close()
     if policy.observation_space is not None:
         _check_fits(policy.spec, policy.observation_space, scenarios, suite, run.data_root)
-    identity = _identity(run, suite, policy_fingerprint(run.policy, policy.policy))
+    identity = _identity(run, suite, policy_fingerprint(run.policy, policy.policy, policy_audit),
+                         predictor_fingerprint(run.predictor, predictor_audit))
     marker = Path(run.out) / "run.json"
     if marker.is_file():
-        held = json.loads(marker.read_text())
+        held = {key: value for key, value in json.loads(marker.read_text()).items() if key != RAN_ON}
         if held != identity:
             raise BenchmarkError(f"{run.out} holds another run ({'; '.join(_differences(held, identity))}): give "
                                  "another --out, or delete the folder to score this one there")
     return identity
+
+
+def _data_root_or_none(root: str | None) -> str | None:
+    """The ETH/UCY data root the envs read (its files are checked against the project's sums), None if unset."""
+    from replays.data_root import data_root
+
+    try:
+        return str(data_root(root))
+    except Exception:  # no data root configured: nothing to leave out of the audit
+        return None
 
 
 def _check_fits(spec: str, own: spaces.Space, scenarios: tuple[Scenario, ...], suite: Suite,
@@ -245,19 +282,26 @@ def _check_fits(spec: str, own: spaces.Space, scenarios: tuple[Scenario, ...], s
 
 def _differences(held: dict[str, Any], identity: dict[str, Any]) -> list[str]:
     """What differs between a folder's ``run.json`` and this run's identity, in words."""
-    if "fingerprint" not in held:
-        return ["it was written before runs recorded what their policy is"]
-    differ = [f"{key} {held.get(key)!r} there, {identity[key]!r} now" for key in RUN_IDENTITY
-              if key != "fingerprint" and held.get(key) != identity[key]]
-    changes = fingerprint_changes(held["fingerprint"], identity["fingerprint"])
-    if changes:
-        differ.append(f"what policy {identity['policy']!r} is has changed: {', '.join(changes)}")
+    missing = [key for key in RUN_IDENTITY if key not in held]
+    if missing:
+        return [f"it was written before runs recorded {', '.join(missing)}"]
+    differ = [f"{key} {held[key]!r} there, {identity[key]!r} now" for key in RUN_IDENTITY
+              if key not in FINGERPRINTS and held[key] != identity[key]]
+    whose = {"fingerprint": f"policy {identity['policy']!r}", "predictor_fingerprint":
+             f"predictor {identity['predictor']!r}", "stcrowd": "STCrowd's version, code or data"}
+    for key in FINGERPRINTS:
+        changes = fingerprint_changes(held[key], identity[key])
+        if changes:
+            differ.append(f"{whose[key]} changed: {', '.join(changes)}")
     return differ
 
 
-def _identity(run: BenchmarkRun, suite: Suite, fingerprint: dict[str, str]) -> dict[str, Any]:
-    return {"policy": run.policy, "fingerprint": fingerprint, "predictor": run.predictor, "suite": suite.name,
-            "suite_version": suite.version, "split": run.split,
+def _identity(run: BenchmarkRun, suite: Suite, fingerprint: dict[str, str],
+              predictor_parts: dict[str, str]) -> dict[str, Any]:
+    return {"policy": run.policy, "fingerprint": fingerprint, "predictor": run.predictor,
+            "predictor_fingerprint": predictor_parts, "trust_policy_file": run.trust_policy_file,
+            "suite": suite.name, "suite_version": suite.version, "suite_sha256": suite.content_sha256,
+            "benchmark_version": BENCHMARK_VERSION, "stcrowd": stcrowd_identity(), "split": run.split,
             "scenarios": [scenario.name for scenario in suite.select(run.scenarios)],
             "episodes": len(suite.seeds_of(run.split, run.episodes))}
 
@@ -273,7 +317,10 @@ def run_benchmark(run: BenchmarkRun, executor: str = "local", workers: int | Non
     suite = load_suite(run.suite_file)
     identity = check_run(run, suite)
     out = Path(run.out)
-    write_text_atomic(out / "run.json", strict_json.dumps(identity, indent=1))
+    marker = out / "run.json"
+    ran_on = json.loads(marker.read_text()).get(RAN_ON, []) if marker.is_file() else []
+    ran_on += [machine_record()] if machine_record() not in ran_on else []
+    write_text_atomic(marker, strict_json.dumps({**identity, RAN_ON: ran_on}, indent=1))
     jobs = plan(run, suite)
     if executor == "local" and workers == 1:
         from tqdm import tqdm
@@ -288,13 +335,13 @@ def run_benchmark(run: BenchmarkRun, executor: str = "local", workers: int | Non
             raise BenchmarkError(f"{len(failed)} of {len(jobs)} chunks failed; the first, {failed[0].name}: "
                                  f"{failed[0].error}. Finished episodes are kept in {out}/parts: fix the cause and "
                                  "run the same command again to resume")
-    return collect(run, suite, jobs, identity, time.perf_counter() - start)
+    return collect(run, suite, jobs, {**identity, RAN_ON: ran_on}, time.perf_counter() - start)
 
 
 def collect(run: BenchmarkRun, suite: Suite, jobs: list[Job], identity: dict[str, Any],
             wall_s: float) -> dict[str, Any]:
     """Gather the chunks of a finished run into ``episodes.jsonl`` and ``summary.json``; returns the summary.
-    ``identity`` is the run's (``check_run``), ``wall_s`` the run's wall-clock time [s]."""
+    ``identity`` is the run's (``check_run``) with its ``ran_on`` records, ``wall_s`` the run's wall-clock time [s]."""
     by_scenario: dict[str, list[dict]] = {}
     timing: dict[str, dict[str, float]] = {}
     for job in jobs:
@@ -312,29 +359,28 @@ def collect(run: BenchmarkRun, suite: Suite, jobs: list[Job], identity: dict[str
         scenarios.append({"name": scenario.name, "env": scenario.env,
                           "env_kwargs": env_kwargs_of(scenario, run.predictor), "description": scenario.description,
                           "episodes": [{k: v for k, v in e.items() if k != "scenario"} for e in episodes],
-                          "summary": _summary(episodes), "timing": timing[scenario.name]})
+                          "summary": summary_of(episodes), "timing": timing[scenario.name]})
     summary = {"format": RESULT_FORMAT, **{k: v for k, v in identity.items() if k not in ("episodes", "scenarios")},
                "episodes_per_scenario": identity["episodes"], "scenario_set": identity["scenarios"],
-               "suite_scenarios": len(suite.scenarios), "stcrowd_version": _stcrowd_version(),
-               "scenarios": scenarios, "summary": _summary(every),
+               "suite_scenarios": len(suite.scenarios),
+               "scenarios": scenarios, "summary": summary_of(every),
                "timing": {"wall_s": wall_s, **{key: sum(cell[key] for cell in timing.values())
                                                for key in ("worker_s", "policy_s", "steps")}}}
     out = Path(run.out)
     write_text_atomic(out / "episodes.jsonl", "".join(strict_json.dumps(e) + "\n" for e in every))
-    write_text_atomic(out / "summary.json", "{\n" + ",\n".join(
-        f"{strict_json.dumps(key)}: {strict_json.dumps(value, separators=(',', ':'))}"
-        for key, value in summary.items()) + "\n}\n")
+    write_text_atomic(out / "summary.json", summary_text(summary))
     return summary
 
 
-def _summary(episodes: list[dict]) -> dict[str, dict[str, Any]]:
-    """``summarize`` of JSON episode records (null read back as NaN), with NaN written as null."""
+def summary_text(summary: dict[str, Any]) -> str:
+    """``summary.json``'s text: strict JSON, one line per top-level key."""
+    return "{\n" + ",\n".join(f"{strict_json.dumps(key)}: {strict_json.dumps(value, separators=(',', ':'))}"
+                               for key, value in summary.items()) + "\n}\n"
+
+
+def summary_of(episodes: list[dict]) -> dict[str, dict[str, Any]]:
+    """``summarize`` of JSON episode records (null read back as NaN), with NaN written as null: the figures a summary
+    holds, as the leaderboard computes them again from the episodes."""
     restored = [{k: float("nan") if v is None else v for k, v in e.items()} for e in episodes]
     return {name: {k: json_value(v) for k, v in cell.items()} for name, cell in summarize(restored).items()}
 
-
-def _stcrowd_version() -> str:
-    try:
-        return version("stcrowd")
-    except PackageNotFoundError:
-        return "unknown"

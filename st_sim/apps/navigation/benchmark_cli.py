@@ -50,7 +50,9 @@ def add_parsers(subparsers: argparse._SubParsersAction) -> None:
     board = subparsers.add_parser("leaderboard", help="benchmark results side by side: a table per metric group, "
                                                       "outcomes and success per scenario, a chart; or two runs "
                                                       "paired episode by episode (--paired)")
-    board.add_argument("results", nargs="*", metavar="DIR", help="benchmark output folders")
+    board.add_argument("results", nargs="*", metavar="DIR",
+                       help="benchmark output folders (from anyone: each is read within fixed caps, checked field by "
+                            "field, and its figures computed again from its episodes)")
     board.add_argument("--paired", nargs=2, default=None, metavar=("A", "B"),
                        help="instead of the tables: two runs on the same episodes (benchmark folders, or navigate "
                             "--json files) paired, successes and at-fault collisions with one-sided exact McNemar "
@@ -62,7 +64,11 @@ def add_parsers(subparsers: argparse._SubParsersAction) -> None:
                             "different scenario sets, whose pooled figures do not compare)")
     board.add_argument("--no-baselines", action="store_true",
                        help="leave out the shipped planners' committed results (default: include those measured "
-                            "on the same suite version, split and episode count)")
+                            "on the same episodes: suite version and content, version of the metrics, split and "
+                            "episode count)")
+    board.add_argument("--ran-on", action="store_true",
+                       help="also a table of where each result ran: STCrowd's commit, package versions, CPU and SIMD "
+                            "levels (docs: Reproducing a result)")
     board.add_argument("--out", default=None, metavar="FILE", help="also write the tables to this markdown file")
     board.add_argument("--chart", default=None, metavar="PNG", help="also draw success against at-fault collisions")
 
@@ -99,7 +105,8 @@ def run_benchmark_command(args: argparse.Namespace) -> int:
 
 def run_leaderboard_command(args: argparse.Namespace) -> int:
     """Print the tables (and write them, and the chart), or the paired comparison; exit code 0."""
-    from st_sim.apps.navigation.leaderboard import baseline_results, chart, comparable, label, load_result, markdown
+    from st_sim.apps.navigation.leaderboard import baseline_results, chart, comparable, label, markdown, ran_on_table
+    from st_sim.apps.navigation.result_folder import load_result
 
     if args.paired:
         if args.results:
@@ -117,7 +124,7 @@ def run_leaderboard_command(args: argparse.Namespace) -> int:
         baselines, note = baseline_results(results[0], common_scenarios=args.common_scenarios)
         results += [r for r in baselines if label(r) not in own]
     results = comparable(results, args.common_scenarios)
-    text = markdown(results, note)
+    text = markdown(results, note) + ("\n" + ran_on_table(results) if args.ran_on else "")
     print(text)
     if args.out:
         write_text_atomic(Path(args.out), text)

@@ -1,15 +1,23 @@
 """``python -m st_sim episode``: one episode of a finished benchmark run again, checked against its line, optionally
-recorded for Rerun.
+recorded for Rerun; ``python -m st_sim verify``: a sample of a run's episodes again, each checked the same way (is
+this machine's STCrowd the one that made the figures?).
 
     python -m st_sim episode runs/bench/mine univ-reactive 17 --rerun univ-reactive-17.rrd
     python -m st_sim episode results/benchmark/mpc-singular univ-reactive 17 --spawn     # a committed result
+    python -m st_sim verify results/benchmark/orca-none --per-scenario 2                  # the first 2 of each scenario
 
-Everything comes from the run's ``summary.json`` (or ``summary.json.gz``): the scenario's env and keywords
-(``scenarios[].env``, ``env_kwargs``, the predictor among them), the episode's seed (``scenarios[].episodes[]``), the
-policy spec and the predictor. The episode runs as the benchmark ran it (one thread, the policy built the same way),
-its figures are printed, and each must equal the episode's line in the summary, as JSON writes it: a figure that
-differs is an error naming it (the code, the policy or the data changed since the run), so a recording made here
-shows exactly the episode the numbers came from. The recording is ``episode_recording.EpisodeTape``'s.
+The episode comes from the run's ``summary.json`` (or ``summary.json.gz``): the scenario's env and keywords
+(``scenarios[].env``, ``env_kwargs``), the episode's seed (``scenarios[].episodes[]``), the policy and the predictor.
+A results folder is data from someone else, so nothing it names runs unless the user names it too: the env must be
+one of STCrowd's registered ids and its keywords pass the suite's allow-list (``envs.suite.check_scenario``: no
+path, no module), the policy is taken from the folder only if it is a shipped planner or a peer by name, and the
+predictor only if it is a shipped one by name; any other (``package.module:name``, ``sb3:PATH``) must be given on the
+command line (``--policy``, ``--predictor``), which is refused otherwise, saying how.
+
+The episode runs as the benchmark ran it (one thread, the policy built the same way), its figures are printed, and
+each must equal the episode's line in the summary, as JSON writes it: a figure that differs is an error naming it (the
+code, the policy or the data changed since the run), so a recording made here shows exactly the episode the numbers
+came from. The recording is ``episode_recording.EpisodeTape``'s.
 """
 
 from __future__ import annotations
@@ -19,8 +27,11 @@ import os
 from pathlib import Path
 from typing import Any
 
+from envs.suite import SuiteError, check_scenario
 from replays import strict_json
 from st_sim.apps.grid import one_thread
+from st_sim.apps.navigation.policies import TRUST_HELP
+from st_sim.apps.navigation.predictors import predictor_argument
 from st_sim.command_line import CliError
 
 NO_FIGURE = object()  # a figure one side of the comparison does not have
@@ -36,8 +47,48 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
     replay.add_argument("episode", metavar="EPISODE", type=int, help="the episode's index in its scenario (0, 1, ...)")
     replay.add_argument("--rerun", default=None, metavar="OUT.rrd", help="write a Rerun recording of the episode here")
     replay.add_argument("--spawn", action="store_true", help="show the episode in a Rerun viewer started now")
+    replay.add_argument("--policy", default=None, metavar="SPEC",
+                        help="the policy to run, when the run's is not a shipped planner by name (a results folder "
+                             "never names code to run: give package.module:name or sb3:PATH.zip yourself)")
+    replay.add_argument("--predictor", type=predictor_argument, default=None, metavar="SPEC",
+                        help="the predictor, when the run's is a plug-in package.module:name (given yourself)")
+    replay.add_argument("--trust-policy-file", action="store_true", help=TRUST_HELP)
     replay.add_argument("--data-root", default=None, help="ETH/UCY folder (default: $STCROWD_DATA or the cache)")
     return replay
+
+
+def add_verify_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
+    """Register the ``verify`` subcommand."""
+    verify = subparsers.add_parser("verify", help="re-run the first episodes of every scenario of finished benchmark "
+                                                  "runs and compare each with its line (does this machine reproduce "
+                                                  "them?)")
+    verify.add_argument("folders", nargs="+", metavar="DIR", help="benchmark output folders (results/benchmark/...)")
+    verify.add_argument("--per-scenario", type=int, default=1, metavar="K",
+                        help="episodes re-run per scenario, the first K (default: 1)")
+    verify.add_argument("--scenarios", nargs="+", default=["*"], metavar="PATTERN",
+                        help="only the scenarios matching these glob patterns (default: all)")
+    verify.add_argument("--data-root", default=None, help="ETH/UCY folder (default: $STCROWD_DATA or the cache)")
+    return verify
+
+
+def chosen_specs(summary: dict[str, Any], folder: str | os.PathLike, policy: str | None,
+                 predictor: str | None) -> tuple[str, str]:
+    """(policy, predictor) to replay a run with: each the user's if given, else the run's if it is shipped by name
+    (``planners.NAMED``, ``predictors.NAMES``); ``CliError`` naming the run's spec and the flag to give otherwise."""
+    from st_sim.apps.navigation.planners import NAMED
+    from st_sim.apps.navigation.predictors import NAMES
+
+    if policy is None:
+        policy = summary["policy"]
+        if policy not in NAMED:
+            raise CliError(f"{folder}: the run's policy {policy!r} is not a shipped planner, and a results folder "
+                           "names no code to run: if you trust it, give it yourself with --policy SPEC")
+    if predictor is None:
+        predictor = summary["predictor"]
+        if predictor not in NAMES:
+            raise CliError(f"{folder}: the run's predictor {predictor!r} is not a shipped one, and a results folder "
+                           "names no code to run: if you trust it, give it yourself with --predictor SPEC")
+    return policy, predictor
 
 
 def find_episode(summary: dict[str, Any], folder: str | os.PathLike, scenario: str, episode: int
@@ -70,27 +121,32 @@ def _shown(value: Any) -> str:
 
 
 def replay_episode(folder: str | os.PathLike, scenario: str, episode: int, rerun: str | None = None,
-                   data_root: str | None = None) -> tuple[dict[str, Any], dict[str, Any], Path | None]:
+                   data_root: str | None = None, policy: str | None = None, predictor: str | None = None,
+                   trust_policy_file: bool = False) -> tuple[dict[str, Any], dict[str, Any], Path | None]:
     """Run episode ``episode`` of ``scenario`` of the benchmark run in ``folder`` again.
 
     Args:
         rerun: a .rrd path or "spawn" to record it (None: no recording).
+        policy, predictor: specs given by the user (None: the run's, if shipped by name; ``chosen_specs``).
+        trust_policy_file: load an ``sb3:`` policy with stable-baselines3's own loader.
 
     Returns:
         (the episode's line in the run, the line measured now, as ``episodes.jsonl`` writes them; the recording's
         file, None without one or for a viewer).
 
     Raises:
-        CliError: the folder holds no benchmark result, or not that scenario or episode.
+        CliError: the folder holds no benchmark result, or not that scenario or episode, or names an env, keyword,
+            policy or predictor that it may not (see the module docstring).
     """
     import gymnasium as gym
 
     from st_sim.apps.navigation.benchmark import episode_record
     from st_sim.apps.navigation.episode_recording import EpisodeTape
     from st_sim.apps.navigation.episodes import run_episode
-    from st_sim.apps.navigation.leaderboard import LeaderboardError, label, load_result
+    from st_sim.apps.navigation.leaderboard import label
     from st_sim.apps.navigation.metrics import episode_metrics
     from st_sim.apps.navigation.policies import load_policy
+    from st_sim.apps.navigation.result_folder import LeaderboardError, load_result
     from st_sim.apps.navigation.world import world_of
 
     try:
@@ -98,18 +154,66 @@ def replay_episode(folder: str | os.PathLike, scenario: str, episode: int, rerun
     except LeaderboardError as err:
         raise CliError(str(err)) from None
     entry, expected = find_episode(summary, folder, scenario, episode)
-    kwargs = dict(entry["env_kwargs"]) | ({} if data_root is None else {"root": data_root})
+    policy, predictor = chosen_specs(summary, folder, policy, predictor)
+    kwargs = dict(entry["env_kwargs"])
+    if kwargs.pop("predictor", summary["predictor"]) != summary["predictor"]:
+        raise CliError(f"{folder}: scenario {scenario}: its env_kwargs name another predictor than the run's "
+                       f"{summary['predictor']!r}")
+    try:
+        check_scenario(entry["env"], kwargs, f"{folder}: scenario {scenario}")
+    except SuiteError as err:
+        raise CliError(str(err)) from None
+    kwargs |= {"predictor": predictor} | ({} if data_root is None else {"root": data_root})
     env = gym.make(entry["env"], **kwargs)
     try:
         world = world_of(env)
-        policy = load_policy(summary["policy"], world, summary["predictor"])
-        tape = None if rerun is None else EpisodeTape(env, forecasts=summary["predictor"] != "none")
-        trace, _ = run_episode(tape or env, policy, world, expected["seed"])
+        checked = load_policy(policy, world, predictor, trust_file=trust_policy_file)
+        tape = None if rerun is None else EpisodeTape(env, forecasts=predictor != "none")
+        trace, _ = run_episode(tape or env, checked, world, expected["seed"])
         measured = episode_record(scenario, episode, expected["seed"], episode_metrics(trace))
         path = None if tape is None else tape.write(rerun, measured, label(summary))
     finally:
         env.close()
     return expected, measured, path
+
+
+def run_verify(args: argparse.Namespace) -> int:
+    """Replay the first ``--per-scenario`` episodes of every matching scenario of each folder (one thread), print one
+    line per scenario; exit code 0 if every figure of every episode equals the run's, else 1 (the lines name them)."""
+    import fnmatch
+
+    from tqdm import tqdm
+
+    from st_sim.apps.navigation.result_folder import LeaderboardError, load_result
+
+    if args.per_scenario < 1:
+        raise CliError(f"--per-scenario {args.per_scenario}: give 1 or more")
+    one_thread()
+    differing = 0
+    for folder in args.folders:
+        try:
+            summary = load_result(folder)
+        except LeaderboardError as err:
+            raise CliError(str(err)) from None
+        names = [entry["name"] for entry in summary["scenarios"]
+                 if any(fnmatch.fnmatch(entry["name"], pattern) for pattern in args.scenarios)]
+        for name in tqdm(names, desc=str(folder), unit="scenario", leave=False):
+            episodes = [line["episode"] for line in find_episode(summary, folder, name, 0)[0]["episodes"]]
+            wrong = {}
+            for episode in episodes[:args.per_scenario]:
+                expected, measured, _ = replay_episode(folder, name, episode, data_root=args.data_root)
+                found = differences(expected, measured)
+                if found:
+                    wrong[episode] = found
+            differing += len(wrong)
+            shown = "; ".join(f"episode {episode}: {', '.join(found)}" for episode, found in wrong.items())
+            tqdm.write(f"{folder} {name}: {min(args.per_scenario, len(episodes)) - len(wrong)} of "
+                  f"{min(args.per_scenario, len(episodes))} episodes reproduce" + (f" ({shown})" if wrong else ""))
+    if differing:
+        raise CliError(f"{differing} episodes do not reproduce: this machine's STCrowd, its packages or the data "
+                       "differ from the run's (compare its ran_on records: docs, Reproducing a result)")
+    print("every episode re-run equals its line")
+    return 0
 
 
 def run(args: argparse.Namespace) -> int:
@@ -119,7 +223,8 @@ def run(args: argparse.Namespace) -> int:
         raise CliError("give --rerun OUT.rrd or --spawn, not both")
     one_thread()
     target = "spawn" if args.spawn else args.rerun
-    expected, measured, path = replay_episode(args.folder, args.scenario, args.episode, target, args.data_root)
+    expected, measured, path = replay_episode(args.folder, args.scenario, args.episode, target, args.data_root,
+                                              args.policy, args.predictor, args.trust_policy_file)
     width = max(map(len, measured))
     print("\n".join(f"{key:<{width}}  {_shown(value)}" for key, value in measured.items()))
     if path is not None:

@@ -5,75 +5,53 @@
 Each folder is a ``benchmark`` output (its ``summary.json``). The shipped planners' results on the same episodes
 (``results/benchmark/`` in the repository: the whole suite's test seeds, 100 episodes per scenario) join the table
 unless ``--no-baselines``: a new run is compared with them at once; when they cannot join, the table says why and
-how to get them. Results measured on other episodes (another suite, version, split or episode count) are refused,
-since their figures do not compare; so are results over different scenario sets, unless ``--common-scenarios``
-pools every result over the scenarios they share (and the header says so).
+how to get them. Results measured on other episodes (another suite, suite content, version of the metrics, split or
+episode count: ``SAME_EPISODES``; or other seeds in a scenario they share) are refused, since their figures do not
+compare; so are results over different scenario sets, unless ``--common-scenarios`` pools every result over the
+scenarios they share (and the header says so).
+
+Folders are read as data (``result_folder.load_result``): within caps, every field checked, every figure computed
+again from the episodes, every label escaped (``result_folder.shown``).
 """
 
 from __future__ import annotations
 
-import gzip
-import json
 import os
 from pathlib import Path
 from typing import Any
 
-from st_sim.apps.navigation.benchmark import RESULT_FORMAT, json_value
-from st_sim.apps.navigation.metrics import GROUPS, METRICS, Outcome, summarize
+from st_sim.apps.navigation.benchmark import summary_of
+from st_sim.apps.navigation.metrics import GROUPS, METRICS, Outcome
 from st_sim.apps.navigation.report import metric_label
+from st_sim.apps.navigation.result_folder import LeaderboardError, load_result, shell_words, shown
 
 BASELINES_DIR = Path(__file__).resolve().parents[3] / "results" / "benchmark"
 """the shipped planners' committed results, one folder each holding ``summary.json.gz`` (a clone of the repository
 has them)"""
-SAME_EPISODES = ("suite", "suite_version", "split", "episodes_per_scenario")
+SAME_EPISODES = ("suite", "suite_version", "suite_sha256", "benchmark_version", "split", "episodes_per_scenario")
+"""what results tabled side by side share: the suite's name, version and content (its SHA-256: seeds, scenarios, env
+settings), the version of the metrics' definitions, the seed list and the episodes per scenario"""
 GROUP_TITLES = {"safety": "Safety", "efficiency": "Efficiency", "comfort": "Comfort and social"}
-
-
-class LeaderboardError(ValueError):
-    """A folder holds no benchmark result, or results that were measured on other episodes."""
-
-
-def load_result(folder: str | os.PathLike) -> dict[str, Any]:
-    """The ``summary.json`` (or gzipped ``summary.json.gz``, as the committed results are kept) of a benchmark output
-    folder, checked to be one (``LeaderboardError`` otherwise). A summary written before runs recorded their scenario
-    set gets ``scenario_set`` and ``suite_scenarios`` from its scenarios."""
-    path = Path(folder) / "summary.json"
-    if not path.is_file() and path.with_suffix(".json.gz").is_file():
-        path = path.with_suffix(".json.gz")
-    try:
-        text = gzip.decompress(path.read_bytes()).decode() if path.suffix == ".gz" else path.read_text()
-        result = json.loads(text)
-    except FileNotFoundError:
-        raise LeaderboardError(f"{folder}: no summary.json (run `python -m st_sim benchmark --out {folder}` "
-                               "first; an interrupted run writes it when resumed to the end)") from None
-    except (OSError, EOFError, UnicodeDecodeError, json.JSONDecodeError) as err:
-        raise LeaderboardError(f"{path}: not a readable benchmark summary ({err})") from err
-    if not isinstance(result, dict) or result.get("format") != RESULT_FORMAT:
-        raise LeaderboardError(f"{path}: not a benchmark summary (expected format {RESULT_FORMAT})")
-    result.setdefault("scenario_set", [scenario["name"] for scenario in result["scenarios"]])
-    result.setdefault("suite_scenarios", len(result["scenario_set"]))
-    return result
 
 
 def baseline_results(like: dict[str, Any], folder: Path = BASELINES_DIR,
                      common_scenarios: bool = False) -> tuple[list[dict[str, Any]], str | None]:
-    """The committed results in ``folder`` that can stand beside ``like``: measured on the same episodes, over the
-    same scenarios (or any, with ``common_scenarios``). Returns them and, when none can, a sentence that says why
-    and how to get them."""
+    """The committed results in ``folder`` that can stand beside ``like``: measured on the same episodes
+    (``SAME_EPISODES``), over the same scenarios (or any, with ``common_scenarios``). Returns them and, when none
+    can, a sentence that says why and how to get them."""
     if not folder.is_dir():
         return [], f"the shipped planners' results are not here ({folder} is missing: a clone of the repository has it)"
     found = [load_result(path) for path in sorted(folder.iterdir()) if path.is_dir()]
     same = [result for result in found if all(result[key] == like[key] for key in SAME_EPISODES)]
     if not same:
-        kept = found[0] if found else None
-        measured = "" if kept is None else (f" (they were measured on the {kept['split']} seeds, "
-                                            f"{kept['episodes_per_scenario']} episodes per scenario, suite "
-                                            f"{kept['suite']} {kept['suite_version']})")
+        measured = "" if not found else " (" + "; ".join(
+            f"{key} {shown(str(found[0][key]))} there, {shown(str(like[key]))} here" for key in SAME_EPISODES
+            if found[0][key] != like[key]) + ")"
         return [], (f"the shipped planners are left out: no committed result was measured on the episodes of this "
-                    f"run, {like['split']} seeds with {like['episodes_per_scenario']} per scenario{measured}. To see "
-                    "them beside it, run the benchmark on those settings (`--suite test`, default episodes), or run a "
-                    "shipped planner on this run's settings (`python -m st_sim benchmark --policy mpc --suite "
-                    f"{like['split']} --episodes {like['episodes_per_scenario']} --out DIR`) and list its folder")
+                    f"run{measured}. To see them beside it, run the benchmark on their settings (`--suite test`, "
+                    "default episodes, the shipped suite), or run a shipped planner on this run's settings (`python "
+                    f"-m st_sim benchmark --policy mpc --suite {shell_words(like['split'])} --episodes "
+                    f"{like['episodes_per_scenario']} --out DIR`) and list its folder")
     if common_scenarios:
         return same, None
     fitting = [result for result in same if result["scenario_set"] == like["scenario_set"]]
@@ -84,24 +62,40 @@ def baseline_results(like: dict[str, Any], folder: Path = BASELINES_DIR,
 
 
 def label(result: dict[str, Any]) -> str:
-    """How a result is named in tables: its policy, and the predictor in the env unless none."""
-    return result["policy"] if result["predictor"] == "none" else f"{result['policy']} + {result['predictor']}"
+    """How a result is named in tables and charts (``shown``): its policy, and the predictor in the env unless
+    none."""
+    policy = shown(result["policy"])
+    return policy if result["predictor"] == "none" else f"{policy} + {shown(result['predictor'])}"
+
+
+def episodes_line(result: dict[str, Any]) -> str:
+    """The episodes a result was measured on, in words (``shown``): suite, version, split, episodes per scenario."""
+    return (f"{shown(result['suite'])} {shown(result['suite_version'])}, {shown(result['split'])} seeds, "
+            f"{result['episodes_per_scenario']} episodes per scenario")
 
 
 def check_comparable(results: list[dict[str, Any]], common_scenarios: bool = False) -> None:
-    """Refuse results measured on different episodes, over different scenario sets (unless ``common_scenarios``),
-    or two of the same name (``LeaderboardError``)."""
+    """Refuse results measured on different episodes (``SAME_EPISODES``, or other seeds in a scenario they share),
+    over different scenario sets (unless ``common_scenarios``), or two of the same name (``LeaderboardError``)."""
     first = results[0]
     for result in results[1:]:
         differ = [f"{key} {first[key]!r} vs {result[key]!r}" for key in SAME_EPISODES if result[key] != first[key]]
         if differ:
             raise LeaderboardError(f"{label(first)} and {label(result)} were measured on different episodes "
-                                   f"({', '.join(differ)}); compare results of one suite version, split and size")
+                                   f"({', '.join(differ)}); compare results of one suite (name, version and content), "
+                                   "one version of the metrics, split and size")
         if not common_scenarios and result["scenario_set"] != first["scenario_set"]:
             raise LeaderboardError(
                 f"{label(first)} ran {len(first['scenario_set'])} scenarios, {label(result)} "
                 f"{len(result['scenario_set'])}: their pooled figures do not compare. Pass --common-scenarios to pool "
                 f"every result over the {len(shared_scenarios([first, result]))} scenarios they share")
+        seeds = {scenario["name"]: [e["seed"] for e in scenario["episodes"]] for scenario in first["scenarios"]}
+        other = next((s["name"] for s in result["scenarios"]
+                      if s["name"] in seeds and [e["seed"] for e in s["episodes"]] != seeds[s["name"]]), None)
+        if other is not None:
+            raise LeaderboardError(f"{label(first)} and {label(result)} ran scenario {shown(other)} on different "
+                                   "seeds, though their suites' content is the same (suite_sha256): one of them is "
+                                   "not what it claims")
     names = [label(result) for result in results]
     if len(set(names)) < len(names):
         raise LeaderboardError(f"two results are both {max(names, key=names.count)!r}; give each folder once")
@@ -115,9 +109,8 @@ def shared_scenarios(results: list[dict[str, Any]]) -> list[str]:
 def restricted(result: dict[str, Any], names: list[str]) -> dict[str, Any]:
     """``result`` kept to the scenarios ``names``, its pooled summary computed again over their episodes."""
     kept = [scenario for scenario in result["scenarios"] if scenario["name"] in names]
-    episodes = [{k: float("nan") if v is None else v for k, v in e.items()} for s in kept for e in s["episodes"]]
-    summary = {name: {k: json_value(v) for k, v in cell.items()} for name, cell in summarize(episodes).items()}
-    return {**result, "scenarios": kept, "scenario_set": [s["name"] for s in kept], "summary": summary}
+    return {**result, "scenarios": kept, "scenario_set": [s["name"] for s in kept],
+            "summary": summary_of([e for s in kept for e in s["episodes"]])}
 
 
 def comparable(results: list[dict[str, Any]], common_scenarios: bool = False) -> list[dict[str, Any]]:
@@ -143,15 +136,15 @@ def markdown(results: list[dict[str, Any]], note: str | None = None) -> str:
         pooled = f"pooled over every episode of the suite's {total} scenarios"
     else:
         pooled = (f"pooled over the episodes of the {count} scenarios every result holds, of the suite's {total} "
-                  f"({', '.join(first['scenario_set'])})")
-    lines = [f"Suite {first['suite']} {first['suite_version']}, {first['split']} seeds, "
-             f"{first['episodes_per_scenario']} episodes per scenario; every cell: value [95 % interval], {pooled}.",
-             ""]
+                  f"({', '.join(map(shown, first['scenario_set']))})")
+    lines = [f"Suite {episodes_line(first)}; every cell: value [95 % interval], {pooled}.", ""]
     if note:
         lines += [f"Note: {note}.", ""]
     for group in GROUPS:
         names = [name for name, metric in METRICS.items() if metric.group == group
                  and any(result["summary"].get(name, {}).get("n") for result in results)]
+        if not names:  # no figure of the group exists in any result's episodes
+            continue
         lines += [f"### {GROUP_TITLES[group]}", "", "| policy | " + " | ".join(map(metric_label, names)) + " |",
                   "|---|" + "---|" * len(names)]
         lines += ["| " + label(result) + " | " + " | ".join(_cell(result["summary"].get(name)) for name in names)
@@ -166,10 +159,30 @@ def markdown(results: list[dict[str, Any]], note: str | None = None) -> str:
     return "\n".join(lines)
 
 
+def ran_on_table(results: list[dict[str, Any]]) -> str:
+    """A markdown table of where each result ran (``provenance``: its ``ran_on`` records, one row each; a result
+    written before runs recorded them gets one row saying so); every value ``shown``."""
+    lines = ["### Where they ran", "", "| policy | commit | tree clean | numpy | torch | numba | CPU | SIMD "
+             "(numpy / torch / numba) |", "|---|---|---|---|---|---|---|---|"]
+    for result in results:
+        records = result.get("ran_on")
+        if not isinstance(records, list) or not records:
+            lines.append(f"| {label(result)} | not recorded (written before runs recorded it) |" + " |" * 6)
+            continue
+        for record in records:
+            cells = [str(record.get("commit", "?"))[:12], str(record.get("tree_clean", "?")),
+                     *(str(record.get("versions", {}).get(name, "?")) for name in ("numpy", "torch", "numba")),
+                     str(record.get("cpu", "?")), " / ".join(str(record.get("simd", {}).get(name, "?"))
+                                                             for name in ("numpy", "torch", "numba"))]
+            lines.append(f"| {label(result)} | " + " | ".join(shown(cell) for cell in cells) + " |")
+    return "\n".join([*lines, ""])
+
+
 def _per_scenario(results: list[dict[str, Any]], title: str, cell: Any) -> list[str]:
     """A table of one row per result and one column per scenario, each cell ``cell(scenario entry)``."""
     scenarios = results[0]["scenario_set"]
-    lines = [f"### {title}", "", "| policy | " + " | ".join(scenarios) + " |", "|---|" + "---|" * len(scenarios)]
+    lines = [f"### {title}", "", "| policy | " + " | ".join(map(shown, scenarios)) + " |",
+             "|---|" + "---|" * len(scenarios)]
     for result in results:
         by_name = {scenario["name"]: scenario for scenario in result["scenarios"]}
         lines.append("| " + label(result) + " | " + " | ".join(
@@ -203,8 +216,6 @@ def chart(results: list[dict[str, Any]], path: str | os.PathLike) -> Path:
         x, y = result["summary"]["collision_at_fault"], result["summary"]["success"]
         points.append(ScatterPoint(label(result), x["value"], y["value"], (x["low"], x["high"]),
                                    (y["low"], y["high"])))
-    first = results[0]
     figure = interval_scatter("collisions at fault (share of episodes)", "success (share of episodes)",
-                              {f"{first['suite']} {first['suite_version']}, {first['split']} seeds, "
-                               f"{first['episodes_per_scenario']} episodes per scenario": points})
+                              {episodes_line(results[0]): points})
     return save_figure(figure, path)

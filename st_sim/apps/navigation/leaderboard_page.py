@@ -6,8 +6,10 @@ that record and replay their failures.
     python -m st_sim.apps.navigation.leaderboard_page runs/bench/mine results/benchmark/mpc-singular \\
         --chart scenarios.png --out worst.md
 
-Each folder is a ``benchmark`` output (``summary.json``, or the committed ``summary.json.gz``); the results must
-have been measured on the same episodes (``leaderboard.check_comparable``).
+Each folder is a ``benchmark`` output (``summary.json``, or the committed ``summary.json.gz``, read and checked by
+``result_folder.load_result``); the results must have been measured on the same episodes
+(``leaderboard.check_comparable``). Their labels reach the table and the chart through ``result_folder.shown``, and
+the commands' words are quoted for the shell too (``leaderboard.shell_words``).
 """
 
 from __future__ import annotations
@@ -17,7 +19,9 @@ from pathlib import Path
 from typing import Any
 
 from replays.atomic import write_text_atomic
-from st_sim.apps.navigation.leaderboard import BASELINES_DIR, check_comparable, label, load_result
+from st_sim.apps.navigation.leaderboard import BASELINES_DIR, check_comparable, label
+from st_sim.apps.navigation.metrics import RATES
+from st_sim.apps.navigation.result_folder import load_result, shell_words, shown
 
 WORST = 3  # scenarios listed per policy [-]
 REPO = BASELINES_DIR.parents[1]
@@ -31,17 +35,17 @@ def scenario_chart(results: list[dict[str, Any]], path: str | Path) -> Path:
     from st_sim.charts import ScatterPoint, save_figure, small_multiples
 
     check_comparable(results)
-    panels: dict[str, list] = {scenario["name"]: [] for scenario in results[0]["scenarios"]}
+    panels: dict[str, list] = {shown(scenario["name"]): [] for scenario in results[0]["scenarios"]}
     for result in results:
         for scenario in result["scenarios"]:
             x, y = scenario["summary"]["collision_at_fault"], scenario["summary"]["success"]
-            panels[scenario["name"]].append(ScatterPoint(label(result), x["value"], y["value"], (x["low"], x["high"]),
-                                                         (y["low"], y["high"])))
+            panels[shown(scenario["name"])].append(ScatterPoint(label(result), x["value"], y["value"],
+                                                                (x["low"], x["high"]), (y["low"], y["high"])))
     first = results[0]
     return save_figure(small_multiples(
         "collisions at fault", "success", panels,
-        title=f"per scenario: {first['suite']} {first['suite_version']}, {first['split']} seeds, "
-              f"{first['episodes_per_scenario']} episodes each; bars: 95 % intervals"), path)
+        title=f"per scenario: {shown(first['suite'])} {shown(first['suite_version'])}, {shown(first['split'])} "
+              f"seeds, {first['episodes_per_scenario']} episodes each; bars: 95 % intervals"), path)
 
 
 def worst_scenarios(result: dict[str, Any], count: int = WORST) -> list[dict[str, Any]]:
@@ -57,16 +61,21 @@ def worst_table(folders: list[Path], results: list[dict[str, Any]], count: int =
              "|---|---|---|---|"]
     for folder, result in zip(folders, results, strict=True):
         worst = worst_scenarios(result, count)
-        cells = ", ".join(f"{s['name']} {s['summary']['success']['value']:.2f}, "
+        cells = ", ".join(f"{shown(s['name'])} {s['summary']['success']['value']:.2f}, "
                           f"{s['summary']['collision_at_fault']['value']:.2f}" for s in worst)
-        record = (f"`python -m st_sim benchmark --policy {result['policy']} --predictor {result['predictor']} "
-                  f"--scenarios {' '.join(s['name'] for s in worst)} --record failures --out runs/bench/"
-                  f"{folder.name}-worst`")
-        failed = next((line for line in worst[0]["episodes"] if not line["success"]), None)
-        watch = "-" if failed is None else (f"`python -m st_sim episode {_shown_folder(folder)} {worst[0]['name']} "
-                                            f"{failed['episode']} --spawn`")
+        record = _command("benchmark", "--policy", result["policy"], "--predictor", result["predictor"],
+                          "--scenarios", *(s["name"] for s in worst), "--record", "failures", "--out",
+                          f"runs/bench/{folder.name}-worst")
+        failed = next((line for line in worst[0]["episodes"] if not RATES["success"](line)), None)
+        watch = "-" if failed is None else _command("episode", _shown_folder(folder), worst[0]["name"],
+                                                    str(failed["episode"]), "--spawn")
         lines.append(f"| {label(result)} | {cells} | {record} | {watch} |")
     return "\n".join(lines) + "\n"
+
+
+def _command(*words: str) -> str:
+    """``python -m st_sim WORDS`` as a markdown code span (``leaderboard.shell_words``)."""
+    return f"`{shell_words('python', '-m', 'st_sim', *words)}`"
 
 
 def _shown_folder(folder: Path) -> str:

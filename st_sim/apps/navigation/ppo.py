@@ -5,7 +5,10 @@
 
 A policy file holds the actor-critic's weights and its feature and network settings as plain values, and
 loads with ``torch.load(weights_only=True)``. ``train_ppo`` writes it; ``pretrained/manifest.json`` lists the
-shipped ones with their training command, budget, checksum and final training figures.
+shipped ones with their training command, budget, checksum and final training figures. ``load_policy`` reads any
+file as ``held_weights`` describes: the network it states must be within the caps on width, depth and size, and its
+weights exactly that network's tensors, each owning the bytes it holds; anything else is refused before the network
+is built.
 """
 
 from __future__ import annotations
@@ -24,6 +27,7 @@ from st_sim.apps.navigation.world import NavWorld
 
 FORMAT = "stcrowd-nav-ppo/1"
 PRETRAINED_DIR = "pretrained"
+STATE_DICT = "the state dict"  # a policy file's "weights", as its refusals name them
 SHIPPED: dict[bool, str] = {True: "ppo-predictions", False: "ppo-no-predictions"}
 """shipped policy name by whether it sees the predictions (trained on the simulated crossing)"""
 SHIPPED_REACTIVE: dict[bool, str] = {True: "ppo-reactive-predictions", False: "ppo-reactive-no-predictions"}
@@ -55,14 +59,23 @@ def policy_kwargs(cfg: FeatureConfig, net_arch: list[int], extractor: str = "fla
     return kwargs
 
 
+def policy_spaces(cfg: FeatureConfig) -> tuple[Any, Any]:
+    """(observations, actions) of the actor-critic: ``cfg``'s (cfg.size,) features and (2,) path-frame actions."""
+    from gymnasium import spaces
+
+    return spaces.Box(-np.inf, np.inf, (cfg.size,), np.float32), spaces.Box(-1.0, 1.0, (2,), np.float32)
+
+
 def build_policy(cfg: FeatureConfig, net_arch: list[int], extractor: str = "flat") -> Any:
     """A fresh stable-baselines3 actor-critic for ``cfg``'s features and path-frame actions (``policy_kwargs``)."""
-    from gymnasium import spaces
     from stable_baselines3.common.policies import ActorCriticPolicy
 
-    return ActorCriticPolicy(spaces.Box(-np.inf, np.inf, (cfg.size,), np.float32),
-                             spaces.Box(-1.0, 1.0, (2,), np.float32), lambda _: 0.0,
-                             **policy_kwargs(cfg, net_arch, extractor))
+    return ActorCriticPolicy(*policy_spaces(cfg), _no_learning, **policy_kwargs(cfg, net_arch, extractor))
+
+
+def _no_learning(progress_remaining: float) -> float:
+    """Learning-rate schedule of a policy built here, which only acts or holds weights (PPO trains with its own)."""
+    return 0.0
 
 
 def save_policy(policy: Any, cfg: FeatureConfig, net_arch: list[int], path: str | Path, extractor: str = "flat") -> str:
@@ -93,28 +106,75 @@ def policy_file(name_or_path: str | Path) -> tuple[Path, str | None]:
 
 
 def load_policy(name_or_path: str | Path) -> tuple[Any, FeatureConfig]:
-    """(actor-critic in eval mode, its FeatureConfig) from a shipped name (see ``SHIPPED``) or a file path."""
+    """(actor-critic in eval mode, its FeatureConfig) from a shipped name (see ``SHIPPED``) or a file path. Raises
+    ``PolicyFileError`` naming the file and the problem, before building a network that is not the file's."""
     import torch
+
+    from st_sim.apps.navigation.held_weights import MAX_WEIGHTS_BYTES, WeightsError, held_weights, read_torch
 
     path, expected_sha = policy_file(name_or_path)
     manifest = shipped_manifest()["policies"]
     if not path.is_file():
         raise PolicyFileError(f"{path}: no such policy file; shipped policies: {', '.join(manifest)}")
-    if expected_sha is not None and hashlib.sha256(path.read_bytes()).hexdigest() != expected_sha:
+    if path.stat().st_size > MAX_WEIGHTS_BYTES:
+        raise PolicyFileError(f"{path}: {path.stat().st_size} bytes, more than the {MAX_WEIGHTS_BYTES} a policy "
+                              "file may hold")
+    raw = path.read_bytes()
+    if expected_sha is not None and hashlib.sha256(raw).hexdigest() != expected_sha:
         raise PolicyFileError(f"{path}: SHA-256 differs from the manifest (corrupt or replaced file)")
     try:
-        state = torch.load(path, map_location="cpu", weights_only=True)
-    except Exception as err:  # torch raises several types for truncated or foreign files
-        raise PolicyFileError(f"{path}: not a readable policy file (truncated or not a torch file): {err}") from err
-    if not isinstance(state, dict) or state.get("format") != FORMAT:
-        raise PolicyFileError(f"{path}: not an STCrowd navigation policy (expected format {FORMAT})")
-    try:
-        cfg = FeatureConfig(**state["features"])
-        policy = build_policy(cfg, state["net_arch"], state.get("extractor", "flat"))  # files before 2026-11-26: flat
+        state = read_torch(raw, "the file")
+        if not isinstance(state, dict) or state.get("format") != FORMAT:
+            raise WeightsError(f"not an STCrowd navigation policy (expected format {FORMAT})")
+        held = held_weights(state.get("weights"), STATE_DICT, len(raw))
+        cfg, net_arch, extractor = _settings(state)
+        _check_network(cfg, net_arch, extractor, state["weights"], held)
+        with torch.random.fork_rng(devices=[]):  # building draws initial weights: keep the caller's random state
+            policy = build_policy(cfg, net_arch, extractor)
         policy.load_state_dict(state["weights"])
+    except WeightsError as err:
+        raise PolicyFileError(f"{path}: {err.problem}") from None
     except (RuntimeError, TypeError, ValueError, KeyError) as err:
         raise PolicyFileError(f"{path}: weights do not fit the recorded network: {err}") from err
     return policy.eval(), cfg
+
+
+def _settings(state: dict[str, Any]) -> tuple[FeatureConfig, list[int], str]:
+    """(features, net_arch, extractor) a policy file states, refused (``WeightsError``) if its network's layers are
+    not within ``held_weights``' caps or its extractor is unknown."""
+    from st_sim.apps.navigation.held_weights import MAX_HIDDEN_LAYERS, MAX_WIDTH, WeightsError, is_layers
+
+    net_arch, extractor = state.get("net_arch"), state.get("extractor", "flat")  # files before 2026-11-26: flat
+    if not is_layers(net_arch):
+        raise WeightsError(f"net_arch {' '.join(str(net_arch).split())[:80]} is not a list of at most "
+                           f"{MAX_HIDDEN_LAYERS} layer widths from 1 to {MAX_WIDTH}")
+    if extractor not in EXTRACTORS:
+        raise WeightsError(f"extractor {str(extractor)[:40]!r} is not one of {', '.join(EXTRACTORS)}")
+    features = state.get("features")
+    if not isinstance(features, dict):
+        raise WeightsError(f"features are a {type(features).__name__}, not the settings of a FeatureConfig")
+    return FeatureConfig(**features), net_arch, extractor
+
+
+def _check_network(cfg: FeatureConfig, net_arch: list[int], extractor: str, weights: dict[str, Any],
+                   held: int) -> None:
+    """Refuse the network a policy file states unless it holds exactly its ``held`` weights, before building it: the
+    weights its layers imply (actor and critic from the extractor's features to the (2,) action and the value: fewer
+    than the whole network's) within the caps and those held; then, built on the meta device, as many weights, with
+    the names, shapes and dtypes of ``weights``."""
+    from stable_baselines3.common.policies import ActorCriticPolicy
+
+    from st_sim.apps.navigation.attention import EMBED
+    from st_sim.apps.navigation.held_weights import check_fits, check_implied, mlp_weights, network_state
+
+    features = 2 * EMBED if extractor == "attention" else cfg.size  # what the layers read
+    observations, actions = policy_spaces(cfg)
+    check_implied(mlp_weights(features, [*net_arch, *actions.shape]) + mlp_weights(features, [*net_arch, 1]), held,
+                  net_arch, STATE_DICT)
+    network = network_state(ActorCriticPolicy, observations, actions, _no_learning,
+                            **policy_kwargs(cfg, net_arch, extractor))
+    check_fits(weights, network, STATE_DICT, f"the network the file states (net_arch {net_arch}, {extractor} "
+               "extractor)")
 
 
 class PpoPlanner:

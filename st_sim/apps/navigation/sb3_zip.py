@@ -13,12 +13,16 @@ weights), beside the optimizers' files. SB3 writes a plain-text form beside each
 - the observation space the model was trained on from ``observation_space``'s plain shapes and dtypes (a Box, or
   a Dict of Boxes; unbounded: acting reads no bound of a non-image space); the action space is the caller's (the
   env's), and must be the one the model states in plain text;
-- the weights with ``torch.load(weights_only=True)``: exactly the tensors of the policy built from the above.
+- the weights with ``torch.load(weights_only=True)``: exactly the tensors of the policy built from the above, each
+  owning the bytes it holds (``held_weights``).
 
 Nothing else in the zip is read. A member that declares more bytes than a model file holds (``MAX_DATA_BYTES``,
-``MAX_WEIGHTS_BYTES``), or that would expand more than ``MAX_RATIO`` times, is refused before it is decompressed
-(a zip bomb), in the zip and in the zip that ``policy.pth`` itself is; a policy that would hold another number of
-weights than ``policy.pth`` is refused before it is built.
+``held_weights.MAX_WEIGHTS_BYTES``), or that would expand more than ``held_weights.MAX_RATIO`` times, is refused
+before it is decompressed (a zip bomb), in the zip and in the zip that ``policy.pth`` itself is. Weights are counted
+from the bytes ``policy.pth`` holds (an expanded view, a slice or a shared storage is refused), and a policy whose
+layers are wider or more than ``held_weights`` allows, or that would hold another number of weights than
+``policy.pth``, or other names, shapes or dtypes, is refused before it is built (its shapes come from a build on the
+meta device, which holds no memory).
 
     policy = load_sb3_zip(Path("model.zip"), env.action_space)   # an SB3 policy on the CPU
     action, _ = policy.predict(obs, deterministic=True)           # as SB3's PPO.load("model.zip").predict
@@ -27,13 +31,11 @@ weights than ``policy.pth`` is refused before it is built.
 from __future__ import annotations
 
 import inspect
-import io
 import json
 import math
 import re
 import zipfile
 import zlib
-from itertools import pairwise
 from pathlib import Path
 from typing import Any
 
@@ -42,12 +44,23 @@ import torch
 from gymnasium import spaces
 
 from predictor.plugins import describe_error
+from st_sim.apps.navigation.held_weights import (
+    MAX_HIDDEN_LAYERS,
+    MAX_WEIGHTS_BYTES,
+    MAX_WIDTH,
+    WeightsError,
+    check_expansion,
+    check_fits,
+    check_implied,
+    held_weights,
+    is_layers,
+    mlp_weights,
+    network_state,
+    read_torch,
+    weights_in,
+)
 
 MAX_DATA_BYTES = 16 * 2**20  # the data JSON [bytes] (SB3 writes tens of kilobytes)
-MAX_WEIGHTS_BYTES = 512 * 2**20  # policy.pth, and the records inside it [bytes]
-MAX_RATIO = 100  # a compressed member may expand this many times [-] (SB3 stores its members uncompressed)
-SMALL_BYTES = 2**16  # a member this small is never a bomb, whatever its ratio [bytes]
-MAX_HIDDEN_LAYERS = 64  # hidden layers of one network in net_arch [-]
 MAX_CRITICS = 16  # n_critics [-]
 MAX_DIMS = 8  # dimensions of an observation [-]
 SAFE_ALGORITHMS = ("PPO", "A2C", "SAC", "TD3", "DDPG")
@@ -75,12 +88,8 @@ CLASS_NAME = re.compile(r"<class '(?P<module>[\w.]+)\.(?P<name>\w+)'>")
 NUMBERS = re.compile(r"\[(?P<numbers>[-+.\w\s]*)\]")
 
 
-class Sb3ZipError(ValueError):
+class Sb3ZipError(WeightsError):
     """A model file that ``load_sb3_zip`` refuses; the message names the file (when known) and the problem."""
-
-    def __init__(self, problem: str, path: Path | None = None):
-        super().__init__(problem if path is None else f"{path}: {problem}")
-        self.problem = problem
 
 
 def load_sb3_zip(path: Path, action_space: spaces.Box) -> Any:
@@ -88,8 +97,7 @@ def load_sb3_zip(path: Path, action_space: spaces.Box) -> Any:
     ``stable_baselines3`` ``BasePolicy`` on the CPU, its ``observation_space`` the one the model was trained on
     (see the module docstring). Raises ``Sb3ZipError`` naming the file and the problem."""
     try:
-        data, weights = _read(path)
-        weights_size = _size(weights)
+        data, weights, weights_size = _read(path)
         policy_class, on_policy = _policy_class(data.get("policy_class"))
         observation_space = _observation_space(data.get("observation_space"), weights_size)
         _check_actions(data.get("action_space"), action_space)
@@ -99,17 +107,17 @@ def load_sb3_zip(path: Path, action_space: spaces.Box) -> Any:
                 raise Sb3ZipError("policy_kwargs: use_sde is the algorithm's own setting, not a policy keyword")
             kwargs["use_sde"] = _plain("use_sde", data.get("use_sde", False))
         with torch.random.fork_rng(devices=[]):  # building draws initial weights: keep the caller's random state
-            _check_size(policy_class, kwargs, observation_space, action_space, weights_size, on_policy)
+            _check_network(policy_class, kwargs, observation_space, action_space, weights, on_policy)
             policy = _build(policy_class, observation_space, action_space, kwargs)
         _load_weights(policy, weights)
-    except Sb3ZipError as err:
+    except WeightsError as err:
         raise Sb3ZipError(err.problem, path) from None
     policy.set_training_mode(False)
     return policy
 
 
-def _read(path: Path) -> tuple[dict[str, Any], dict[str, torch.Tensor]]:
-    """``data`` as JSON and ``policy.pth`` as tensors."""
+def _read(path: Path) -> tuple[dict[str, Any], dict[str, torch.Tensor], int]:
+    """``data`` as JSON, ``policy.pth`` as tensors that own their bytes, and the number of weights they hold."""
     try:
         with zipfile.ZipFile(path) as archive:
             data_bytes = _member(archive, "data", MAX_DATA_BYTES)
@@ -122,7 +130,8 @@ def _read(path: Path) -> tuple[dict[str, Any], dict[str, torch.Tensor]]:
         raise Sb3ZipError(f"data is not JSON ({describe_error(err)})") from None
     if not isinstance(data, dict):
         raise Sb3ZipError(f"data is a JSON {type(data).__name__}, not an object")
-    return data, _weights(weights_bytes)
+    weights = read_torch(weights_bytes, "policy.pth")
+    return data, weights, held_weights(weights, "policy.pth", len(weights_bytes))
 
 
 def _member(archive: zipfile.ZipFile, name: str, limit_bytes: int) -> bytes:
@@ -131,7 +140,7 @@ def _member(archive: zipfile.ZipFile, name: str, limit_bytes: int) -> bytes:
         info = archive.getinfo(name)
     except KeyError:
         raise Sb3ZipError(f"no {name} in it: not a stable-baselines3 model file") from None
-    _check_expansion(info, limit_bytes, name)
+    check_expansion(info, limit_bytes, name)
     with archive.open(info) as member:
         raw = member.read(limit_bytes + 1)
     if len(raw) != info.file_size:
@@ -139,54 +148,9 @@ def _member(archive: zipfile.ZipFile, name: str, limit_bytes: int) -> bytes:
     return raw
 
 
-def _check_expansion(info: zipfile.ZipInfo, limit_bytes: int, label: str) -> None:
-    """Refuse a zip member (named ``label`` in the message) that declares more than ``limit_bytes`` or would expand
-    more than ``MAX_RATIO`` times."""
-    if info.file_size > limit_bytes:
-        raise Sb3ZipError(f"{label} declares {info.file_size} bytes, more than the {limit_bytes} a model file's "
-                          "member may hold (a zip bomb?)")
-    if info.file_size > max(MAX_RATIO * info.compress_size, SMALL_BYTES):
-        raise Sb3ZipError(f"{label} would expand from {info.compress_size} to {info.file_size} bytes, more than "
-                          f"{MAX_RATIO} times (a zip bomb?)")
-
-
-def _weights(raw: bytes) -> dict[str, torch.Tensor]:
-    """``policy.pth``: a state dict read with ``torch.load(weights_only=True)``. Torch's format is itself a zip (the
-    only format taken), whose records are checked as the model file's members are before torch reads them."""
-    try:
-        with zipfile.ZipFile(io.BytesIO(raw)) as inner:
-            records = inner.infolist()
-    except (OSError, EOFError, RuntimeError, NotImplementedError, zipfile.BadZipFile) as err:
-        raise Sb3ZipError(f"policy.pth is not a torch file in its zip format ({describe_error(err)})") from None
-    for info in records:
-        _check_expansion(info, MAX_WEIGHTS_BYTES, f"policy.pth's record {info.filename[:60]!r}")
-    if sum(info.file_size for info in records) > MAX_WEIGHTS_BYTES:
-        raise Sb3ZipError(f"policy.pth's records declare more than {MAX_WEIGHTS_BYTES} bytes (a zip bomb?)")
-    try:
-        state = torch.load(io.BytesIO(raw), map_location="cpu", weights_only=True)
-    except Exception as err:  # weights_only loads tensors and plain containers and refuses anything else, each its way
-        raise Sb3ZipError(f"policy.pth is not plain weights: torch.load(weights_only=True) refuses it "
-                          f"({_torch_problem(err)})") from None
-    if not (isinstance(state, dict) and all(isinstance(k, str) and isinstance(v, torch.Tensor)
-                                            for k, v in state.items())):
-        raise Sb3ZipError(f"policy.pth holds a {type(state).__name__}, not a state dict of named tensors")
-    return state
-
-
-def _torch_problem(err: Exception) -> str:
-    """The first sentence of what torch.load says is wrong (its messages run to paragraphs of advice)."""
-    text = " ".join(str(err).split("WeightsUnpickler error:")[-1].split())
-    return f"{type(err).__name__}: {text.split('. ')[0][:160]}"
-
-
 def _shown(value: Any, limit: int = 80) -> str:
     """``value`` as one line of at most ``limit`` characters, for a message."""
     return " ".join(str(value).split())[:limit]
-
-
-def _size(weights: dict[str, torch.Tensor]) -> int:
-    """Number of numbers in a state dict."""
-    return sum(tensor.numel() for tensor in weights.values())
 
 
 def safe_policies() -> dict[tuple[str, str], tuple[type, bool]]:
@@ -366,11 +330,9 @@ def _net_arch(value: Any) -> list[int] | dict[str, list[int]]:
     if isinstance(value, list) and value and isinstance(value[0], dict):
         value = value[0]  # as SB3's loader reads files of SB3 < 1.8
     widths = value.values() if isinstance(value, dict) else [value]
-    for layers in widths:
-        if not (isinstance(layers, list) and len(layers) <= MAX_HIDDEN_LAYERS
-                and all(isinstance(n, int) and not isinstance(n, bool) and n >= 1 for n in layers)):
-            raise Sb3ZipError(f"policy_kwargs: net_arch {_shown(value)} is not lists of at most "
-                              f"{MAX_HIDDEN_LAYERS} layer widths")
+    if not all(is_layers(layers) for layers in widths):
+        raise Sb3ZipError(f"policy_kwargs: net_arch {_shown(value)} is not lists of at most {MAX_HIDDEN_LAYERS} layer "
+                          f"widths from 1 to {MAX_WIDTH}")
     return value
 
 
@@ -388,56 +350,40 @@ def _no_learning(progress_remaining: float) -> float:
     return 0.0
 
 
-def _build(policy_class: type, observation_space: spaces.Space, action_space: spaces.Box,
-           kwargs: dict[str, Any]) -> Any:
+def _build(policy_class: type, observation_space: spaces.Space, action_space: spaces.Box, kwargs: dict[str, Any],
+           on_meta: bool = False) -> Any:
+    """The policy; ``on_meta``: its state dict on the meta device, no memory (``held_weights.network_state``)."""
     try:
+        if on_meta:
+            return network_state(policy_class, observation_space, action_space, _no_learning, **kwargs)
         return policy_class(observation_space, action_space, _no_learning, **kwargs)
     except Exception as err:  # SB3's own checks of its keywords, each its way
         raise Sb3ZipError(f"policy_kwargs {_shown(kwargs, 120)} do not build a {policy_class.__name__} "
                           f"({describe_error(err)})") from None
 
 
-def _check_size(policy_class: type, kwargs: dict[str, Any], observation_space: spaces.Space,
-                action_space: spaces.Box, weights_size: int, on_policy: bool) -> None:
-    """Refuse a policy that would hold another number of weights than policy.pth, before building it: its count is
-    affine in its flattened input size, so builds on 1 and 2 inputs tell it; and those builds are refused first if
-    net_arch's layers alone need more weights than policy.pth holds."""
+def _check_network(policy_class: type, kwargs: dict[str, Any], observation_space: spaces.Space,
+                   action_space: spaces.Box, weights: dict[str, torch.Tensor], on_policy: bool) -> None:
+    """Refuse a policy that would hold other weights than policy.pth, before building it: the weights net_arch
+    implies on these spaces (the actor's layers from the inputs to the actions, each critic's to one value: fewer
+    than the whole policy's) must be within the caps and those held; then the policy built on the meta device must
+    hold as many, with policy.pth's names, shapes and dtypes."""
     net_arch = kwargs.get("net_arch") or []
     pi, others = ((net_arch, net_arch) if isinstance(net_arch, list)
                   else (net_arch.get("pi", []), net_arch.get("vf" if on_policy else "qf", [])))
     copies = 1 if on_policy else kwargs.get("n_critics", 2)
-    least = sum(a * b for a, b in pairwise([1, *pi])) + copies * sum(a * b for a, b in pairwise([1, *others]))
-    if least > weights_size:
-        raise Sb3ZipError(f"net_arch {_shown(net_arch)} needs at least {least} weights, policy.pth holds "
-                          f"{weights_size}")
-    counts = [_size(_build(policy_class, _with_inputs(observation_space, n), action_space, kwargs).state_dict())
-              for n in (1, 2)]
-    inputs = spaces.flatdim(observation_space)
-    needed = counts[0] + (inputs - 1) * (counts[1] - counts[0])
-    if needed != weights_size:
-        raise Sb3ZipError(f"policy.pth holds {weights_size} weights, a {policy_class.__name__} with these "
-                          f"policy_kwargs on {observation_space} holds {needed}: trained on other spaces, or with "
-                          "a custom architecture")
-
-
-def _with_inputs(observation_space: spaces.Space, inputs: int) -> spaces.Space:
-    """A space of the same kind (Box or Dict) with ``inputs`` numbers."""
-    box = spaces.Box(-np.inf, np.inf, (inputs,), np.float32)
-    return spaces.Dict({"inputs": box}) if isinstance(observation_space, spaces.Dict) else box
+    inputs, actions = spaces.flatdim(observation_space), spaces.flatdim(action_space)
+    held = weights_in(weights)
+    check_implied(mlp_weights(inputs, [*pi, actions]) + copies * mlp_weights(inputs, [*others, 1]), held, net_arch,
+                  "policy.pth")
+    network = _build(policy_class, observation_space, action_space, kwargs, on_meta=True)
+    check_fits(weights, network, "policy.pth", f"a {policy_class.__name__} with these policy_kwargs on "
+               f"{observation_space}")
 
 
 def _load_weights(policy: Any, weights: dict[str, torch.Tensor]) -> None:
-    """Load a state dict that has exactly the policy's names and shapes."""
-    own = policy.state_dict()
-    missing, extra = sorted(own.keys() - weights.keys()), sorted(weights.keys() - own.keys())
-    wrong = [f"{name} {tuple(weights[name].shape)} (needs {tuple(tensor.shape)})" for name, tensor in own.items()
-             if name in weights and weights[name].shape != tensor.shape]
-    problems = ([f"missing {', '.join(missing[:3])}"] if missing else []) + (
-        [f"unknown {', '.join(repr(name[:60]) for name in extra[:3])}"] if extra else []) + wrong[:3]
-    if problems:
-        raise Sb3ZipError(f"policy.pth does not fit a {type(policy).__name__} on these spaces: {'; '.join(problems)}")
+    """Load a state dict that has exactly the policy's names, shapes and dtypes (``_check_network``)."""
     try:
         policy.load_state_dict(weights)
     except (RuntimeError, TypeError, ValueError) as err:
         raise Sb3ZipError(f"policy.pth does not load ({describe_error(err)})") from None
-
