@@ -2,7 +2,7 @@
 identity holds what it reads, its first episode run under an audit hook), timed for a few policies, optionally beside
 another checkout in the same run.
 
-    OMP_NUM_THREADS=1 python benchmarks/bench_start.py --repeats 3 [--base /tmp/stcrowd-base]
+    OMP_NUM_THREADS=1 python benchmarks/bench_start.py --repeats 3 [--base OTHER_CHECKOUT]
 
 Each checkout is timed in a fresh interpreter (``PYTHONPATH`` set to it); the first call of a process loads the
 predictor's checkpoint, so it is printed apart from the median of the others.

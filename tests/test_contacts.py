@@ -6,7 +6,7 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 import pytest
-from hypothesis import assume, given, settings
+from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 import envs  # noqa: F401  (registers the ids)
@@ -109,7 +109,9 @@ def zara1_walkers() -> list[tuple[int, int, float]]:
     return [(f, a, float(speed[f, a])) for f, a in zip(frames[keep].tolist(), agents[keep].tolist(), strict=True)]
 
 
-@settings(max_examples=40, deadline=None)
+# ZARA1 is crowded: many drawn starts lie near another pedestrian or off the image and are filtered out, about as
+# many as the health check allows (with the whole suite collected, the draws went past its limit)
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.filter_too_much])
 @given(pick=st.integers(0, 10**9), ahead=st.floats(0.56, 0.85), drives=st.booleans())
 def test_in_a_replay_a_head_on_collision_is_the_faster_ones(zara1_walkers, pick: int, ahead: float,
                                                             drives: bool) -> None:

@@ -38,7 +38,7 @@ from st_sim.apps.navigation.metrics import MEANS, METRICS, Outcome
 from st_sim.apps.navigation.paired import paired_text
 
 HOSTILE = settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-SPECS = ["pkg.module:Policy", "sb3:/tmp/model.zip", "os:system", "payload:X-v0"]
+SPECS = ["pkg.module:Policy", "sb3:/srv/model.zip", "os:system", "payload:X-v0"]
 PATHS = ["/etc/passwd", "../../secret", "~/model.zip", "C:\\x", "/dev/zero"]
 MARKUP = ["<img src=x onerror=alert(1)>", "a | b", "`rm -rf ~`", "[x](javascript:alert(1))", "$\\frac{a$", "x\ny",
           "&lt;", "**bold**", "<!--", "a\\|b", "\x1b[31mred", "<script>", "line\r\nbreak"]

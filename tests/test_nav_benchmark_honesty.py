@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from st_sim.apps.cli import main
@@ -132,6 +132,7 @@ SKEWED = st.lists(st.one_of(st.just(0.0), st.floats(0.0, 1e3, allow_nan=False)),
 
 @settings(max_examples=200, deadline=None)
 @given(values=SKEWED, extra=st.lists(st.just(float("nan")), max_size=3))
+@example(values=[205.02382997084612] * 5, extra=[])  # equal values whose float mean is one ulp above them
 def test_a_mean_interval_holds_its_value_and_stays_inside_the_values_range(values: list[float],
                                                                            extra: list[float]) -> None:
     mean, low, high = mean_interval(np.array(values + extra))

@@ -22,7 +22,7 @@ SCENARIO = "frontal-approach"
 PAYLOAD = "import pathlib\npathlib.Path(__file__).with_name('RAN').write_text('ran')\n{body}\n"
 """a module that leaves a file RAN beside it when it is imported"""
 module_names = st.from_regex(r"[a-z][a-z0-9_]{0,8}(\.[a-z][a-z0-9_]{0,8}){0,2}", fullmatch=True)
-paths = st.sampled_from(["/tmp/x.rrd", "../../x.rrd", "~/x", "C:/x", "./x.rrd", "a/../b", "/etc/passwd", "x:y"])
+paths = st.sampled_from(["/srv/x.rrd", "../../x.rrd", "~/x", "C:/x", "./x.rrd", "a/../b", "/etc/passwd", "x:y"])
 
 
 @pytest.fixture(scope="module")
@@ -50,8 +50,8 @@ EDITS = {
     "predictor spec": lambda s, name: s.update(predictor=f"{name}:make"),
     "env id": lambda s, name: s["scenarios"][0].update(env=f"{name}:X-v0"),
     "env predictor": lambda s, name: s["scenarios"][0]["env_kwargs"].update(predictor=f"{name}:make"),
-    "env rerun": lambda s, name: s["scenarios"][0]["env_kwargs"].update(rerun=f"/tmp/{name}.rrd"),
-    "env root": lambda s, name: s["scenarios"][0]["env_kwargs"].update(root=f"/tmp/{name}"),
+    "env rerun": lambda s, name: s["scenarios"][0]["env_kwargs"].update(rerun=f"/srv/{name}.rrd"),
+    "env root": lambda s, name: s["scenarios"][0]["env_kwargs"].update(root=f"/srv/{name}"),
     "env pretrained": lambda s, name: s["scenarios"][0]["env_kwargs"].update(pretrained=f"../{name}"),
 }
 

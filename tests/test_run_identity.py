@@ -138,3 +138,20 @@ def test_an_audit_records_what_is_read_outside_the_installed_packages_only(tmp_p
         data.read_bytes(), skipped.read_bytes(), np.__file__ and Path(np.__file__).read_bytes()
         (tmp_path / "written.bin").write_bytes(b"3")
     assert audit.files == {data.resolve()}
+
+
+def test_a_run_records_where_it_ran_and_the_leaderboard_shows_it(tmp_path: Path, capsys: pytest.CaptureFixture
+                                                                  ) -> None:
+    from st_sim.apps.cli import main
+    from st_sim.apps.navigation.provenance import PACKAGES
+
+    summary = bench(tmp_path / "run", "straight")
+    (record,) = summary["ran_on"]
+    assert set(record) == {"commit", "tree_clean", "python", "versions", "machine", "cpu", "simd"}
+    assert set(record["versions"]) == set(PACKAGES) and set(record["simd"]) == {"numpy", "torch", "numba"}
+    assert json.loads((tmp_path / "run" / "run.json").read_text())["ran_on"] == [record]
+    bench(tmp_path / "run", "straight")  # a resume on the same machine adds no record
+    assert json.loads((tmp_path / "run" / "run.json").read_text())["ran_on"] == [record]
+    assert main(["leaderboard", str(tmp_path / "run"), "--no-baselines", "--ran-on"]) == 0
+    table = capsys.readouterr().out.split("### Where they ran")[1]
+    assert f"| straight | {str(record['commit'])[:12]} |" in table and record["versions"]["numpy"] in table

@@ -382,7 +382,7 @@ def mean_interval(values: np.ndarray, resamples: int = BOOTSTRAP_RESAMPLES) -> t
     values = values[np.isfinite(values)]
     if values.size == 0:
         return NAN, NAN, NAN
-    mean = float(values.mean())
+    mean = float(np.clip(values.mean(), values.min(), values.max()))  # a sum's rounding can leave the range by an ulp
     if values.size == 1 or values.min() == values.max():
         return mean, mean, mean
     rng = np.random.default_rng(BOOTSTRAP_SEED)
