@@ -45,6 +45,7 @@ from gymnasium import spaces
 from envs.suite import Scenario, Suite, env_kwargs_of, load_suite, make_scenario_env
 from replays import strict_json
 from replays.atomic import write_text_atomic
+from replays.data_root import data_root as resolve_data_root
 from st_sim.apps.grid import Job, run_jobs
 from st_sim.apps.navigation.episode_recording import BenchmarkRecorder
 from st_sim.apps.navigation.episodes import run_episode
@@ -225,7 +226,7 @@ def check_run(run: BenchmarkRun, suite: Suite) -> dict[str, Any]:
     they read while the first scenario's env is made, the policy built and the first episode run (``ReadAudit``)."""
     seeds = suite.seeds_of(run.split, run.episodes)
     scenarios = suite.select(run.scenarios)
-    outside = [run.out, _data_root_or_none(run.data_root)]
+    outside = [run.out, resolve_data_root(run.data_root, check=False)]  # the envs' data: checked by its sums
     with ReadAudit(outside) as predictor_audit:
         env = make_scenario_env(scenarios[0], run.predictor, run.data_root)
     try:
@@ -247,16 +248,6 @@ def check_run(run: BenchmarkRun, suite: Suite) -> dict[str, Any]:
             raise BenchmarkError(f"{run.out} holds another run ({'; '.join(_differences(held, identity))}): give "
                                  "another --out, or delete the folder to score this one there")
     return identity
-
-
-def _data_root_or_none(root: str | None) -> str | None:
-    """The ETH/UCY data root the envs read (its files are checked against the project's sums), None if unset."""
-    from replays.data_root import data_root
-
-    try:
-        return str(data_root(root))
-    except Exception:  # no data root configured: nothing to leave out of the audit
-        return None
 
 
 def _check_fits(spec: str, own: spaces.Space, scenarios: tuple[Scenario, ...], suite: Suite,

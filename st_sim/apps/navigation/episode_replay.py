@@ -120,13 +120,26 @@ def _shown(value: Any) -> str:
     return "absent" if value is NO_FIGURE else strict_json.dumps(value)
 
 
+def read_run(folder: str | os.PathLike) -> dict[str, Any]:
+    """The checked summary of the benchmark run in ``folder`` (``result_folder.load_result``); ``CliError`` if it
+    holds none or a malformed one."""
+    from st_sim.apps.navigation.result_folder import LeaderboardError, load_result
+
+    try:
+        return load_result(folder)
+    except LeaderboardError as err:
+        raise CliError(str(err)) from None
+
+
 def replay_episode(folder: str | os.PathLike, scenario: str, episode: int, rerun: str | None = None,
                    data_root: str | None = None, policy: str | None = None, predictor: str | None = None,
-                   trust_policy_file: bool = False) -> tuple[dict[str, Any], dict[str, Any], Path | None]:
+                   trust_policy_file: bool = False, summary: dict[str, Any] | None = None
+                   ) -> tuple[dict[str, Any], dict[str, Any], Path | None]:
     """Run episode ``episode`` of ``scenario`` of the benchmark run in ``folder`` again.
 
     Args:
         rerun: a .rrd path or "spawn" to record it (None: no recording).
+        summary: the run's summary, already read (``read_run``; None: read it from ``folder``).
         policy, predictor: specs given by the user (None: the run's, if shipped by name; ``chosen_specs``).
         trust_policy_file: load an ``sb3:`` policy with stable-baselines3's own loader.
 
@@ -146,13 +159,9 @@ def replay_episode(folder: str | os.PathLike, scenario: str, episode: int, rerun
     from st_sim.apps.navigation.leaderboard import label
     from st_sim.apps.navigation.metrics import episode_metrics
     from st_sim.apps.navigation.policies import load_policy
-    from st_sim.apps.navigation.result_folder import LeaderboardError, load_result
     from st_sim.apps.navigation.world import world_of
 
-    try:
-        summary = load_result(folder)
-    except LeaderboardError as err:
-        raise CliError(str(err)) from None
+    summary = read_run(folder) if summary is None else summary
     entry, expected = find_episode(summary, folder, scenario, episode)
     policy, predictor = chosen_specs(summary, folder, policy, predictor)
     kwargs = dict(entry["env_kwargs"])
@@ -184,24 +193,20 @@ def run_verify(args: argparse.Namespace) -> int:
 
     from tqdm import tqdm
 
-    from st_sim.apps.navigation.result_folder import LeaderboardError, load_result
-
     if args.per_scenario < 1:
         raise CliError(f"--per-scenario {args.per_scenario}: give 1 or more")
     one_thread()
     differing = 0
     for folder in args.folders:
-        try:
-            summary = load_result(folder)
-        except LeaderboardError as err:
-            raise CliError(str(err)) from None
+        summary = read_run(folder)  # read and checked once, not once per episode
         names = [entry["name"] for entry in summary["scenarios"]
                  if any(fnmatch.fnmatch(entry["name"], pattern) for pattern in args.scenarios)]
         for name in tqdm(names, desc=str(folder), unit="scenario", leave=False):
             episodes = [line["episode"] for line in find_episode(summary, folder, name, 0)[0]["episodes"]]
             wrong = {}
             for episode in episodes[:args.per_scenario]:
-                expected, measured, _ = replay_episode(folder, name, episode, data_root=args.data_root)
+                expected, measured, _ = replay_episode(folder, name, episode, data_root=args.data_root,
+                                                       summary=summary)
                 found = differences(expected, measured)
                 if found:
                     wrong[episode] = found
