@@ -10,9 +10,9 @@ How an episode ends is in ``info["termination"]``: "goal", "pedestrian_collision
 step that terminated the episode; a collision outranks the goal, a pedestrian outranks a wall) or None
 while it goes on. Contacts are found along the step, not only at its end (``st_sim.sim.sweep``): on a pedestrian
 collision ``info["contact_time_s"]`` is the moment of impact (seconds into the step) and ``info["at_fault"]`` says
-whether the robot was at fault then (``envs.common.fault``: it closed the gap, its velocity toward a pedestrian it
-touched at least that pedestrian's toward it and above 0.1 m/s); a wall collision is always at fault
-(``contact_time_s`` None). Both are None without a collision.
+whether the robot was at fault then (``envs.common.fault``: it was moving, at 0.05 m/s or more or within 0.8 s of
+it, and the person did not run into it from behind); a wall collision is always at fault (``contact_time_s``
+None). Both are None without a collision.
 The env never ends an episode for time: "timeout" is the ``TimeLimit`` wrapper's truncation (``truncated``
 with ``termination`` None), like the end of a replay's recording.
 
@@ -42,7 +42,7 @@ from gymnasium import spaces
 from envs.common.config import EnvConfig
 from envs.common.ego import action_to_velocity, checked_action, on_image, require_on_map
 from envs.common.errors import ConfigError, EgoPlacementError, EnvInputError, NeedsResetError, ResetOptionsError
-from envs.common.fault import robot_at_fault
+from envs.common.fault import RobotMotion, robot_at_fault
 from envs.common.predictors import (
     Forecast,
     ForecastCache,
@@ -126,6 +126,7 @@ class CrowdEnv(gym.Env):
         self._context_rows = np.zeros(0, np.int64)  # rows whose histories the forecast conditions on (_rows among them)
         self._previous_xy_m = np.zeros(2)  # the ego before this step
         self._contact: Contact | None = None  # the step's first pedestrian contact, if any
+        self._motion = RobotMotion()  # the ego's past before this step, as the at-fault rule reads it
         self._episode_over = False  # terminated, or the world ended: step needs a reset first
         self._interrupted: str | None = None  # why the last step could not finish: step needs a reset first
         self.anchors: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # (ids, prototype, adapted)
@@ -178,6 +179,7 @@ class CrowdEnv(gym.Env):
         self.check_reset_seed(seed)
         super().reset(seed=None if seed is None else int(seed))
         self._obs, self._episode_over, self._interrupted = None, False, None
+        self._motion = RobotMotion()
         self.tracks.clear()
         self.metrics.reset()
         return options
@@ -248,6 +250,8 @@ class CrowdEnv(gym.Env):
         terminated, truncated = termination is not None, self._world_ended()
         self._episode_over = terminated or truncated
         info = self._info(parts, termination)
+        if self.ego:
+            self._motion = self._motion.after_step(self.ego_xy_m - self._previous_xy_m, STEP_S)
         self._log_rerun(info, reward)
         return self._obs, reward, terminated, truncated, info
 
@@ -476,7 +480,8 @@ class CrowdEnv(gym.Env):
         (``envs.common.fault``), on a wall collision ``at_fault`` is True."""
         row_ids = self.tracks.row_ids.copy()
         hit = self._contact if termination == "pedestrian_collision" else None
-        at_fault = True if termination == "wall_collision" else None if hit is None else robot_at_fault(hit)
+        at_fault = (True if termination == "wall_collision" else None if hit is None
+                    else robot_at_fault(hit, self._motion))
         return {
             "frame": int(self.tracks.now.frame),
             "agent_ids": row_ids,

@@ -64,9 +64,10 @@ from st_sim.apps.navigation.world import world_of
 CHUNK_EPISODES = 25  # episodes of one scenario per grid job [-]
 SIGNIFICANT_DIGITS = 6  # figures are written with this many significant digits [-]
 RESULT_FORMAT = "stcrowd-nav-benchmark/1"
-BENCHMARK_VERSION = "2"
+BENCHMARK_VERSION = "3"
 """the version of what the metrics mean (docs: Benchmark your policy, "Versions"): 1, the suite as published on
-2026-11-27; 2, from 2026-11-28, a pedestrian collision at the robot's fault when the robot closed the gap. Bumped
+2026-11-27; 2, from 2026-11-28, a pedestrian collision at the robot's fault when the robot closed the gap; 3, from
+2026-11-29, when the robot was moving and not hit from behind (``envs.common.fault``), peers tuned on val. Bumped
 whenever a metric changes meaning; results of different versions are never tabled or paired together"""
 RUN_IDENTITY = ("policy", "fingerprint", "predictor", "predictor_fingerprint", "trust_policy_file", "suite",
                 "suite_version", "suite_sha256", "benchmark_version", "stcrowd", "split", "scenarios", "episodes")

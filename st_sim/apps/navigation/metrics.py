@@ -8,8 +8,8 @@ figure exists (time to goal and path ratio: successful episodes only), which sta
 planners run on the same seeds are compared with McNemar's exact test on the episodes where only one of them
 collided.
 
-A collision is at fault (``collision_at_fault``) when the robot hit a wall, or hit a pedestrian by closing the gap
-itself: at the impact its velocity toward the pedestrian was at least the pedestrian's toward it and above 0.1 m/s
+A collision is at fault (``collision_at_fault``) when the robot hit a wall, or touched a pedestrian while moving
+(0.05 m/s or more at the impact, or stopped less than 0.8 s before it) unless the pedestrian ran into it from behind
 (the env's ``info["at_fault"]``, ``envs.common.fault``). Pedestrian collisions are also counted apart by that rule,
 robot-on-person and person-on-robot (``collision_robot_on_person``, ``collision_person_on_robot``), as SEANavBench
 and HuNavSim count them; the zone entries are split by the same rule.
@@ -34,7 +34,7 @@ import numpy as np
 from scipy import stats
 
 from envs.common.config import EnvConfig
-from envs.common.fault import APPROACH_FLOOR_MPS
+from envs.common.fault import STOP_HOLD_STEPS, STOP_SPEED_MPS
 from replays.constants import STEP_S
 from st_sim.apps.navigation.social_metrics import (
     INTIMATE_M,
@@ -254,10 +254,10 @@ def _zone_share(band: str) -> Metric:
 
 
 def _zone_entries(zone: str, limit_m: float, mover: str) -> Metric:
-    who = {"robot": "the robot closed the gap over that step (the rule of collision_robot_on_person on the step's "
-                    "displacements / step, along the line at its start)",
-           "person": "the robot did not close it (the person came faster, or neither above the floor), or the person "
-                     "appeared inside"}[mover]
+    who = {"robot": "the rule of collision_robot_on_person blames the robot, on the step's displacements / step "
+                    "along the line between the bodies at its start",
+           "person": "the rule does not blame the robot (it was stopped, or the person caught it up from behind), or "
+                     "the person appeared inside"}[mover]
     return Metric("safety" if zone == "intimate" else "comfort", "mean", "count",
                   f"{mover}-made entries into a person's {zone} zone: the body gap falls below {limit_m} m between "
                   f"two states and {who}", "SEANavBench")
@@ -268,17 +268,17 @@ METRICS: dict[str, Metric] = {
     "collision": _rate("safety", "the episode ended in a collision with a pedestrian or a wall", "SEANavBench, "
                        "SocNavBench, HuNavSim, CrowdNav++", lambda e: e["outcome"] in (Outcome.PEDESTRIAN.value,
                                                                                       Outcome.WALL.value)),
-    "collision_at_fault": _rate("safety", "a wall collision or a robot-on-person collision (result files of before "
-                                "2026-11-28, key at_fault, judged by the former rule: the robot moved at 0.2 m/s or "
-                                "more and the person was not behind it)",
-                                "ours (SEANavBench, HuNavSim count the two kinds apart)",
+    "collision_at_fault": _rate("safety", "a wall collision or a robot-on-person collision (files of benchmark "
+                                "versions 1 and 2 judged robot-on-person by earlier rules: see the docs' Versions)",
+                                "ours after nuPlan (SEANavBench, HuNavSim count the two kinds apart)",
                                 lambda e: bool(e.get("collision_at_fault", e.get("at_fault")))),
     "collision_robot_on_person": _rate("safety", "a pedestrian collision the robot made: at the impact (the first "
-                                       "instant the bodies touch within the step) its velocity component toward a "
-                                       "person it touched, along the line between their centres, was at least that "
-                                       f"person's toward it and above {APPROACH_FLOOR_MPS} m/s (a robot standing, "
-                                       "creeping or backing away never makes one; a person who appeared inside made "
-                                       "it)", "SEANavBench, HuNavSim",
+                                       "instant the bodies touch within the step) the robot was moving (at "
+                                       f"{STOP_SPEED_MPS} m/s or more, or below it for fewer than {STOP_HOLD_STEPS} "
+                                       "whole steps before the impact's step) and the person it touched did not "
+                                       "catch it up from behind (contact behind the robot's heading, the person's "
+                                       "velocity along it at least the robot's speed); a person who appeared inside "
+                                       "made it", "nuPlan, SEANavBench, HuNavSim",
                                        lambda e: bool(e.get("collision_robot_on_person"))),  # older files lack it
     "collision_person_on_robot": _rate("safety", "a pedestrian collision the person made: every other one",
                                        "SEANavBench, HuNavSim", lambda e: bool(e.get("collision_person_on_robot"))),

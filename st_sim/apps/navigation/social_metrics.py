@@ -16,7 +16,7 @@ from typing import Final
 
 import numpy as np
 
-from envs.common.fault import approach_speeds, robot_closed_gap
+from envs.common.fault import motion_before_steps, robot_to_blame
 
 INTIMATE_M: Final[float] = 0.45  # Hall's intimate zone ends at this body gap [m]
 PERSONAL_M: Final[float] = 1.2  # ... the personal zone [m]
@@ -88,12 +88,10 @@ def zone_entries(ego_xy_m: np.ndarray, pedestrians_xy_m: np.ndarray, gaps_m: np.
     """Entries into the zone of gaps under ``limit_m``, split by who moved in.
 
     An entry is a pedestrian's gap going from >= limit_m at one state to < limit_m at the next. It is the robot's
-    when the robot closed the gap over that step by the at-fault rule of collisions (``envs.common.fault``): its
-    approach speed toward the pedestrian (displacement / step, along the line between them at the step's start) is
-    at least the pedestrian's toward the robot and above ``APPROACH_FLOOR_MPS`` (0.1 m/s); else it is the
-    pedestrian's. So an entry in which neither closed faster than the floor (a gap that drifted across the limit) is
-    the pedestrian's, as such a collision is. A pedestrian who appears already inside has walked in: the
-    pedestrian's entry. At the reset nobody has entered.
+    when the at-fault rule of collisions (``envs.common.fault``) blames the robot for it, judged on the step's mean
+    velocities (displacements / step) along the line between the bodies at the step's start: the robot was moving
+    (or stopped under 0.8 s before) and the pedestrian did not catch it up from behind; else it is the pedestrian's.
+    A pedestrian who appears already inside has walked in: the pedestrian's entry. At the reset nobody has entered.
 
     Args:
         ego_xy_m: (T + 1, 2) [m].  pedestrians_xy_m: (T + 1, N, 2) [m], NaN where absent.
@@ -105,9 +103,10 @@ def zone_entries(ego_xy_m: np.ndarray, pedestrians_xy_m: np.ndarray, gaps_m: np.
     inside = gaps_m < limit_m  # False where absent
     entered = inside[1:] & ~inside[:-1]  # (T, N), appearances inside included
     offset = pedestrians_xy_m[:-1] - ego_xy_m[:-1, None]  # robot -> pedestrian at each step's start, (T, N, 2)
-    robot_in, person_in = approach_speeds(offset, np.diff(ego_xy_m, axis=0)[:, None] / step_s,
-                                          np.diff(pedestrians_xy_m, axis=0) / step_s)  # NaN for who just appeared
-    by_robot = entered & robot_closed_gap(robot_in, person_in)
+    recent_mps, heading = motion_before_steps(ego_xy_m, step_s)
+    by_robot = entered & robot_to_blame(offset, np.diff(ego_xy_m, axis=0)[:, None] / step_s,
+                                        np.diff(pedestrians_xy_m, axis=0) / step_s,  # NaN for who just appeared
+                                        recent_mps[:, None], heading[:, None])
     return int(by_robot.sum()), int((entered & ~by_robot).sum())
 
 
