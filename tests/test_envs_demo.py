@@ -16,7 +16,7 @@ def test_demo_runs_whole_episodes_names_outcomes_and_records(tmp_path: Path, cap
     assert result["steps"] >= 10 and sum(e["steps"] for e in result["episodes"]) == result["steps"]
     assert all(e["outcome"] in OUTCOMES for e in result["episodes"]), "every episode ends with a named outcome"
     assert sum(result["counts"].values()) == len(result["episodes"])
-    assert {"ade_m", "min_distance_m", "jerk_mps3", "outcome"} <= set(result["episodes"][0])
+    assert {"ade_m", "min_step_end_gap_m", "jerk_mps3", "outcome"} <= set(result["episodes"][0])
     out = capsys.readouterr().out
     assert "episode 0 (seed 1):" in out and "goal" in out
     again = run_demo(steps=10, rerun_path=None, seed=1)

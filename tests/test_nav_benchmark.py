@@ -126,9 +126,9 @@ def plain_loop(scenario_name: str, predictor: str, seeds: list[int], policy_spec
         assert record["success"] == (info["termination"] == "goal")
         assert record["path_length_m"] == pytest.approx(path_m, abs=1e-4)
         expected = least_m - world.contact_m if np.isfinite(least_m) else None
-        assert (record["min_distance_m"] is None) == (expected is None)
+        assert (record["min_step_end_gap_m"] is None) == (expected is None)
         if expected is not None:
-            assert record["min_distance_m"] == pytest.approx(expected, abs=1e-4)
+            assert record["min_step_end_gap_m"] == pytest.approx(expected, abs=1e-4)
         records.append(record)
     env.close()
     return records
@@ -155,7 +155,7 @@ def test_a_policy_from_outside_the_project_runs_every_scenario_with_a_plain_loop
         assert [e["seed"] for e in scenario["episodes"]] == list(SUITE.seeds["val"][:2])
         for episode in scenario["episodes"]:
             assert {"success", "collision", "collision_at_fault", "time_to_goal_s", "path_length_m",
-                    "min_distance_m"} <= set(episode)
+                    "min_step_end_gap_m"} <= set(episode)
             assert isinstance(episode["success"], bool) and isinstance(episode["collision_at_fault"], bool)
     # in this process (where --perturb nudges the simulated crowds as it does the plain loop's)
     names = ("sim-corridor", "zara1-reactive", "frontal-approach")

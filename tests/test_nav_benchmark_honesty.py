@@ -160,7 +160,7 @@ def test_every_committed_summary_interval_stays_in_its_metrics_range() -> None:
                 if cell["value"] is None:
                     continue
                 assert cell["low"] <= cell["value"] <= cell["high"], (folder.name, name)
-                if bounded_below.search(name) and name != "min_distance_m":
+                if bounded_below.search(name) and name != "min_step_end_gap_m":
                     assert cell["low"] >= 0, (folder.name, name, cell)
 
 

@@ -58,7 +58,7 @@ def test_record_all_writes_each_episode_with_its_walls_line_and_collision(runs: 
             assert logged_steps(path) == line["steps"] + 1, f"{path}: one logged step per state"
             notes = entities["/notes"][None]["TextDocument:text"][0]
             assert f"**{scenario['name']}**, episode {line['episode']} (seed {line['seed']})" in notes
-            assert f"| min_distance_m | {json.dumps(line['min_distance_m'])} |" in notes
+            assert f"| min_step_end_gap_m | {json.dumps(line['min_step_end_gap_m'])} |" in notes
             assert entities["/world/walls"][None]["LineStrips2D:strips"], f"{path}: no walls"
             assert "/world/predictions" not in str(sorted(entities)), "a run without forecasts logs none"
             marker = entities.get("/world/events/collision")
@@ -101,13 +101,13 @@ def test_a_figure_that_differs_fails_the_command_naming_it(runs: dict[str, tuple
     edited = json.loads((folder / "summary.json").read_text())
     scenario = edited["scenarios"][2]
     line = scenario["episodes"][1]
-    line["min_distance_m"] = line["min_distance_m"] + 0.5
+    line["min_step_end_gap_m"] = line["min_step_end_gap_m"] + 0.5
     scenario["summary"] = summary_of(scenario["episodes"])  # consistent, or the reader refuses the folder
     edited["summary"] = summary_of([e for s in edited["scenarios"] for e in s["episodes"]])
     (tmp_path / "summary.json").write_text(json.dumps(edited))
     assert main(["episode", str(tmp_path), edited["scenarios"][2]["name"], "1"]) == 1
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "min_distance_m:" in err and "does not reproduce" in err, err
+    assert err.count("\n") == 1 and "min_step_end_gap_m:" in err and "does not reproduce" in err, err
     assert "steps" not in err.split("reproduce", 1)[1].split("(the code")[0], "only the edited figure is named"
 
 
@@ -137,12 +137,12 @@ def test_unknown_scenarios_and_episodes_are_one_line_errors(runs: dict[str, tupl
         assert err.count("\n") == 1 and says in err, err
 
 
-FIGURES = st.dictionaries(st.sampled_from(["steps", "success", "min_distance_m", "outcome", "path_ratio"]),
+FIGURES = st.dictionaries(st.sampled_from(["steps", "success", "min_step_end_gap_m", "outcome", "path_ratio"]),
                           st.one_of(st.none(), st.booleans(), st.integers(-5, 5), st.floats(allow_nan=False),
                                     st.text(max_size=4)), min_size=1)
 
 
-@given(line=FIGURES, key=st.sampled_from(["steps", "success", "min_distance_m", "outcome", "path_ratio"]),
+@given(line=FIGURES, key=st.sampled_from(["steps", "success", "min_step_end_gap_m", "outcome", "path_ratio"]),
        value=st.one_of(st.none(), st.booleans(), st.integers(-5, 5), st.floats(allow_nan=False)))
 def test_differences_names_exactly_the_figures_that_changed(line: dict, key: str, value: object) -> None:
     assert differences(line, dict(line)) == []

@@ -43,7 +43,7 @@ def test_straight_successful_episode_has_ratio_one_and_no_jerk() -> None:
     assert metrics["time_to_goal_s"] == pytest.approx(25 * STEP_S)
     assert metrics["path_ratio"] == pytest.approx(1.0)
     assert metrics["jerk_mps3"] == pytest.approx(0.0)
-    assert metrics["discomfort"] == 0.0 and metrics["min_distance_m"] == pytest.approx(1.0)
+    assert metrics["discomfort"] == 0.0 and metrics["min_step_end_gap_m"] == pytest.approx(1.0)
 
 
 def test_failed_episode_has_no_time_to_goal_and_counts_discomfort() -> None:
@@ -52,7 +52,7 @@ def test_failed_episode_has_no_time_to_goal_and_counts_discomfort() -> None:
     metrics = episode_metrics(trace)
     assert np.isnan(metrics["time_to_goal_s"]) and np.isnan(metrics["path_ratio"])
     assert metrics["discomfort"] == pytest.approx(3 / 10)
-    assert metrics["min_distance_m"] == pytest.approx(-0.02)
+    assert metrics["min_step_end_gap_m"] == pytest.approx(-0.02)
 
 
 def test_jerk_of_a_stop_and_go_episode() -> None:

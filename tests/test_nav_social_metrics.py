@@ -53,7 +53,7 @@ def test_a_standing_robot_that_a_person_walks_up_to_suffers_a_person_on_robot_en
     assert m["time_not_moving_s"] == pytest.approx(10 * STEP_S), "never moved"
     assert (m["personal_entries_robot"], m["personal_entries_person"]) == (0, 1)
     assert (m["intimate_entries_robot"], m["intimate_entries_person"]) == (0, 0)
-    assert m["min_distance_m"] == pytest.approx(0.8), "1.35 m between centres, 0.3 + 0.25 m of bodies"
+    assert m["min_step_end_gap_m"] == pytest.approx(0.8), "1.35 m between centres, 0.3 + 0.25 m of bodies"
     assert m["min_ttc_s"] == pytest.approx(0.85), "gap 0.85 m closing at 1 m/s (its last, slower step: 6.4 s)"
     # gaps at the step ends: 4.05, 3.65 | 3.25 ... 1.25 (6 steps) | 0.85, 0.8
     assert [m[name] for name in SHARES] == pytest.approx([0.0, 0.2, 0.6, 0.2])
@@ -66,7 +66,7 @@ def test_a_robot_driving_straight_past_a_standing_person_enters_its_personal_zon
     m = episode_metrics(trace_of(ego, person[:, None], outcome=Outcome.GOAL, goal_m=(5.5, 0.0)))  # its edge at 5 m
     assert (m["personal_entries_robot"], m["personal_entries_person"]) == (1, 0)
     assert m["intimate_entries_robot"] == m["intimate_entries_person"] == 0
-    assert m["min_distance_m"] == pytest.approx(math.hypot(0.2, 1.2) - 0.55), "closest at x = +-0.2 m"
+    assert m["min_step_end_gap_m"] == pytest.approx(math.hypot(0.2, 1.2) - 0.55), "closest at x = +-0.2 m"
     # personal (gap < 1.2 m: |x| < 1.27 m): x = -1.0 ... 1.0, 6 steps; social (|x| < 3.97 m): 14; public: 5 of 25
     assert [m[name] for name in SHARES] == pytest.approx([0.0, 6 / 25, 14 / 25, 5 / 25])
     assert m["path_length_m"] == pytest.approx(10.0) and m["path_ratio"] == pytest.approx(1.0)
@@ -86,7 +86,7 @@ def test_a_circling_robot_travels_2_pi_r_and_turns_2_pi_per_loop(per_loop: int) 
     assert m["path_length_m"] == pytest.approx(loops * 2 * np.pi * radius_m, rel=chord ** 2 / 6)
     assert m["path_irregularity_rad"] == pytest.approx(loops * 2 * np.pi - chord), "one turn fewer than steps"
     assert m["path_irregularity_rad"] == pytest.approx(loops * 2 * np.pi, abs=chord + 1e-9)
-    assert m["time_not_moving_s"] == 0.0 and math.isnan(m["min_distance_m"])
+    assert m["time_not_moving_s"] == 0.0 and math.isnan(m["min_step_end_gap_m"])
 
 
 def test_a_stop_in_the_middle_of_a_u_turn_counts_the_turn_once() -> None:
@@ -145,7 +145,7 @@ def test_absent_pedestrians_are_skipped_and_one_who_appears_inside_walked_in() -
     m = episode_metrics(trace_of(ego, peds))
     assert (m["intimate_entries_robot"], m["intimate_entries_person"]) == (0, 1)
     assert (m["personal_entries_robot"], m["personal_entries_person"]) == (0, 1)
-    assert m["min_distance_m"] == pytest.approx(0.25)
+    assert m["min_step_end_gap_m"] == pytest.approx(0.25)
     assert math.isnan(m["min_ttc_s"]), "standing people are on no collision course"
     assert [m[name] for name in SHARES] == pytest.approx([3 / 8, 0.0, 0.0, 5 / 8]), "nobody there counts as public"
 
@@ -153,7 +153,7 @@ def test_absent_pedestrians_are_skipped_and_one_who_appears_inside_walked_in() -
 def test_an_episode_without_pedestrians_is_all_public_with_no_distance_or_ttc() -> None:
     ego = line((0.0, 0.0), (0.4, 0.0), 8)
     m = episode_metrics(trace_of(ego, np.zeros((8, 0, 2)), groups=[]))
-    assert m["zone_public_share"] == 1.0 and math.isnan(m["min_distance_m"]) and math.isnan(m["min_ttc_s"])
+    assert m["zone_public_share"] == 1.0 and math.isnan(m["min_step_end_gap_m"]) and math.isnan(m["min_ttc_s"])
     assert all(m[name] == 0 for name in ENTRIES) and m["group_intrusions"] == 0 and m["discomfort"] == 0.0
 
 
@@ -161,7 +161,7 @@ def test_a_trace_without_pedestrian_positions_keeps_its_clearance_and_leaves_the
     trace = trace_of(line((0.0, 0.0), (0.4, 0.0), 5))
     trace.clearance_m[:] = [2.0, 1.5, 0.3, 0.1, 0.9]
     m = episode_metrics(trace)
-    assert m["min_distance_m"] == pytest.approx(0.1)
+    assert m["min_step_end_gap_m"] == pytest.approx(0.1)
     assert [m[name] for name in SHARES] == pytest.approx([0.5, 0.25, 0.25, 0.0])
     assert all(math.isnan(m[name]) for name in (*ENTRIES, "min_ttc_s", "group_intrusions"))
 
@@ -217,28 +217,34 @@ def test_figures_do_not_change_when_the_whole_episode_is_moved_and_turned(seed: 
 
 @settings(max_examples=60, deadline=None)
 @given(st.integers(0, 2 ** 32 - 1), st.integers(1, 30))
-def test_entries_change_hands_when_the_robot_and_the_person_swap_motions(seed: int, steps: int) -> None:
-    """Swapped, the robot's entries become the person's; the person's become the robot's, except those in which
-    neither closed the gap faster than the floor (drifts), which stay the person's both ways."""
-    ego, peds, _ = random_episode(seed, steps + 1, 1)
-    person = np.where(np.isnan(peds), ego[:, None] + 1.0, peds)  # always present
-    m = episode_metrics(trace_of(ego, person))
-    swapped = episode_metrics(trace_of(person[:, 0], ego[:, None]))
-    for zone in ("intimate", "personal"):
-        robot, person_in = f"{zone}_entries_robot", f"{zone}_entries_person"
-        assert swapped[robot] + swapped[person_in] == m[robot] + m[person_in], zone
-        assert swapped[robot] <= m[person_in] and swapped[person_in] >= m[robot], zone
+def test_entries_into_a_standing_robots_zones_are_the_persons_and_a_pusher_makes_them(seed: int, steps: int) -> None:
+    """A robot that stands all episode never enters anyone's zone (people walked in); the same person's motion
+    around a robot that drives at 1 m/s straight at where the person stands gives every entry from in front to the
+    robot."""
+    _, peds, _ = random_episode(seed, steps + 1, 3)
+    standing = np.zeros((steps + 1, 2))
+    m = episode_metrics(trace_of(standing, peds))
+    assert m["intimate_entries_robot"] == 0 and m["personal_entries_robot"] == 0
+    t = np.arange(steps + 1)
+    pusher = np.c_[0.4 * t, np.zeros(steps + 1)]  # 1 m/s east
+    walker = np.c_[3.55 - 0.24 * t, np.zeros(steps + 1)][:, None]  # 0.6 m/s west: body gap 3.0 - 0.64 t m
+    m = episode_metrics(trace_of(pusher, walker))
+    assert m["intimate_entries_person"] == 0 and m["personal_entries_person"] == 0
+    assert (m["personal_entries_robot"], m["intimate_entries_robot"]) == (int(steps >= 3), int(steps >= 4))
 
 
 def test_summary_gives_every_figure_an_interval_and_reads_former_names() -> None:
     ego = line((-5.0, 0.0), (0.4, 0.0), 26)
     person = np.tile([0.0, 1.2], (26, 1))[:, None]
     episodes = [episode_metrics(trace_of(ego, person, outcome=outcome)) for outcome in (Outcome.GOAL, Outcome.WALL)]
-    former = {"outcome": "goal", "min_clearance_m": 0.5, "jerk_mps3": 0.0}  # a result file of before the rename
-    summary = summarize([*episodes, former])
+    oldest = {"outcome": "goal", "min_clearance_m": 0.5, "jerk_mps3": 0.0}  # result files of before the renames
+    older = {"outcome": "goal", "min_distance_m": 0.7, "jerk_mps3": 0.0}
+    summary = summarize([*episodes, oldest, older])
     assert set(METRICS) <= set(summary) and set(MEANS) <= set(summary)
-    assert summary["success"]["value"] == pytest.approx(2 / 3) and summary["success"]["n"] == 3
-    assert summary["min_distance_m"]["n"] == 3, "the former name is read from older files"
+    assert summary["success"]["value"] == pytest.approx(3 / 4) and summary["success"]["n"] == 4
+    assert summary["min_step_end_gap_m"]["n"] == 4, "both former names are read from older files"
+    gaps = [e["min_step_end_gap_m"] for e in episodes] + [0.5, 0.7]
+    assert summary["min_step_end_gap_m"]["value"] == pytest.approx(np.mean(gaps))
     assert summary["personal_entries_robot"] == {"value": 1.0, "low": 1.0, "high": 1.0, "n": 2}
     assert summary["min_ttc_s"]["n"] == 0 and math.isnan(summary["min_ttc_s"]["value"])
     spl = summary["spl"]

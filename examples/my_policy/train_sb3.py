@@ -50,6 +50,9 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--raw", action="store_true", help="train on one env's own observation (see above)")
     parser.add_argument("--env", default="STCrowd-SimCrossing-v1", help="--raw: the env id to train on")
     parser.add_argument("--steps", type=int, default=20_000, help="env steps of training")
+    parser.add_argument("--predictor", default="cvm", choices=["none", "cvm", "singular"],
+                        help="the forecasts the policy trains with (default: cvm, cheap); score it with the same "
+                             "--predictor")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", default="runs/my_policy/suite.zip", help="where the model is saved")
     args = parser.parse_args(argv)
@@ -58,7 +61,7 @@ def main(argv: list[str] | None = None) -> None:
         if args.raw:
             env = gym.make(args.env, predictor="cvm")  # cheap forecasts; this model does not read them
             return gym.wrappers.FilterObservation(env, ["ego", "history", "history_mask"])
-        return gym.make("STCrowd-Suite-v1", scenarios=args.scenarios, predictor="cvm")  # cheap forecasts
+        return gym.make("STCrowd-Suite-v1", scenarios=args.scenarios, predictor=args.predictor)
 
     vec = make_vec_env(make, n_envs=4, seed=args.seed)
     model = PPO("MultiInputPolicy", vec, n_steps=128, batch_size=128, seed=args.seed, device="cpu", verbose=0)

@@ -44,7 +44,7 @@ def run_demo(steps: int = 150, rerun_path: str | None = None, seed: int = 0) -> 
         episodes.append(metrics)
         used += metrics["steps"]
         print(f"episode {len(episodes) - 1} (seed {metrics['seed']}): {metrics['steps']} steps, {metrics['outcome']}, "
-              f"closest pedestrian {metrics['min_distance_m']:.2f} m from the robot's body, "
+              f"closest pedestrian {metrics['min_step_end_gap_m']:.2f} m from the robot's body, "
               f"ADE/FDE {format_metric(metrics['ade_m'], '.2f')}/{format_metric(metrics['fde_m'], '.2f')} m over "
               f"{metrics['matured']} predictions")
     elapsed_s = time.perf_counter() - start

@@ -106,7 +106,7 @@ def find_episode(summary: dict[str, Any], folder: str | os.PathLike, scenario: s
 
 
 def differences(expected: dict[str, Any], measured: dict[str, Any]) -> list[str]:
-    """The figures of two episode lines that differ as JSON writes them, one phrase each ("min_distance_m: 0.41 in
+    """The figures of two episode lines that differ as JSON writes them, one phrase each ("min_step_end_gap_m: 0.41 in
     the run, 0.43 now"); a figure present on one side only counts too."""
     found = []
     for key in sorted(set(expected) | set(measured)):

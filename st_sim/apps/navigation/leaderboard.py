@@ -62,16 +62,23 @@ def baseline_results(like: dict[str, Any], folder: Path = BASELINES_DIR,
 
 
 def label(result: dict[str, Any]) -> str:
-    """How a result is named in tables and charts (``shown``): its policy, and the predictor in the env unless
-    none."""
-    policy = shown(result["policy"])
-    return policy if result["predictor"] == "none" else f"{policy} + {shown(result['predictor'])}"
+    """How a result is named in tables and charts (``shown``): its policy and the predictor in the env ("+ none":
+    no forecasts)."""
+    return f"{shown(result['policy'])} + {shown(result['predictor'])}"
 
 
 def episodes_line(result: dict[str, Any]) -> str:
     """The episodes a result was measured on, in words (``shown``): suite, version, split, episodes per scenario."""
     return (f"{shown(result['suite'])} {shown(result['suite_version'])}, {shown(result['split'])} seeds, "
             f"{result['episodes_per_scenario']} episodes per scenario")
+
+
+def pooled_line(result: dict[str, Any]) -> str:
+    """Which scenarios a result's pooled figures cover, in words: all of the suite's, or how many of them."""
+    count, total = len(result["scenario_set"]), result["suite_scenarios"]
+    if count == total:
+        return f"pooled over every episode of the suite's {total} scenarios"
+    return f"pooled over the episodes of the {count} scenarios every result holds, of the suite's {total}"
 
 
 def check_comparable(results: list[dict[str, Any]], common_scenarios: bool = False) -> None:
@@ -131,12 +138,9 @@ def markdown(results: list[dict[str, Any]], note: str | None = None) -> str:
     the header (why the shipped planners are absent)."""
     check_comparable(results)
     first = results[0]
-    count, total = len(first["scenario_set"]), first["suite_scenarios"]
-    if count == total:
-        pooled = f"pooled over every episode of the suite's {total} scenarios"
-    else:
-        pooled = (f"pooled over the episodes of the {count} scenarios every result holds, of the suite's {total} "
-                  f"({', '.join(map(shown, first['scenario_set']))})")
+    pooled = pooled_line(first)
+    if len(first["scenario_set"]) < first["suite_scenarios"]:
+        pooled += f" ({', '.join(map(shown, first['scenario_set']))})"
     lines = [f"Suite {episodes_line(first)}; every cell: value [95 % interval], {pooled}.", ""]
     if note:
         lines += [f"Note: {note}.", ""]
@@ -217,5 +221,5 @@ def chart(results: list[dict[str, Any]], path: str | os.PathLike) -> Path:
         points.append(ScatterPoint(label(result), x["value"], y["value"], (x["low"], x["high"]),
                                    (y["low"], y["high"])))
     figure = interval_scatter("collisions at fault (share of episodes)", "success (share of episodes)",
-                              {episodes_line(results[0]): points})
+                              {f"{episodes_line(results[0])};\n{pooled_line(results[0])}": points})
     return save_figure(figure, path)

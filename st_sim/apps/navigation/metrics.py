@@ -165,7 +165,7 @@ def _safety(trace: EpisodeTrace, gaps: np.ndarray | None, nearest: np.ndarray) -
             "collision_robot_on_person": robot_on_person,
             "collision_person_on_robot": pedestrian and not robot_on_person,
             "pedestrian_collision": pedestrian, "wall_collision": trace.outcome is Outcome.WALL,
-            "min_distance_m": float(finite.min()) if finite.size else NAN, "min_ttc_s": ttc,
+            "min_step_end_gap_m": float(finite.min()) if finite.size else NAN, "min_ttc_s": ttc,
             **_entries(trace, gaps, INTIMATE_M, "intimate"), "off_map": float(np.mean(_step_ends(trace.off_map)))}
 
 
@@ -286,8 +286,10 @@ METRICS: dict[str, Metric] = {
                                   "SEANavBench, HuNavSim", lambda e: e["outcome"] == Outcome.PEDESTRIAN.value),
     "wall_collision": _rate("safety", "the episode ended with the robot touching a wall", "SEANavBench",
                             lambda e: e["outcome"] == Outcome.WALL.value),
-    "min_distance_m": Metric("safety", "mean", "m", "least body gap between the robot and a pedestrian at the "
-                             "steps' ends (negative: overlap); NaN if nobody was ever present",
+    "min_step_end_gap_m": Metric("safety", "mean", "m", "least body gap between the robot and a pedestrian at the "
+                             "steps' ends (negative: overlap), not during the steps: a collision within a step can "
+                             "leave it positive (collisions are counted apart); NaN if nobody was ever present; former "
+                             "name min_distance_m",
                              "SocNavBench, HuNavSim, CrowdNav++"),
     "min_ttc_s": Metric("safety", "mean", "s", "least time until the robot and a pedestrian touch if both keep "
                         "their velocities (the pedestrian's over its last step); NaN if never on a collision course",
@@ -335,8 +337,8 @@ METRICS: dict[str, Metric] = {
                         "recorded paths (how far the robot pushed them); NaN elsewhere", "ours"),
 }
 """every figure of ``episode_metrics``, by group"""
-FORMER_NAMES: dict[str, str] = {"min_distance_m": "min_clearance_m"}
-"""current figure names -> their former names, which ``summarize`` reads in older result files"""
+FORMER_NAMES: dict[str, tuple[str, ...]] = {"min_step_end_gap_m": ("min_distance_m", "min_clearance_m")}
+"""current figure names -> their former names, newest first, which ``summarize`` reads in older result files"""
 RATES: dict[str, Callable[[dict], bool]] = {name: m.counts for name, m in METRICS.items() if m.kind == "rate"}
 """share of episodes that ... (an episode of ``episode_metrics``)"""
 MEANS: tuple[str, ...] = tuple(name for name, m in METRICS.items() if m.kind == "mean")
@@ -411,11 +413,18 @@ def summarize(episodes: list[dict]) -> dict[str, dict[str, float]]:
             low, high = rate_interval(hits, n)
             summary[name] = {"value": hits / n if n else NAN, "low": low, "high": high, "n": n}
         else:
-            former = FORMER_NAMES.get(name)
-            values = np.array([e.get(name, e.get(former, NAN)) for e in episodes], np.float64)
+            values = np.array([_figure(e, name) for e in episodes], np.float64)
             mean, low, high = mean_interval(values)
             summary[name] = {"value": mean, "low": low, "high": high, "n": int(np.isfinite(values).sum())}
     return summary
+
+
+def _figure(episode: dict, name: str) -> float:
+    """An episode's figure ``name``, under its current or a former name (``FORMER_NAMES``); NaN if it has none."""
+    for key in (name, *FORMER_NAMES.get(name, ())):
+        if key in episode:
+            return episode[key]
+    return NAN
 
 
 def paired_collision_test(a: list[dict], b: list[dict], at_fault: bool = False) -> dict[str, float | int]:
@@ -426,27 +435,33 @@ def paired_collision_test(a: list[dict], b: list[dict], at_fault: bool = False) 
         at_fault: count only the collisions the robot was at fault for (else every collision).
 
     Returns:
-        {n, a_collisions, b_collisions, only_a, only_b, p_value}; A is significantly safer when p < 0.05.
+        {n, a_collisions, b_collisions, only_a, only_b, p_value, difference, low, high}; A is significantly safer
+        when p < 0.05; difference: A's collision rate minus B's, [low, high] its 95 % interval (``mean_interval`` of
+        the per-seed differences).
     """
     test = _mcnemar(a, b, RATES["collision_at_fault" if at_fault else "collision"], "less")
     return {"n": test["n"], "a_collisions": test["a"], "b_collisions": test["b"], "only_a": test["only_a"],
-            "only_b": test["only_b"], "p_value": test["p_value"]}
+            "only_b": test["only_b"], "p_value": test["p_value"], "difference": test["difference"],
+            "low": test["low"], "high": test["high"]}
 
 
 def paired_success_test(a: list[dict], b: list[dict]) -> dict[str, float | int]:
     """McNemar's exact test that planner A reaches the goal more often than B on the same seeds (one-sided).
 
     Returns:
-        {n, a_successes, b_successes, only_a, only_b, p_value}; only_a counts seeds that only A completed.
+        {n, a_successes, b_successes, only_a, only_b, p_value, difference, low, high}; only_a counts seeds that only A
+        completed; difference: A's success rate minus B's, [low, high] its 95 % interval.
     """
     test = _mcnemar(a, b, RATES["success"], "greater")
     return {"n": test["n"], "a_successes": test["a"], "b_successes": test["b"], "only_a": test["only_a"],
-            "only_b": test["only_b"], "p_value": test["p_value"]}
+            "only_b": test["only_b"], "p_value": test["p_value"], "difference": test["difference"],
+            "low": test["low"], "high": test["high"]}
 
 
 def _mcnemar(a: list[dict], b: list[dict], counts: Callable[[dict], bool], alternative: str) -> dict[str, float | int]:
     """One-sided exact McNemar test that episodes of A are ``counts`` less ("less") or more ("greater") often than
-    B's, on the same seeds; a / b count them, only_a / only_b the seeds where one run alone does."""
+    B's, on the same seeds; a / b count them, only_a / only_b the seeds where one run alone does; difference, low,
+    high: A's rate minus B's and its seeded bootstrap 95 % interval over the seeds (NaN without episodes)."""
     seeds_a, seeds_b = [e["seed"] for e in a], [e["seed"] for e in b]
     if seeds_a != seeds_b:
         raise ValueError("paired test: the two runs must hold the same seeds in the same order")
@@ -454,5 +469,6 @@ def _mcnemar(a: list[dict], b: list[dict], counts: Callable[[dict], bool], alter
     hit_b = np.array([counts(e) for e in b], bool)
     only_a, only_b = int((hit_a & ~hit_b).sum()), int((hit_b & ~hit_a).sum())
     p_value = stats.binomtest(only_a, only_a + only_b, 0.5, alternative=alternative).pvalue if only_a + only_b else 1.0
+    difference, low, high = mean_interval(hit_a.astype(np.float64) - hit_b)
     return {"n": len(a), "a": int(hit_a.sum()), "b": int(hit_b.sum()), "only_a": only_a, "only_b": only_b,
-            "p_value": float(p_value)}
+            "p_value": float(p_value), "difference": difference, "low": low, "high": high}

@@ -108,10 +108,16 @@ def paired_text(first: str | os.PathLike, second: str | os.PathLike, patterns: t
     return "\n".join([
         f"{first} against {second}: {len(a)} paired episodes",
         f"successes: {success['a_successes']} vs {success['b_successes']} (only the first {success['only_a']}, only "
-        f"the second {success['only_b']}); more for the first p = {success['p_value']:.2g}, for the second p = "
-        f"{paired_success_test(b, a)['p_value']:.2g}",
+        f"the second {success['only_b']}); the first's rate minus the second's {_difference(success)}; more for the "
+        f"first p = {success['p_value']:.2g}, for the second p = {paired_success_test(b, a)['p_value']:.2g}",
         f"at-fault collisions: {fault['a_collisions']} vs {fault['b_collisions']} (only the first {fault['only_a']}, "
-        f"only the second {fault['only_b']}); fewer for the first p = {fault['p_value']:.2g}, for the second p = "
+        f"only the second {fault['only_b']}); the first's rate minus the second's {_difference(fault)}; fewer for the "
+        f"first p = {fault['p_value']:.2g}, for the second p = "
         f"{paired_collision_test(b, a, at_fault=True)['p_value']:.2g}",
         f"the first completes, the second does not: {sum(ended.values())} "
         f"({', '.join(f'{outcome} {count}' for outcome, count in ended.most_common()) or 'none'})"])
+
+
+def _difference(test: dict[str, float | int]) -> str:
+    """A paired test's difference of rates with its 95 % interval, in words."""
+    return f"{test['difference']:+.3f} [95 % interval {test['low']:+.3f}, {test['high']:+.3f}]"

@@ -8,7 +8,7 @@ from st_sim.apps.navigation.metrics import GROUPS, METRICS, summarize
 
 TABLE_COLUMNS: tuple[str, ...] = ("success", "collision", "collision_at_fault", "collision_robot_on_person",
                                   "collision_person_on_robot", "pedestrian_collision", "wall_collision", "timeout",
-                                  "time_to_goal_s", "path_ratio", "min_distance_m", "discomfort", "jerk_mps3")
+                                  "time_to_goal_s", "path_ratio", "min_step_end_gap_m", "discomfort", "jerk_mps3")
 """the columns of ``markdown_row``"""
 
 

@@ -72,7 +72,7 @@ OUTCOME: Kind = ("one of " + ", ".join(strict_json.dumps(outcome.value) for outc
                  lambda value: isinstance(value, str) and value in {outcome.value for outcome in Outcome})
 EPISODE_FIGURES: dict[str, Kind] = {**{name: FLAG if metric.kind == "rate" else FIGURE
                                        for name, metric in METRICS.items()},
-                                    **{former: FIGURE for former in FORMER_NAMES.values()}}
+                                    **{former: FIGURE for formers in FORMER_NAMES.values() for former in formers}}
 """what each figure of an episode holds where present (``metrics.summarize`` reads older files that lack some)"""
 
 
