@@ -198,7 +198,22 @@ def test_an_honest_summary_is_accepted_with_the_figures_of_its_episodes(summary:
     assert result["summary"] == summary_of(every)
     for scenario in result["scenarios"]:
         assert scenario["summary"] == summary_of(scenario["episodes"])
-    assert "| straight |" in markdown([result])
+    assert "| straight + none |" in markdown([result])
+
+
+@settings(HOSTILE, max_examples=10)
+@given(summary=summaries())
+def test_an_older_summary_that_names_a_figure_by_its_former_name_is_accepted(summary: dict[str, Any]) -> None:
+    older = copy.deepcopy(summary)
+    for owner in (older, *older["scenarios"]):
+        owner["summary"]["min_distance_m"] = owner["summary"].pop("min_step_end_gap_m")
+        for episode in owner.get("episodes", []):
+            if "min_step_end_gap_m" in episode:
+                episode["min_distance_m"] = episode.pop("min_step_end_gap_m")
+    with folder_of(older, gzipped=True) as folder:
+        result = load_result(folder)
+    assert result["summary"]["min_step_end_gap_m"] == summary_of(
+        [e for scenario in summary["scenarios"] for e in scenario["episodes"]])["min_step_end_gap_m"]
 
 
 @settings(HOSTILE, max_examples=80)

@@ -112,7 +112,7 @@ def test_the_leaderboard_gives_outcomes_per_scenario_and_pairs_two_runs(tmp_path
     bench(tmp_path / "a", scenarios=("frontal-approach", "overtaking"), episodes=3)
     table = markdown([load_result(tmp_path / "a")])
     outcomes = table.split("### Outcomes per scenario")[1].split("###")[0]
-    row = next(line for line in outcomes.splitlines() if line.startswith("| straight |"))
+    row = next(line for line in outcomes.splitlines() if line.startswith("| straight + none |"))
     for cell in row.strip("|").split("|")[1:]:
         assert math.isclose(sum(float(share) for share in cell.split("/")), 1.0, abs_tol=0.02), cell
     text = paired_text(tmp_path / "a", tmp_path / "a")

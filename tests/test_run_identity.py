@@ -154,4 +154,4 @@ def test_a_run_records_where_it_ran_and_the_leaderboard_shows_it(tmp_path: Path,
     assert json.loads((tmp_path / "run" / "run.json").read_text())["ran_on"] == [record]
     assert main(["leaderboard", str(tmp_path / "run"), "--no-baselines", "--ran-on"]) == 0
     table = capsys.readouterr().out.split("### Where they ran")[1]
-    assert f"| straight | {str(record['commit'])[:12]} |" in table and record["versions"]["numpy"] in table
+    assert f"| straight + none | {str(record['commit'])[:12]} |" in table and record["versions"]["numpy"] in table

@@ -273,12 +273,12 @@ METRICS: dict[str, Metric] = {
                                 "ours after nuPlan (SEANavBench, HuNavSim count the two kinds apart)",
                                 lambda e: bool(e.get("collision_at_fault", e.get("at_fault")))),
     "collision_robot_on_person": _rate("safety", "a pedestrian collision the robot made: at the impact (the first "
-                                       "instant the bodies touch within the step) the robot was moving (at "
-                                       f"{STOP_SPEED_MPS} m/s or more, or below it for fewer than {STOP_HOLD_STEPS} "
-                                       "whole steps before the impact's step) and the person it touched did not "
-                                       "catch it up from behind (contact behind the robot's heading, the person's "
-                                       "velocity along it at least the robot's speed); a person who appeared inside "
-                                       "made it", "nuPlan, SEANavBench, HuNavSim",
+                                       "instant the bodies touch within the step) the robot was moving (the "
+                                       "fastest it went over the impact and the "
+                                       f"{STOP_HOLD_STEPS} whole steps before the impact's step at least "
+                                       f"{STOP_SPEED_MPS} m/s) and the person it touched did not catch it up from "
+                                       "behind (contact behind the robot's heading, the person's velocity along it "
+                                       "at least that fastest speed); a person who appeared inside made it", "nuPlan, SEANavBench, HuNavSim",
                                        lambda e: bool(e.get("collision_robot_on_person"))),  # older files lack it
     "collision_person_on_robot": _rate("safety", "a pedestrian collision the person made: every other one",
                                        "SEANavBench, HuNavSim", lambda e: bool(e.get("collision_person_on_robot"))),

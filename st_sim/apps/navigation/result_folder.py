@@ -185,7 +185,11 @@ def _check_figures(path: Path, owner: dict[str, Any], where: str, episodes: list
     """``owner["summary"]`` (field path ``where``) checked to equal the figures of ``episodes``, then replaced by
     them."""
     computed = summary_of(episodes)
-    stored = check(path, where, owner.get("summary", ABSENT), OBJECT)
+    stored = dict(check(path, where, owner.get("summary", ABSENT), OBJECT))
+    for name, formers in FORMER_NAMES.items():  # an older file's summary holds the figure under a former name
+        former = next((f for f in formers if f in stored), None)
+        if name not in stored and former is not None:
+            stored[name] = stored.pop(former)
     unknown = next((name for name in stored if name not in computed), None)
     if unknown is not None:
         raise LeaderboardError(f"{path}: {where}: {_quoted(unknown)} is not a figure of the benchmark's metrics")
