@@ -308,4 +308,5 @@ def test_the_committed_baselines_load_and_join_a_run_of_the_same_episodes() -> N
     joined, note = baseline_results({**committed[0], "scenario_set": ["sim-crossing"]})
     assert joined == [] and "--common-scenarios" in note, "another scenario set joins only when asked"
     table = markdown(committed)
-    assert all(f"| {name} |" in table for name in ("straight + none", "orca + none", "mpc + singular", "ppo + singular"))
+    labels = ("straight + none", "orca + none", "mpc + singular", "ppo + singular")
+    assert all(f"| {name} |" in table for name in labels)

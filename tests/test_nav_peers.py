@@ -1,10 +1,13 @@
 """The peers (other projects' planners, ``st_sim.apps.navigation.peers``): commands in the world frame, walls seen,
-pedestrians avoided, a real env's observation taken, and the libraries imported only when a peer is built."""
+pedestrians avoided, a real env's observation taken, the target on the walkable path, the settings reaching the
+libraries and changing what the robot does, and the libraries imported only when a peer is built."""
 
 from __future__ import annotations
 
+import math
 import subprocess
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import gymnasium as gym
@@ -14,7 +17,21 @@ import pytest
 import envs  # noqa: F401  (registers the ids)
 from replays.constants import STEP_S, T_OBS
 from replays.scenes import Scene
-from st_sim.apps.navigation.peers import near_walls, wall_points
+from st_sim.apps.navigation.peers import (
+    HLSettings,
+    HrvoSettings,
+    NavgroundHL,
+    NavgroundHrvo,
+    NavgroundOrca,
+    NavgroundPlanner,
+    NavgroundSocialForce,
+    OrcaSettings,
+    PySocialForcePlanner,
+    PySocialForceSettings,
+    SocialForceSettings,
+    near_walls,
+    wall_points,
+)
 from st_sim.apps.navigation.planners import PEERS, make_planner
 from st_sim.apps.navigation.policies import load_policy
 from st_sim.apps.navigation.world import NavWorld, world_of
@@ -28,6 +45,15 @@ WALL_X_M = (4.8, 5.2)  # the hand-made wall's columns [m]
 def open_world() -> NavWorld:
     """A 30 m x 30 m walkable square; the robot starts near its middle."""
     return NavWorld(Scene("open", H, np.ones((300, 300), bool)), (-10.0, -10.0, 20.0, 20.0))
+
+
+@pytest.fixture(scope="module")
+def half_walled_world() -> NavWorld:
+    """The open square with a wall at x = 4.8 .. 5.2 m from its south edge up to y = 0: the way east goes round
+    the wall's end."""
+    walkable = np.ones((300, 300), bool)
+    walkable[:100, 148:152] = False
+    return NavWorld(Scene("half-walled", H, walkable), (-10.0, -10.0, 20.0, 20.0), wall_clearance_m=0.3)
 
 
 @pytest.fixture(scope="module")
@@ -131,7 +157,7 @@ def test_walls_are_picked_by_distance_and_sampled_along(walled_world: NavWorld) 
     walls = np.array([[[0.0, -1.0], [0.0, 1.0]], [[10.0, 0.0], [12.0, 0.0]], [[-3.0, 3.0], [3.0, 3.0]]])
     np.testing.assert_array_equal(near_walls(walls, np.array([1.0, 0.0]), 2.5), walls[[0]])
     np.testing.assert_array_equal(near_walls(walls, np.array([1.0, 0.0]), 3.0), walls[[0, 2]])
-    points = wall_points(walls[:1])
+    points = wall_points(walls[:1], 0.2)
     assert np.allclose(points[[0, -1]], walls[0]) and np.allclose(points[:, 0], 0.0)
     assert np.diff(points[:, 1]).max() <= 0.2 + 1e-9
 
@@ -157,3 +183,84 @@ def test_pysocialforce_is_imported_without_its_log_file_and_debug_logging(tmp_pa
     assert result.returncode == 0 and result.stdout.strip() == "ok", result.stderr[-2000:]
     assert "DEBUG" not in result.stderr, result.stderr[-2000:]
     assert not (tmp_path / "file.log").exists(), "the import left file.log behind"
+
+
+def test_the_target_lies_along_the_walkable_path_round_a_corner(half_walled_world: NavWorld) -> None:
+    """The robot stands west of the wall's end, its goal east of it: the target 3 m ahead is 3 m along the shortest
+    walkable path (2.7 m or more nearer the goal by that path) and clear of the wall, not 3 m along the path's first
+    direction (north, 3 m past the wall's end); with an infinite waypoint distance it is the goal."""
+    world, start, goal = half_walled_world, np.array([4.2, -1.0]), np.array([6.0, -1.0])
+    planner = make_planner("navground-hl", world, "none", settings=HLSettings(waypoint_m=3.0))
+    target = planner.target_of(start, goal)
+    terrain, body_m = world.terrain, world.wall_clearance_m
+    progress_m = terrain.cost_to_go(start[None], goal, body_m)[0] - terrain.cost_to_go(target[None], goal, body_m)[0]
+    assert progress_m >= 2.7, f"the target {target} is only {progress_m:.2f} m along the path"
+    assert terrain.clearance_at(target[None])[0] >= body_m
+    direct = make_planner("navground-hl", world, "none", settings=HLSettings(waypoint_m=math.inf))
+    np.testing.assert_array_equal(direct.target_of(start, goal), goal)
+
+
+NAVGROUND_SETTINGS = [
+    (NavgroundHL, HLSettings(aperture_rad=1.0, resolution=31, tau_s=0.3, eta_s=1.7),
+     {"aperture": 1.0, "resolution": 31, "tau": 0.3, "eta": 1.7}),
+    (NavgroundOrca, OrcaSettings(time_horizon_s=3.5, static_time_horizon_s=0.6),
+     {"time_horizon": 3.5, "static_time_horizon": 0.6}),
+    (NavgroundHrvo, HrvoSettings(uncertainty_offset_mps=0.3), {"uncertainty_offset": 0.3}),
+    (NavgroundSocialForce, SocialForceSettings(tau_s=0.7, step_duration_s=1.5, people_strength_m2ps2=4.0,
+                                               people_range_m=0.8, wall_strength_m2ps2=12.0, wall_range_m=0.5),
+     {"tau": 0.7, "step_duration": 1.5, "v_a": 4.0, "v_r": 0.8, "u_a": 12.0, "u_r": 0.5}),
+]
+
+
+@pytest.mark.parametrize(("cls", "settings", "properties"), NAVGROUND_SETTINGS,
+                         ids=[cls.__name__ for cls, _, _ in NAVGROUND_SETTINGS])
+def test_navground_settings_reach_the_behaviour(open_world: NavWorld, cls, settings, properties) -> None:
+    settings = replace(settings, speed_share=0.6, horizon_m=7.0, safety_margin_m=0.15)
+    planner = cls(open_world, False, settings=settings)
+    agent = planner.agent
+    assert {name: getattr(agent, name) for name in properties} == pytest.approx(properties)
+    assert (agent.optimal_speed, agent.horizon, agent.safety_margin) == pytest.approx(
+        (0.6 * open_world.max_speed_mps, 7.0, 0.15))
+    assert planner.fingerprint() == repr(settings) != cls(open_world, False).fingerprint()
+
+
+def test_pysocialforce_settings_reach_its_forces(open_world: NavWorld) -> None:
+    settings = PySocialForceSettings(relaxation_time_s=0.3, social_factor=7.0, social_gamma=0.5,
+                                     obstacle_factor=15.0, obstacle_sigma_m=0.4, target_tolerance_m=0.35)
+    config = make_planner("pysocialforce", open_world, "none", settings=settings).config
+    assert (config.sub_config("desired_force")("relaxation_time"), config.sub_config("desired_force")("goal_threshold"),
+            config.sub_config("social_force")("factor"), config.sub_config("social_force")("gamma"),
+            config.sub_config("obstacle_force")("factor"), config.sub_config("obstacle_force")("sigma")) == (
+        0.3, 0.35, 7.0, 0.5, 15.0, 0.4)
+    assert config.sub_config("social_force")("n_prime") == 3  # the entries not set keep PySocialForce's defaults
+
+
+@pytest.mark.parametrize("name", sorted(PEERS))
+def test_a_slower_optimal_speed_slows_every_peer(open_world: NavWorld, name: str) -> None:
+    """The robot stands, its goal 6 m east, nobody near: a speed share of 0.4 keeps its command at 0.4 of the speed
+    limit, where the tuned settings go faster."""
+    settings = replace(make_planner(name, open_world, "none").settings, speed_share=0.4)
+    obs = observation(np.zeros(2), np.zeros(2), np.array([6.0, 0.0]))
+    slow = float(np.linalg.norm(make_planner(name, open_world, "none", settings=settings).act(obs)))
+    fast = float(np.linalg.norm(make_planner(name, open_world, "none").act(obs)))
+    assert 0.0 < slow <= 0.4 * open_world.max_speed_mps + 1e-6 < fast
+
+
+def test_a_peer_refuses_another_peers_settings(open_world: NavWorld) -> None:
+    with pytest.raises(TypeError, match="NavgroundHL takes HLSettings, not OrcaSettings"):
+        NavgroundHL(open_world, False, settings=OrcaSettings())
+    with pytest.raises(TypeError, match="PySocialForcePlanner takes PySocialForceSettings"):
+        PySocialForcePlanner(open_world, False, settings=HLSettings())
+
+
+def test_navground_sf_stops_where_its_social_force_is_nan(open_world: NavWorld) -> None:
+    """A person walks nearly straight at the robot, where navground 0.7's distance to a neighbour takes the root of
+    a negative number after rounding: its command is NaN, the adapter's a stop."""
+    planner = make_planner("navground-sf", open_world, "none")
+    person = (np.array([4.505524, -2.0664103]), np.array([0.05055428, -1.7375124]))
+    obs = observation(np.array([4.52074051, -2.58249354]), np.array([-0.13303399, 0.16544758]),
+                      np.array([4.90998174, 0.37435427]), [person])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        raw = NavgroundPlanner.act(planner, obs)
+    assert np.isnan(raw).all(), "the library no longer fails here: the test does not exercise the stop"
+    np.testing.assert_array_equal(planner.act(obs), np.zeros(2))

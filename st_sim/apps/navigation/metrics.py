@@ -278,7 +278,8 @@ METRICS: dict[str, Metric] = {
                                        f"{STOP_HOLD_STEPS} whole steps before the impact's step at least "
                                        f"{STOP_SPEED_MPS} m/s) and the person it touched did not catch it up from "
                                        "behind (contact behind the robot's heading, the person's velocity along it "
-                                       "at least that fastest speed); a person who appeared inside made it", "nuPlan, SEANavBench, HuNavSim",
+                                       "at least that fastest speed); a person who appeared inside made it",
+                                       "nuPlan, SEANavBench, HuNavSim",
                                        lambda e: bool(e.get("collision_robot_on_person"))),  # older files lack it
     "collision_person_on_robot": _rate("safety", "a pedestrian collision the person made: every other one",
                                        "SEANavBench, HuNavSim", lambda e: bool(e.get("collision_person_on_robot"))),
