@@ -10,9 +10,9 @@ How an episode ends is in ``info["termination"]``: "goal", "pedestrian_collision
 step that terminated the episode; a collision outranks the goal, a pedestrian outranks a wall) or None
 while it goes on. Contacts are found along the step, not only at its end (``st_sim.sim.sweep``): on a pedestrian
 collision ``info["contact_time_s"]`` is the moment of impact (seconds into the step) and ``info["at_fault"]`` says
-whether the robot was at fault then (``envs.common.fault``: it was moving, at 0.05 m/s or more or within 0.8 s of
-it, and the person did not run into it from behind); a wall collision is always at fault (``contact_time_s``
-None). Both are None without a collision.
+whether the robot was at fault then (``envs.common.fault``: it moved at 0.05 m/s or more at the impact or in the
+0.8 s before, and the person did not run into it from behind); a wall collision is always at fault
+(``contact_time_s`` None). Both are None without a collision.
 The env never ends an episode for time: "timeout" is the ``TimeLimit`` wrapper's truncation (``truncated``
 with ``termination`` None), like the end of a replay's recording.
 

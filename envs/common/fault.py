@@ -40,7 +40,7 @@ STOP_HOLD_STEPS: Final[int] = 2
 """whole 0.4 s steps before the impact's step over which the rule reads the robot's motion (0.8 s)"""
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class RobotMotion:
     """What the rule needs of the robot's past before a step.
 
