@@ -11,18 +11,11 @@ import argparse
 import sys
 from pathlib import Path
 
-import gymnasium as gym
-
-import envs  # noqa: F401  (registers the ids)
-from st_sim.apps.navigation.episodes import run_episode
-from st_sim.apps.navigation.metrics import Outcome
 from st_sim.apps.navigation.straight import StraightPlanner
-from st_sim.apps.navigation.world import world_of
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
-from gaming_policies import Creeper, SpeedMatchedRammer, Standing
+from gaming_policies import LOGGED_REPLAYS, Creeper, SpeedMatchedRammer, Standing, judged_collisions
 
-REPLAYS = ("STCrowd-Eth-v0", "STCrowd-Hotel-v0", "STCrowd-Univ-v0", "STCrowd-Zara1-v0", "STCrowd-Zara2-v0")
 POLICIES = {"straight": StraightPlanner, "speed-matched rammer": SpeedMatchedRammer, "creeper": Creeper,
             "standing": Standing}
 
@@ -32,19 +25,12 @@ def main() -> None:
     parser.add_argument("--episodes", type=int, default=25, help="episodes per replay, seeds 0..N-1 (default: 25)")
     args = parser.parse_args()
     counts = {name: {} for name in POLICIES}  # policy -> replay -> (pedestrian collisions, at fault)
-    for env_id in REPLAYS:
-        env = gym.make(env_id, predictor="none", pedestrians="log")
-        world = world_of(env)
+    for env_id in LOGGED_REPLAYS:
         for name, cls in POLICIES.items():
-            policy, hits, fault = cls(world), 0, 0
-            for seed in range(args.episodes):
-                trace, _ = run_episode(env, policy, world, seed)
-                hits += trace.outcome is Outcome.PEDESTRIAN
-                fault += trace.outcome is Outcome.PEDESTRIAN and trace.at_fault is True
-            counts[name][env_id] = (hits, fault)
-        env.close()
-    print(f"| policy | {' | '.join(r.removeprefix('STCrowd-').removesuffix('-v0') for r in REPLAYS)} | pooled |")
-    print("|---|" + "---|" * (len(REPLAYS) + 1))
+            verdicts = judged_collisions(cls, env_id, args.episodes)
+            counts[name][env_id] = (len(verdicts), sum(v is True for v in verdicts))
+    print(f"| policy | {' | '.join(r.removeprefix('STCrowd-').removesuffix('-v0') for r in LOGGED_REPLAYS)} | pooled |")
+    print("|---|" + "---|" * (len(LOGGED_REPLAYS) + 1))
     for name, by_replay in counts.items():
         hits, fault = (sum(v[k] for v in by_replay.values()) for k in (0, 1))
         cells = [f"{f} / {h}" for h, f in by_replay.values()]

@@ -4,14 +4,22 @@ blameless (``tests/test_gaming_policies.py`` scores them). They follow the plann
 
 from __future__ import annotations
 
+from typing import Any
+
+import gymnasium as gym
 import numpy as np
 
+import envs  # noqa: F401  (registers the ids)
+from st_sim.apps.navigation.episodes import run_episode
+from st_sim.apps.navigation.metrics import Outcome
 from st_sim.apps.navigation.pedestrians import pedestrians_of
-from st_sim.apps.navigation.world import NavWorld
+from st_sim.apps.navigation.world import NavWorld, world_of
 
 CREEP_MPS = 0.06  # the creeper's speed near people: just above the rule's stop speed [m/s]
 CREEP_NEAR_M = 2.0  # it creeps once someone is this close (centre distance) [m]
 MATCH_MARGIN_MPS = 0.2  # the rammer stays this much under the person's approach speed [m/s]
+LOGGED_REPLAYS = ("STCrowd-Eth-v0", "STCrowd-Hotel-v0", "STCrowd-Univ-v0", "STCrowd-Zara1-v0", "STCrowd-Zara2-v0")
+"""the five ETH/UCY scenes, replayed as recorded (``judged_collisions`` runs them with pedestrians="log")"""
 
 
 class _Gamer:
@@ -69,3 +77,17 @@ class Standing(_Gamer):
 
     def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
         return np.zeros(2, np.float32)
+
+
+def judged_collisions(policy_class: Any, env_id: str, episodes: int) -> list[bool | None]:
+    """The at-fault verdict (``info["at_fault"]``) of every pedestrian collision of ``policy_class`` (built as a
+    planner) on the logged replay ``env_id``, seeds 0..episodes-1, no forecasts."""
+    env = gym.make(env_id, predictor="none", pedestrians="log")
+    world = world_of(env)
+    policy, verdicts = policy_class(world), []
+    for seed in range(episodes):
+        trace, _ = run_episode(env, policy, world, seed)
+        if trace.outcome is Outcome.PEDESTRIAN:
+            verdicts.append(trace.at_fault)
+    env.close()
+    return verdicts
