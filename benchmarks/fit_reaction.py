@@ -1,4 +1,5 @@
-"""Fit the reactive pedestrians' reaction (``envs.common.reaction.Reaction``) to CITR's pedestrians reacting to a cart.
+"""Fit the reactive pedestrians' reaction (``st_sim.reactive.reaction.Reaction``) to CITR's pedestrians reacting to a
+cart.
 
     export OMP_NUM_THREADS=1 STCROWD_CITR=$PWD/../shared/datasets/citr
     python benchmarks/fit_reaction.py --cross-validate --out runs/reaction_cv/fit.json
@@ -41,8 +42,6 @@ import itertools
 import sys
 from pathlib import Path
 
-from envs.common.footprint import Body
-from envs.common.reaction import FIT_PATH, read_reaction
 from replays import strict_json
 from replays.atomic import write_text_atomic
 from replays.citr import CART_LENGTH_M, CART_WIDTH_M, find_experiments
@@ -61,6 +60,8 @@ from st_sim.apps.reaction_search import (
 )
 from st_sim.apps.vehicle_cases import cases
 from st_sim.command_line import non_negative_float
+from st_sim.reactive.footprint import Body
+from st_sim.reactive.reaction import FIT_PATH, read_reaction
 
 FITTED_ON = ("vci_back", "vci_front", "vci_lat_uni")  # the shipped fit's folders (one fit, without --cross-validate)
 
@@ -88,7 +89,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", default=None, help="CITR folder (default: $STCROWD_CITR or the cache)")
     parser.add_argument("--out", required=True, help="where the fit is written (the shipped one: "
-                                                     "envs/common/reaction_fit.json)")
+                                                     "st_sim/reactive/reaction_fit.json)")
     parser.add_argument("--cross-validate", action="store_true",
                         help="choose among --variants by leave-one-folder-out, then fit the chosen one on every folder")
     parser.add_argument("--variants", nargs="+", choices=list(VARIANTS), default=["reactive"],

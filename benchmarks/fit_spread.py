@@ -1,8 +1,9 @@
-"""Choose how much reactive pedestrians differ (``envs.common.reaction.Spread``) by the cross-validated realism score.
+"""Choose how much reactive pedestrians differ (``st_sim.reactive.reaction.Spread``) by the cross-validated realism
+score.
 
     export OMP_NUM_THREADS=1 STCROWD_CITR=$PWD/../shared/datasets/citr
     python benchmarks/fit_spread.py --folds results/reactive_validation/citr-cv.json --sigmas 0 0.15 0.3 0.5 \
-        --rollouts 16 --workers 2 --out envs/common/spread_fit.json
+        --rollouts 16 --workers 2 --out st_sim/reactive/spread_fit.json
 
 One sigma for all four traits (noticing distance, reaction time, room, patience: ``reaction.TRAITS``), each
 pedestrian's factors drawn as exp(N(0, sigma)). The score is the WOSAC-style realism meta score of the reactive
@@ -12,7 +13,7 @@ pedestrians' seeded rollouts (``st_sim.apps.sim_agents``; paces as ``reactive-va
   on the three other folders (``folds[].reaction`` of a ``reactive-validate --cross-validate`` JSON, ``--folds``);
   the sigma chosen is the one with the highest meta score on those three folders, and it is scored on the folder left
   out, beside sigma 0 there.
-- **Shipped**: the sigma with the highest meta score of the shipped reaction (``envs/common/reaction_fit.json``) on
+- **Shipped**: the sigma with the highest meta score of the shipped reaction (``st_sim/reactive/reaction_fit.json``) on
   all four folders, written to ``--out`` with every figure.
 
 Every (reaction, sigma) pair is one job, run by ``--workers`` processes; its per-experiment likelihoods are kept in
@@ -35,14 +36,14 @@ import numpy as np
 from tqdm import tqdm
 
 from envs.common.errors import ConfigError
-from envs.common.footprint import Body
-from envs.common.reaction import FIT_PATH, TRAITS, Reaction, Spread, fitted_reaction, reaction_of
 from replays import strict_json
 from replays.atomic import atomic_path, write_text_atomic
 from replays.citr import CART_LENGTH_M, CART_WIDTH_M, CITR_FPS, find_experiments
 from replays.data_root import CITR, data_root
 from st_sim.apps.sim_agents import case_likelihoods, pooled_realism
 from st_sim.apps.vehicle_cases import Case, Variety, cases
+from st_sim.reactive.footprint import Body
+from st_sim.reactive.reaction import FIT_PATH, TRAITS, Reaction, Spread, fitted_reaction, reaction_of
 
 SEP, MIN_ADE = "|", "min_ade_m"  # a kept job's keys: experiment, then feature (or the min ADE)
 

@@ -6,7 +6,7 @@
 
 For every combination of ``Reaction.delay_cost`` (per 0.4 s frame behind the log), ``Reaction.aside_cost`` (per metre
 to the side of the route) and ``Reaction.crossing_s`` (room per m/s of a robot crossing the way), the other fields as
-shipped (``envs/common/reaction_fit.json``), one row: the fit's loss on the folders it is fitted on
+shipped (``st_sim/reactive/reaction_fit.json``), one row: the fit's loss on the folders it is fitted on
 (``benchmarks/fit_reaction.py``'s), the reactive ADE as a share of the blind one on the fitted folders and on the
 held-out ``vci_lat_bi``, the held-out median least clearance (recorded) and the held-out collisions. The dearer the
 side against the delay, the more a pedestrian slows or waits and passes behind the vehicle. Deterministic.
@@ -22,14 +22,14 @@ import numpy as np
 from fit_reaction import FITTED_ON  # benchmarks/ is the script's folder, first on sys.path
 from tqdm import tqdm
 
-from envs.common.footprint import Body
-from envs.common.reaction import fitted_reaction
 from replays import strict_json
 from replays.atomic import write_text_atomic
 from replays.citr import CART_LENGTH_M, CART_WIDTH_M, find_experiments
 from replays.data_root import CITR, data_root
 from st_sim.apps.reaction_search import Scorer, loss
 from st_sim.apps.vehicle_cases import cases
+from st_sim.reactive.footprint import Body
+from st_sim.reactive.reaction import fitted_reaction
 
 HELD_OUT = ("vci_lat_bi",)  # the shipped fit's folder left out
 

@@ -37,8 +37,8 @@ import numpy as np
 from tqdm import tqdm
 
 import envs  # noqa: F401  (registers the ids)
-from envs.common.routes import run_bounds
 from envs.replay_env import REACTION_TRAITS
+from st_sim.reactive.routes import run_bounds
 from st_sim.sim.map_depth import MapDepth
 
 STEPS = 200

@@ -15,17 +15,17 @@ from envs.common.config import EnvConfig
 from envs.common.crowd_env import CrowdEnv, check_flag
 from envs.common.ego import SpawnPoints, move_within, spawn_start_goal, walkable_points
 from envs.common.errors import EnvInputError, ResetOptionsError
-from envs.common.footprint import Body
 from envs.common.predictors import shipped_checkpoint
-from envs.common.reaction import draw_traits, fitted_spread
-from envs.common.reactive import ReactiveCrowd
-from envs.common.routes import Routes
 from envs.common.tracks import Frame
 from replays.constants import COORD_DECIMALS, MIN_AGENTS_PER_WINDOW, STEP_S, T_PRED
 from replays.data_root import data_root
 from replays.errors import RecordingError
 from replays.recording import read_recording
 from replays.scenes import load_scene, scene_info
+from st_sim.reactive.footprint import Body
+from st_sim.reactive.reaction import draw_traits, fitted_spread
+from st_sim.reactive.reactive import ReactiveCrowd
+from st_sim.reactive.routes import Routes
 from st_sim.sim.map_depth import MapDepth
 
 MIN_REPLAY_STEPS = 50  # a random start leaves at least this many steps (20 s) of recording
@@ -103,7 +103,7 @@ class ReplayCrowdEnv(CrowdEnv):
     and do not react to it; with ``"reactive"`` each one walks its own log until it has noticed the robot (in its
     field of view or hearing), reacted (a reaction time later) and the robot is in its way, then steps aside or slows
     down along its logged route and catches up with its log; noticed or not, nobody walks into the robot's body
-    (``envs.common.reactive``; the reaction fitted on CITR, ``envs.common.reaction``).
+    (``st_sim.reactive.reactive``; the reaction fitted on CITR, ``st_sim.reactive.reaction``).
 
     ## Action Space
     Box(-1.5, 1.5, (2,), float32): ego velocity (vx, vy) [m/s], world frame; scaled down to
@@ -173,7 +173,7 @@ class ReplayCrowdEnv(CrowdEnv):
     pedestrians ("log": the recording exactly; "reactive": recorded pedestrians step round the robot),
     reaction_traits (reactive only; "fitted" (default): every pedestrian reacts as fitted; "drawn": at each reset
     every pedestrian draws its own noticing distance, reaction time, room and willingness to wait from the fitted
-    spread, ``envs.common.reaction.fitted_spread``, with the env's ``np_random``: seeded by the reset's seed), device
+    spread, ``st_sim.reactive.reaction.fitted_spread``, with the env's ``np_random``: seeded by the reset's seed), device
     (where a SingularTrajectory the env loads runs: "auto" (default: a CUDA GPU when torch sees one, else the CPU),
     "cpu", "cuda", "cuda:N" or "mps"; a predictor object passed in runs where it is).
 

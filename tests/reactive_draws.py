@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from envs.common.footprint import Body
 from replays.scenes import Scene
+from st_sim.reactive.footprint import Body
 from st_sim.sim.map_depth import MapDepth
 
 ROBOT = Body(radius_m=0.3)

@@ -1,4 +1,4 @@
-"""Walking distances on a grid round obstacles (``envs.common.detour``)."""
+"""Walking distances on a grid round obstacles (``st_sim.reactive.detour``)."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from envs.common.detour import CELL_M, cells_near, grid_cells, nearest_free_m, walking_distance_m
+from st_sim.reactive.detour import CELL_M, cells_near, grid_cells, nearest_free_m, walking_distance_m
 
 CELLS = grid_cells(np.array([-3.0, -2.0]), np.array([3.0, 2.0]))  # (H, W, 2)
 point = st.tuples(st.floats(-2.9, 2.9), st.floats(-1.9, 1.9)).map(np.array)

@@ -15,10 +15,10 @@ from hypothesis import strategies as st
 import envs  # noqa: F401  (registers the ids)
 from envs import REPLAY_SCENES
 from envs.common.errors import EnvInputError
-from envs.common.footprint import ROBOT_MARGIN_M, Body
-from envs.common.reaction import Reaction, Spread
-from envs.common.reactive import ReactiveCrowd
 from replays.scenes import Scene
+from st_sim.reactive.footprint import ROBOT_MARGIN_M, Body
+from st_sim.reactive.reaction import Reaction, Spread
+from st_sim.reactive.reactive import ReactiveCrowd
 from st_sim.sim.map_depth import MapDepth
 from st_sim.sim.sweep import closest_approach
 

@@ -1,4 +1,4 @@
-"""The robot's body as reactive pedestrians keep clear of it (``envs.common.footprint``): exact swept gaps to a disc
+"""The robot's body as reactive pedestrians keep clear of it (``st_sim.reactive.footprint``): exact swept gaps to a disc
 or a box, checked against dense sampling."""
 
 from __future__ import annotations
@@ -7,7 +7,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from envs.common.footprint import Body, box_distance, segment_box_distance
+from st_sim.reactive.footprint import Body, box_distance, segment_box_distance
 from st_sim.sim.sweep import closest_approach
 
 DRAWS = settings(max_examples=60, deadline=None)

@@ -1,5 +1,5 @@
 """When reactive pedestrians notice the robot, when they react and how much room they keep
-(``envs.common.reaction``), and the fitted values that ship."""
+(``st_sim.reactive.reaction``), and the fitted values that ship."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from envs.common.errors import ConfigError
-from envs.common.reaction import (
+from st_sim.reactive.reaction import (
     FIT_PATH,
     MEMORY_S,
     NOTICING,

@@ -16,8 +16,6 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from envs.common.footprint import Body
-from envs.common.reaction import fitted_reaction
 from replays.citr import PED_SUFFIX, VEH_SUFFIX, find_experiments
 from replays.data_root import CITR, data_root
 from st_sim.apps.cli import main
@@ -43,6 +41,8 @@ from st_sim.apps.reaction_search import (
 from st_sim.apps.sim_agents import WEIGHTS
 from st_sim.apps.subgoal_force import SubGoalForce
 from st_sim.apps.vehicle_cases import cases
+from st_sim.reactive.footprint import Body
+from st_sim.reactive.reaction import fitted_reaction
 
 CITR_ROOT = data_root(dataset=CITR)  # $STCROWD_CITR in CI; missing: a failure
 CART = Body(2.4, 1.2)

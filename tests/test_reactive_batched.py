@@ -1,6 +1,6 @@
-"""The batched reactive step (``envs.common.reactive``, ``envs.common.choosing``): crowds stepped together walk as
-each alone, its shortcuts (bounded scoring, only the pairs within reach) change no walk, its sums round as numpy's
-(``envs.common.ragged``), and a native vector env of reactive replays is N single envs."""
+"""The batched reactive step (``st_sim.reactive.reactive``, ``st_sim.reactive.choosing``): crowds stepped together walk
+as each alone, its shortcuts (bounded scoring, only the pairs within reach) change no walk, its sums round as numpy's
+(``st_sim.reactive.ragged``), and a native vector env of reactive replays is N single envs."""
 
 from __future__ import annotations
 
@@ -12,11 +12,11 @@ from hypothesis import strategies as st
 from reactive_draws import FRAMES, ROBOT, chase, robot_paths, scene_with_walls, straight_logs
 
 import envs  # noqa: F401  (registers the ids)
-from envs.common import choosing
-from envs.common.detour import grid_cells, walking_distance_m, walking_distances_m
-from envs.common.ragged import exact_row_sums
-from envs.common.reactive import ReactiveCrowd
-from envs.common.routes import Routes
+from st_sim.reactive import choosing
+from st_sim.reactive.detour import grid_cells, walking_distance_m, walking_distances_m
+from st_sim.reactive.ragged import exact_row_sums
+from st_sim.reactive.reactive import ReactiveCrowd
+from st_sim.reactive.routes import Routes
 
 DRAWS = settings(max_examples=10, deadline=None)
 

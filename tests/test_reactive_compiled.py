@@ -1,4 +1,4 @@
-"""The compiled reactive step (``envs.common.compiled``) against its reference, the plain numpy path: drawn crowds
+"""The compiled reactive step (``st_sim.reactive.compiled``) against its reference, the plain numpy path: drawn crowds
 round robots that cross or stand, in a square with walls or on open ground, round a disc robot or a vehicle, and the
 replays UNIV and ZARA1 round a robot that chases their pedestrians, walk the same to the last bit (every field of
 the state, every step); the kernels round as numpy does (sums, ties, NaN, ``arange``), find the same shortest walks
@@ -17,14 +17,14 @@ from hypothesis import strategies as st
 from reactive_draws import FRAMES, ROBOT, chase, robot_paths, scene_with_walls, straight_logs
 
 import envs  # noqa: F401  (registers the ids)
-from envs.common import compiled
-from envs.common.compiled import exact
-from envs.common.compiled.way_round import _shortest_walks
-from envs.common.detour import grid_cells, walking_distance_m
-from envs.common.footprint import Body
-from envs.common.reaction import Spread, draw_traits
-from envs.common.reactive import ReactiveCrowd, ReactiveState
-from envs.common.routes import OpenGround, Routes
+from st_sim.reactive import compiled
+from st_sim.reactive.compiled import exact
+from st_sim.reactive.compiled.way_round import _shortest_walks
+from st_sim.reactive.detour import grid_cells, walking_distance_m
+from st_sim.reactive.footprint import Body
+from st_sim.reactive.reaction import Spread, draw_traits
+from st_sim.reactive.reactive import ReactiveCrowd, ReactiveState
+from st_sim.reactive.routes import OpenGround, Routes
 
 VEHICLE = Body(length_m=2.5, width_m=1.3, radius_m=0.1)  # a golf cart's box, as CITR's
 DRAWS = settings(max_examples=12, deadline=None)
@@ -169,9 +169,10 @@ def test_every_module_the_kernels_import_from_is_a_source_of_their_cache() -> No
     kernels = set(compiled.PACKAGE.glob("*.py")) - {compiled.PACKAGE / "__init__.py"}  # (its imports compile nothing)
     for path in kernels:
         for node in ast.walk(ast.parse(path.read_text())):
-            if isinstance(node, ast.ImportFrom) and node.module and node.module.split(".")[0] in ("envs", "replays"):
+            if isinstance(node, ast.ImportFrom) and node.module \
+                    and (node.module.split(".")[0] == "replays" or node.module.startswith("st_sim.reactive")):
                 source = node.module.replace(".", "/") + ".py"
-                assert source in compiled.SOURCES or node.module == "envs.common.compiled", \
+                assert source in compiled.SOURCES or node.module == "st_sim.reactive.compiled", \
                     f"{path.name} imports {node.module}, not in compiled.SOURCES"
 
 

@@ -1,4 +1,4 @@
-"""Reactive pedestrians round a standing robot in crowds drawn like UNIV's (``envs.common.reactive``): logs that
+"""Reactive pedestrians round a standing robot in crowds drawn like UNIV's (``st_sim.reactive.reactive``): logs that
 stand, dither and turn back, start and end within the recording, a robot parked on the busiest of them, a block of
 non-walkable ground. Nobody freezes while its log walks on, no pair overlaps where the logs do not, nobody leaves
 more than 1 m from where its log ends, and nobody touches the robot: the properties
@@ -12,9 +12,9 @@ import numpy as np
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from envs.common.footprint import ROBOT_MARGIN_M, Body
-from envs.common.reactive import ReactiveCrowd
 from replays.scenes import Scene
+from st_sim.reactive.footprint import ROBOT_MARGIN_M, Body
+from st_sim.reactive.reactive import ReactiveCrowd
 from st_sim.sim.map_depth import MapDepth
 
 FRAMES = 60

@@ -13,13 +13,13 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from envs.common.footprint import Body
-from envs.common.reaction import Spread, fitted_reaction
 from replays.citr import PED_SUFFIX, VEH_SUFFIX, find_experiments, on_grid
 from replays.data_root import CITR, data_root
 from st_sim.apps.cli import main
 from st_sim.apps.reactive_validate import validate
 from st_sim.apps.vehicle_cases import INTENT_STEPS, PACE_RANGE, Case, Variety, intents, rollout, score, walk
+from st_sim.reactive.footprint import Body
+from st_sim.reactive.reaction import Spread, fitted_reaction
 
 CITR_ROOT = data_root(dataset=CITR)  # $STCROWD_CITR in CI; missing: a failure
 CART = Body(2.4, 1.2)
@@ -135,7 +135,7 @@ def test_another_reaction_fit_is_validated_and_a_bad_one_is_one_error_line(tmp_p
     file that is no fit is one error line before any data is read."""
     folder = tmp_path / "data"
     write_experiment(folder, "run", crossing(3, 3), np.c_[np.linspace(-8.0, 8.0, 150), np.zeros(150)], 0.0, 4.0)
-    fit = json.loads((Path(__file__).parents[1] / "envs/common/reaction_fit.json").read_text())
+    fit = json.loads((Path(__file__).parents[1] / "st_sim/reactive/reaction_fit.json").read_text())
     fit["params"]["aside_cost"] = 2.0
     (tmp_path / "fit.json").write_text(json.dumps(fit))
     out = tmp_path / "v.json"

@@ -1,4 +1,4 @@
-"""The logged routes reactive pedestrians walk (``envs.common.routes``): places along and beside them, and the route
+"""The logged routes reactive pedestrians walk (``st_sim.reactive.routes``): places along and beside them, and the route
 point nearest to a place off their grid."""
 
 from __future__ import annotations
@@ -7,8 +7,8 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from envs.common.footprint import Body
-from envs.common.routes import OpenGround, Routes
+from st_sim.reactive.footprint import Body
+from st_sim.reactive.routes import OpenGround, Routes
 
 FRAMES = 30
 DRAWS = settings(max_examples=30, deadline=None)

@@ -9,8 +9,6 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from envs.common.footprint import Body
-from envs.common.routes import OpenGround
 from replays.constants import STEP_S
 from st_sim.apps.sim_agents import (
     FLAGS,
@@ -25,6 +23,8 @@ from st_sim.apps.sim_agents import (
     min_ade_m,
     realism,
 )
+from st_sim.reactive.footprint import Body
+from st_sim.reactive.routes import OpenGround
 
 CART = Body(2.4, 1.2)
 DRAWS = settings(max_examples=30, deadline=None)

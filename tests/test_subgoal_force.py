@@ -7,9 +7,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from envs.common.footprint import Body
 from replays.constants import STEP_S
 from st_sim.apps.subgoal_force import SubGoalForce, walk_sub_goal
+from st_sim.reactive.footprint import Body
 
 CART = Body(2.4, 1.2)
 STEPS = 40

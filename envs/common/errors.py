@@ -1,20 +1,24 @@
 """Errors an environment raises for bad input or misuse; each names the argument, field or option at fault.
 
 Every class takes the message as its only positional argument, so it pickles and survives gymnasium's async
-vector env, which re-raises a worker's error as ``type(err)(err)``.
+vector env, which re-raises a worker's error as ``type(err)(err)``. ``EnvInputError`` and ``ConfigError`` are the
+st_sim core's classes (``st_sim.errors``), so that what the reactive pedestrians (``st_sim.reactive``) raise for a
+bad reaction, spread or fit file is a ``ConfigError`` too.
 """
 
 from __future__ import annotations
 
 from gymnasium.error import ResetNeeded
 
+from st_sim import errors as _core
 
-class EnvInputError(ValueError):
-    """A constructor argument, config field, reset option or action is of the wrong kind or out of range."""
+EnvInputError = _core.InputError
+"""A constructor argument, config field, reset option or action is of the wrong kind or out of range (a
+``ValueError``; the class ``st_sim.errors.InputError``)."""
 
-
-class ConfigError(EnvInputError):
-    """A config dataclass field has the wrong type or a value outside its allowed range."""
+ConfigError = _core.ConfigError
+"""A config dataclass field has the wrong type or a value outside its allowed range (an ``EnvInputError``; the class
+``st_sim.errors.ConfigError``, which the reactive pedestrians raise for a bad reaction, spread or fit file)."""
 
 
 class ResetOptionsError(EnvInputError):

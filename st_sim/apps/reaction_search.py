@@ -1,4 +1,4 @@
-"""Fitting the reactive pedestrians' reaction (``envs.common.reaction.Reaction``) to people round a vehicle, and
+"""Fitting the reactive pedestrians' reaction (``st_sim.reactive.reaction.Reaction``) to people round a vehicle, and
 telling how well the fitting carries over to people it never saw (``benchmarks/fit_reaction.py``, ``python -m st_sim
 reactive-validate --cross-validate``).
 
@@ -39,12 +39,12 @@ from typing import Any, Final
 import numpy as np
 from tqdm import tqdm
 
-from envs.common.footprint import Body
-from envs.common.reaction import Reaction
 from replays import strict_json
 from replays.atomic import write_text_atomic
 from st_sim.apps.subgoal_force import SubGoalForce
 from st_sim.apps.vehicle_cases import Case, score, walk
+from st_sim.reactive.footprint import Body
+from st_sim.reactive.reaction import Reaction
 
 COLLISION_WEIGHT: Final[float] = 10.0  # loss of simulated pedestrians inside the vehicle, per share of them [-]
 PER_MPS: Final[tuple[float, ...]] = (0.0, 0.1, 0.2, 0.3, 0.45, 0.6, 0.8, 1.0, 1.3, 1.6, 2.0)  # room per m/s [s]
@@ -267,7 +267,7 @@ class Fit:
     fitted_on: tuple[str, ...]
 
     def record(self) -> dict[str, Any]:
-        """As JSON: ``params`` (what ``envs.common.reaction.read_reaction`` reads), ``figures`` with the loss,
+        """As JSON: ``params`` (what ``st_sim.reactive.reaction.read_reaction`` reads), ``figures`` with the loss,
         ``evaluations`` and ``fitted_on``."""
         return {"params": dataclasses.asdict(self.reaction), "figures": {**self.figures, "loss": self.loss},
                 "evaluations": self.evaluations, "fitted_on": list(self.fitted_on)}

@@ -6,8 +6,8 @@ within ``NEAR_M`` of it gets its intent, the same for every model, and is scored
 clearance, collisions, onset of the reaction). The models:
 
 - ``blind``: it walks its intent and ignores the vehicle;
-- ``reactive``: STCrowd's reactive pedestrian (``envs.common.reactive``) with its intent as its log and the fitted
-  reaction (``envs.common.reaction``, or ``--reaction FIT``);
+- ``reactive``: STCrowd's reactive pedestrian (``st_sim.reactive.reactive``) with its intent as its log and the fitted
+  reaction (``st_sim.reactive.reaction``, or ``--reaction FIT``);
 - ``attentive``: the same pedestrian noticing the vehicle everywhere and reacting at once (the fitted room, no field
   of view, hearing or reaction time): what attention and reaction time change.
 
@@ -21,7 +21,7 @@ every folder (cheap; on a folder that fit saw it measures nothing held out).
 
 ``--realism``: the realism score of the blind and the reactive pedestrians (``st_sim.apps.sim_agents``: ``--rollouts``
 seeded rollouts each, paces and traits drawn per ``vehicle_cases.Variety``: the traits with the environments' spread,
-``envs.common.reaction.fitted_spread``, or ``--trait-sigma``), over every case and, with
+``st_sim.reactive.reaction.fitted_spread``, or ``--trait-sigma``), over every case and, with
 ``--cross-validate``, per fold.
 """
 
@@ -36,8 +36,6 @@ import numpy as np
 from tqdm import tqdm
 
 from envs.common.errors import ConfigError
-from envs.common.footprint import Body
-from envs.common.reaction import FIT_PATH, Reaction, Spread, fitted_spread, read_fitted_on, read_reaction
 from replays import strict_json
 from replays.atomic import write_text_atomic
 from replays.citr import CART_LENGTH_M, CART_WIDTH_M, CITR_FPS, Experiment, find_experiments
@@ -47,6 +45,8 @@ from st_sim.apps.reaction_search import CV_PROCEDURE, VARIANTS, Model, Scorer, c
 from st_sim.apps.sim_agents import WEIGHTS, case_realism
 from st_sim.apps.vehicle_cases import INTENT_GAP_M, INTENT_STEPS, NEAR_M, ONSET_M, POST_STEPS, Case, Variety, cases
 from st_sim.command_line import CliError, check_writable, non_negative_float, positive_int
+from st_sim.reactive.footprint import Body
+from st_sim.reactive.reaction import FIT_PATH, Reaction, Spread, fitted_spread, read_fitted_on, read_reaction
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -234,7 +234,7 @@ def run(args: argparse.Namespace) -> int:
                           "step_s": STEP_S, "near_m": NEAR_M, "intent_gap_m": INTENT_GAP_M,
                           "intent_steps": INTENT_STEPS, "post_steps": POST_STEPS, "onset_m": ONSET_M,
                           "reaction": dataclasses.asdict(reaction),
-                          "reaction_file": "envs/common/reaction_fit.json" if shipped else str(args.reaction),
+                          "reaction_file": "st_sim/reactive/reaction_fit.json" if shipped else str(args.reaction),
                           "held_out": [group for group in scorer.groups
                                        if fitted_on is not None and group not in fitted_on]}
     print(markdown_table(result))
@@ -330,7 +330,7 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
                         help=f"vehicle width [m] (default: {CART_WIDTH_M})")
     parser.add_argument("--reaction", default=FIT_PATH, metavar="FIT",
                         help="the reactive pedestrians' reaction: a fit file as benchmarks/fit_reaction.py --out "
-                             "writes (default: the shipped envs/common/reaction_fit.json)")
+                             "writes (default: the shipped st_sim/reactive/reaction_fit.json)")
     parser.add_argument("--json", required=True, metavar="OUT", help="write the figures here (JSON)")
     parser.add_argument("--chart", default=None, metavar="PNG",
                         help="also draw recorded against simulated clearance and onset here, and with --realism or "
@@ -363,5 +363,5 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     parser.add_argument("--trait-sigma", type=float, default=None,
                         help="with --realism: every reactive pedestrian's traits (noticing, reaction time, room, "
                              "patience) drawn as exp(N(0, sigma)) (default: the environments' fitted spread, "
-                             "envs/common/spread_fit.json)")
+                             "st_sim/reactive/spread_fit.json)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")

@@ -41,11 +41,11 @@ from typing import Any, Final
 import numpy as np
 from tqdm import tqdm
 
-from envs.common.footprint import Body
-from envs.common.reaction import MOVING_MPS, Reaction
-from envs.common.routes import Depth, OpenGround
 from replays.constants import STEP_S
 from st_sim.apps.vehicle_cases import Case, Variety, rollout, window_ends
+from st_sim.reactive.footprint import Body
+from st_sim.reactive.reaction import MOVING_MPS, Reaction
+from st_sim.reactive.routes import Depth, OpenGround
 
 TTC_MAX_S: Final[float] = 5.0  # time to collision looked ahead, and the value when none comes within it [s]
 TTC_SAMPLE_S: Final[float] = 0.1  # time to collision is found on samples this far apart [s]

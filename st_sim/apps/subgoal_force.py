@@ -30,8 +30,8 @@ from typing import Final
 import numpy as np
 
 from envs.common.config import Interval, check_fields
-from envs.common.footprint import Body
 from replays.constants import STEP_S
+from st_sim.reactive.footprint import Body
 
 SUB_STEPS: Final[int] = 4  # integration sub-steps per 0.4 s step [-]
 PAIR_M: Final[float] = 0.5  # two pedestrians' centres when their bodies touch [m]

@@ -6,8 +6,8 @@ the robot: a box (``Body``) driven along its recorded path. Each pedestrian that
 vehicle's body gets its **intent**, the same for every model: the straight line on from where it was, at its mean
 velocity over the ``INTENT_STEPS`` before, when the vehicle first came within ``INTENT_GAP_M`` of it (at the earliest
 ``INTENT_STEPS`` into its track). From there a model walks it with the vehicle present (``walk``): blind, it walks its
-intent and ignores the vehicle; reactive, it is STCrowd's reactive pedestrian (``envs.common.reactive``) with its
-intent as its log and a reaction (``envs.common.reaction``), the pedestrians seeing the vehicle's body, position and
+intent and ignores the vehicle; reactive, it is STCrowd's reactive pedestrian (``st_sim.reactive.reactive``) with its
+intent as its log and a reaction (``st_sim.reactive.reaction``), the pedestrians seeing the vehicle's body, position and
 velocity at the start of each step.
 
 Scored against the recording, per pedestrian (``score``): ADE [m] over the interaction window (from its intent to
@@ -17,7 +17,7 @@ reaction: the gap to the vehicle's body when it first strays ``ONSET_M`` from it
 
 **Rollouts** (``rollout``, for ``st_sim.apps.sim_agents``' realism score): the same walk with seeded variety
 (``Variety``): each intent walked at a pace of its own, and each reactive pedestrian with traits of its own
-(``envs.common.reaction.draw_traits``).
+(``st_sim.reactive.reaction.draw_traits``).
 """
 
 from __future__ import annotations
@@ -28,13 +28,13 @@ from typing import Any, Final
 
 import numpy as np
 
-from envs.common.footprint import BODY_RADIUS_M, Body
-from envs.common.reaction import Reaction, Spread, draw_traits
-from envs.common.reactive import ReactiveCrowd
-from envs.common.routes import OpenGround
 from replays.citr import Experiment, Grid, on_grid
 from replays.constants import STEP_S
 from st_sim.apps.subgoal_force import SubGoalForce, walk_sub_goal
+from st_sim.reactive.footprint import BODY_RADIUS_M, Body
+from st_sim.reactive.reaction import Reaction, Spread, draw_traits
+from st_sim.reactive.reactive import ReactiveCrowd
+from st_sim.reactive.routes import OpenGround
 
 NEAR_M: Final[float] = 5.0  # pedestrians that come this close to the vehicle's body are scored [m]
 INTENT_GAP_M: Final[float] = 15.0  # an intent is taken when the vehicle's body first comes this close [m] ...

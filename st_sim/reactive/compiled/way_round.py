@@ -1,5 +1,5 @@
 """The way round compiled: how far a pedestrian planning a way round the robot would walk from each of its candidate
-places to a point of its route ahead (``candidates._way_round_m``), on the grid of ``envs.common.detour`` with the
+places to a point of its route ahead (``candidates._way_round_m``), on the grid of ``st_sim.reactive.detour`` with the
 same cells and, from a Dijkstra search of its own, the same distances (a shortest walk's length is the one fixed point
 of ``d(v) = min over neighbours u of d(u) + edge``, whatever the search's order; the search stops once the cells of
 the candidate places are settled)."""
@@ -9,11 +9,11 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from envs.common.candidates import DETOUR_AHEAD_M, DETOUR_BACK_FRAMES, DETOUR_LEAD_STEPS, DETOUR_MARGIN_M
-from envs.common.compiled.exact import arange, first_of_least, length, maximum, minimum
-from envs.common.compiled.tables import RouteTables, clear_of_robot, depth_window, place, tau_ahead, too_deep
-from envs.common.detour import CELL_M
-from envs.common.footprint import PAIR_BODY_M
+from st_sim.reactive.candidates import DETOUR_AHEAD_M, DETOUR_BACK_FRAMES, DETOUR_LEAD_STEPS, DETOUR_MARGIN_M
+from st_sim.reactive.compiled.exact import arange, first_of_least, length, maximum, minimum
+from st_sim.reactive.compiled.tables import RouteTables, clear_of_robot, depth_window, place, tau_ahead, too_deep
+from st_sim.reactive.detour import CELL_M
+from st_sim.reactive.footprint import PAIR_BODY_M
 
 AHEAD_M = np.array(DETOUR_AHEAD_M)
 STRAIGHT_M = CELL_M * float(np.hypot(0, 1))  # the edges of ``detour.walking_distances_m`` [m]

@@ -28,7 +28,7 @@ its grid so may also stay where it is.
 ``place_candidates`` lays out every candidate of every pedestrian off its log, in every crowd, in one pass, with the
 bounds and costs that need neither its depth, its risk nor the others (``Candidates``); ``score_alone`` adds its
 depth and its risk round the robot when a candidate is looked at; the terms between pedestrians and the choice are
-``envs.common.choosing``'s. A place that breaks a bound weighs ``ROBOT_WEIGHT`` per metre into the robot's margin.
+``st_sim.reactive.choosing``'s. A place that breaks a bound weighs ``ROBOT_WEIGHT`` per metre into the robot's margin.
 """
 
 from __future__ import annotations
@@ -38,12 +38,12 @@ from typing import Final
 
 import numpy as np
 
-from envs.common.detour import cells_near, grid_cells, nearest_free_m, walking_distances_m
-from envs.common.footprint import COMFORT_M, PAIR_BODY_M, Robot, length_m
-from envs.common.ragged import distinct
-from envs.common.reaction import MOVING_MPS
-from envs.common.routes import Routes
 from replays.constants import STEP_S
+from st_sim.reactive.detour import cells_near, grid_cells, nearest_free_m, walking_distances_m
+from st_sim.reactive.footprint import COMFORT_M, PAIR_BODY_M, Robot, length_m
+from st_sim.reactive.ragged import distinct
+from st_sim.reactive.reaction import MOVING_MPS
+from st_sim.reactive.routes import Routes
 
 CATCH_UP_MPS: Final[float] = 1.8  # fastest a pedestrian walks to catch up with its log [m/s] ...
 CATCH_UP_FACTOR: Final[float] = 1.25  # ... or this multiple of its log's own speed, if that is faster [-]

@@ -1,5 +1,5 @@
 """Who leaves its log, compiled: ``reactive._robot_in_the_way`` and ``reactive._others_in_the_way`` for every agent of
-every crowd in one pass, with the same numbers (the constants of ``envs.common.reactive`` are passed in, as that
+every crowd in one pass, with the same numbers (the constants of ``st_sim.reactive.reactive`` are passed in, as that
 module calls these)."""
 
 from __future__ import annotations
@@ -7,11 +7,11 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from envs.common.compiled.exact import length, minimum
-from envs.common.compiled.geometry import gap, swept_gap
-from envs.common.compiled.tables import RouteTables
-from envs.common.footprint import BODY_RADIUS_M, PAIR_GIVE_M
 from replays.constants import STEP_S
+from st_sim.reactive.compiled.exact import length, minimum
+from st_sim.reactive.compiled.geometry import gap, swept_gap
+from st_sim.reactive.compiled.tables import RouteTables
+from st_sim.reactive.footprint import BODY_RADIUS_M, PAIR_GIVE_M
 
 
 @njit(cache=True)

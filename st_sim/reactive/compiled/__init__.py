@@ -1,7 +1,7 @@
 """The reactive step compiled (numba): the same walks as the plain numpy path, to the last bit, in a fraction of the
 time.
 
-``envs.common.reactive`` steps N crowds as arrays (N, A): cheap where the arrays are large, but each pedestrian off
+``st_sim.reactive.reactive`` steps N crowds as arrays (N, A): cheap where the arrays are large, but each pedestrian off
 its log scores hundreds of candidate places, one chooser after another, on arrays of a few dozen rows, so the plain
 path spends its time calling numpy, not computing. Here the same arithmetic runs in loops compiled by numba:
 
@@ -43,8 +43,9 @@ from replays.atomic import write_text_atomic
 PACKAGE = Path(__file__).parent
 ROOT = PACKAGE.parents[2]
 SOURCES = (*sorted(path.relative_to(ROOT).as_posix() for path in PACKAGE.glob("*.py")),
-           "envs/common/candidates.py", "envs/common/choosing.py", "envs/common/detour.py", "envs/common/footprint.py",
-           "envs/common/reaction.py", "envs/common/routes.py", "replays/constants.py")
+           "st_sim/reactive/candidates.py", "st_sim/reactive/choosing.py", "st_sim/reactive/detour.py",
+           "st_sim/reactive/footprint.py", "st_sim/reactive/reaction.py", "st_sim/reactive/routes.py",
+           "replays/constants.py")
 """the files whose code or constants the kernels compile in (``tests/test_reactive_compiled.py`` checks that every
 module the kernels import from is here)"""
 

@@ -16,10 +16,10 @@ Every pedestrian follows its recording exactly until either
 - (the **safety rule**, noticed or not) its log's step would take it within ``ROBOT_MARGIN_M`` of touching the
   robot's body where it stands: nobody walks into the robot.
 
-From then on it stays on its logged route (``envs.common.routes``) and each 0.4 s step chooses where along it and how
-far to its side it walks (``envs.common.candidates``: the places and what each costs; ``envs.common.choosing``: the
-terms between pedestrians and the choice). One that has made no headway for ``DETOUR_AFTER_STEPS`` steps plans a way
-round, until it gets farther along its route than it had been.
+From then on it stays on its logged route (``st_sim.reactive.routes``) and each 0.4 s step chooses where along it and
+how far to its side it walks (``st_sim.reactive.candidates``: the places and what each costs;
+``st_sim.reactive.choosing``: the terms between pedestrians and the choice). One that has made no headway for
+``DETOUR_AFTER_STEPS`` steps plans a way round, until it gets farther along its route than it had been.
 
 The pedestrians off their log choose one after another, the one nearest the robot first, each seeing the choices
 already made. Once a pedestrian is within ``REJOIN_M`` of where its log is now and nothing is in its way, it is on
@@ -41,14 +41,15 @@ from typing import Final
 
 import numpy as np
 
-from envs.common.candidates import HEADWAY_M, OFFSETS_M, RECENT_STEPS, Step, no_headway
-from envs.common.choosing import choose_all
-from envs.common.compiled.choose import choose_compiled
-from envs.common.compiled.geometry import robot_rows
-from envs.common.compiled.step import attention, leave, settle
-from envs.common.footprint import BODY_RADIUS_M, PAIR_BODY_M, PAIR_GIVE_M, Body, Robot, heading_of, length_m
-from envs.common.ragged import leading
-from envs.common.reaction import (
+from replays.constants import STEP_S
+from st_sim.reactive.candidates import HEADWAY_M, OFFSETS_M, RECENT_STEPS, Step, no_headway
+from st_sim.reactive.choosing import choose_all
+from st_sim.reactive.compiled.choose import choose_compiled
+from st_sim.reactive.compiled.geometry import robot_rows
+from st_sim.reactive.compiled.step import attention, leave, settle
+from st_sim.reactive.footprint import BODY_RADIUS_M, PAIR_BODY_M, PAIR_GIVE_M, Body, Robot, heading_of, length_m
+from st_sim.reactive.ragged import leading
+from st_sim.reactive.reaction import (
     MOVING_MPS,
     NOTICING,
     PATIENCE,
@@ -60,8 +61,7 @@ from envs.common.reaction import (
     notices,
     typical,
 )
-from envs.common.routes import Depth, Routes
-from replays.constants import STEP_S
+from st_sim.reactive.routes import Depth, Routes
 
 PAIR_LOOK_AHEAD_STEPS: Final[int] = 3  # a pedestrian looks this many 0.4 s steps along its log for others off theirs
 PAIR_CLEARANCE_M: Final[float] = 0.2  # ... and leaves its log if that path passes closer than this to a body [m]
@@ -287,7 +287,7 @@ def advance(routes: Routes, old: ReactiveState, index: np.ndarray, robot: Robot)
 
 
 def advance_compiled(routes: Routes, old: ReactiveState, index: np.ndarray, robot: Robot) -> ReactiveState:
-    """``advance``, compiled (``envs.common.compiled``): the same state, bit for bit, in three passes round the room
+    """``advance``, compiled (``st_sim.reactive.compiled``): the same state, bit for bit, in three passes round the room
     each keeps, the newcomers and the choice."""
     tables, reaction, rows = routes.tables(), routes.reaction, robot_rows(robot)
     walking, noticed, unseen, weight = attention(

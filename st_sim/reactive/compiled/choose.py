@@ -1,5 +1,5 @@
 """Every chooser of every crowd chooses its place, compiled: ``choosing.choose_all`` with the candidates of
-``envs.common.candidates``, the same numbers and the same choices.
+``st_sim.reactive.candidates``, the same numbers and the same choices.
 
 The plain path scores all choosers at once in rounds until no choice changes; its fixed point is each choosing one
 after another, the nearest to the robot first, seeing the choices made before it. Here they do exactly that, in
@@ -17,7 +17,8 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from envs.common.candidates import (
+from replays.constants import STEP_S
+from st_sim.reactive.candidates import (
     ANTICIPATION_STEPS,
     CATCH_UP_FACTOR,
     CATCH_UP_MPS,
@@ -35,10 +36,10 @@ from envs.common.candidates import (
     SWAY_COST,
     Step,
 )
-from envs.common.choosing import FIRST_LOOK, PAIR_REACH_M, RISK_COST, WALL_WEIGHT
-from envs.common.compiled.exact import clip, length, maximum, minimum, total
-from envs.common.compiled.geometry import robot_rows, swept_gap_within
-from envs.common.compiled.tables import (
+from st_sim.reactive.choosing import FIRST_LOOK, PAIR_REACH_M, RISK_COST, WALL_WEIGHT
+from st_sim.reactive.compiled.exact import clip, length, maximum, minimum, total
+from st_sim.reactive.compiled.geometry import robot_rows, swept_gap_within
+from st_sim.reactive.compiled.tables import (
     RouteTables,
     depth_window,
     nearest_on_route,
@@ -47,11 +48,10 @@ from envs.common.compiled.tables import (
     tau_ahead,
     too_deep,
 )
-from envs.common.compiled.way_round import way_round
-from envs.common.footprint import COMFORT_M, PAIR_BODY_M
-from envs.common.reaction import MOVING_MPS
-from envs.common.routes import Routes
-from replays.constants import STEP_S
+from st_sim.reactive.compiled.way_round import way_round
+from st_sim.reactive.footprint import COMFORT_M, PAIR_BODY_M
+from st_sim.reactive.reaction import MOVING_MPS
+from st_sim.reactive.routes import Routes
 
 SAMPLES = np.array(PATH_SAMPLES)
 DRIFT_S = np.arange(1, ANTICIPATION_STEPS + 1) * STEP_S  # how far ahead the others are seen walking on [s]

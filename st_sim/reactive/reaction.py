@@ -1,5 +1,5 @@
 """When a reactive pedestrian notices the robot, when it reacts, and how much room it then keeps: the fitted part of
-the reactive pedestrians (``envs.common.reactive`` does the walking).
+the reactive pedestrians (``st_sim.reactive.reactive`` does the walking).
 
 - **Noticing.** A pedestrian notices the robot when the nearest point of the robot's body lies within its field of
   view (``fov_deg`` either side of its walking direction, at any distance) or within ``hearing_m`` of it, whatever
@@ -22,8 +22,8 @@ the reactive pedestrians (``envs.common.reactive`` does the walking).
 
 The values are fitted on CITR's pedestrians reacting to a golf cart (``benchmarks/fit_reaction.py``, written to
 ``reaction_fit.json`` beside this module, which ``fitted_reaction`` reads); they are not a safety rule. The safety
-rules (nobody walks into the robot's body, noticed or not) are in ``envs.common.reactive`` and
-``envs.common.candidates``.
+rules (nobody walks into the robot's body, noticed or not) are in ``st_sim.reactive.reactive`` and
+``st_sim.reactive.candidates``.
 """
 
 from __future__ import annotations
@@ -36,8 +36,8 @@ from typing import Any, Final
 
 import numpy as np
 
-from envs.common.errors import ConfigError
 from replays.constants import STEP_S
+from st_sim.errors import ConfigError
 
 FIT_PATH: Final[Path] = Path(__file__).with_name("reaction_fit.json")
 SPREAD_PATH: Final[Path] = Path(__file__).with_name("spread_fit.json")

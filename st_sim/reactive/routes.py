@@ -20,9 +20,9 @@ from typing import Any, Final, Protocol
 
 import numpy as np
 
-from envs.common.footprint import ROBOT_MARGIN_M, Body, length_m
-from envs.common.reaction import Reaction, fitted_reaction
 from replays.constants import STEP_S
+from st_sim.reactive.footprint import ROBOT_MARGIN_M, Body, length_m
+from st_sim.reactive.reaction import Reaction, fitted_reaction
 
 MIN_STEP_M: Final[float] = 0.01  # log steps shorter than this give no direction [m]
 TANGENT_WINDOW: Final[int] = 2  # a route's direction is averaged over this many frames either side [-]
@@ -60,7 +60,7 @@ class Routes:
         touch_m: gap to the robot's body [m] within which a pedestrian's centre touches it (the pedestrian radius of
             the env's contact rule).
         reaction: when the pedestrians notice the robot and react, and the room they keep (default: the fitted one).
-        compiled: step the crowds with the compiled kernels (``envs.common.compiled``: the same walks, faster) where
+        compiled: step the crowds with the compiled kernels (``st_sim.reactive.compiled``: the same walks, faster) where
             they read the depth (a ``MapDepth`` or ``OpenGround``); False: the plain numpy path, their reference.
     """
 
@@ -95,11 +95,11 @@ class Routes:
         return routes
 
     def tables(self) -> Any:
-        """The tables as the compiled kernels read them (``envs.common.compiled.tables.RouteTables``, built once), or
-        None where they cannot read the depth."""
+        """The tables as the compiled kernels read them (``st_sim.reactive.compiled.tables.RouteTables``, built once),
+        or None where they cannot read the depth."""
         if self._tables is None:
-            from envs.common.compiled import announce_compiling
-            from envs.common.compiled.tables import route_tables  # (the kernels import this module)
+            from st_sim.reactive.compiled import announce_compiling
+            from st_sim.reactive.compiled.tables import route_tables  # (the kernels import this module)
 
             announce_compiling()
             self._tables = route_tables(self) or False

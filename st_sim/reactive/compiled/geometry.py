@@ -12,8 +12,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from envs.common.compiled.exact import clip, length, maximum, minimum
-from envs.common.footprint import GAP_SLACK_M, Robot
+from st_sim.reactive.compiled.exact import clip, length, maximum, minimum
+from st_sim.reactive.footprint import GAP_SLACK_M, Robot
 
 
 def robot_rows(robot: Robot) -> np.ndarray:

@@ -1,7 +1,7 @@
 """How the pedestrians off their logs choose their places in one step: one after another, the nearest to the robot
 first, each seeing the choices made before it, batched in rounds.
 
-A candidate place (``envs.common.candidates``) is also scored against the others: along the whole step, moving in a
+A candidate place (``st_sim.reactive.candidates``) is also scored against the others: along the whole step, moving in a
 straight line, it keeps ``PAIR_BODY_M`` from everybody else (or at least the gap it already had, and that much again
 by the end of the step where their logs are that far apart), a bound; and it keeps its body's
 width from where the others off their logs will be over ``ANTICIPATION_STEPS`` (a cost, ``RISK_COST`` per square
@@ -26,7 +26,8 @@ from typing import Final
 
 import numpy as np
 
-from envs.common.candidates import (
+from replays.constants import STEP_S
+from st_sim.reactive.candidates import (
     ANTICIPATION_STEPS,
     NEAR_SLACK_M,
     ROBOT_WEIGHT,
@@ -35,10 +36,9 @@ from envs.common.candidates import (
     place_candidates,
     score_alone,
 )
-from envs.common.footprint import BODY_RADIUS_M, COMFORT_M, PAIR_BODY_M, length_m
-from envs.common.ragged import exact_row_sums, spans
-from envs.common.routes import Routes
-from replays.constants import STEP_S
+from st_sim.reactive.footprint import BODY_RADIUS_M, COMFORT_M, PAIR_BODY_M, length_m
+from st_sim.reactive.ragged import exact_row_sums, spans
+from st_sim.reactive.routes import Routes
 from st_sim.sim.sweep import closest_approach
 
 RISK_COST: Final[float] = 10.0  # cost of the anticipated intrusions into the room round the robot and others [1/m^2]

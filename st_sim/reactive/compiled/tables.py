@@ -15,10 +15,10 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from envs.common.compiled.exact import clip, first_of_least, length, maximum, minimum
-from envs.common.compiled.geometry import depth_at, gap
-from envs.common.footprint import corners
-from envs.common.routes import CROSSING_WINDOW, DEPTH_TOLERANCE_M, DEPTH_WINDOW, OpenGround, Routes
+from st_sim.reactive.compiled.exact import clip, first_of_least, length, maximum, minimum
+from st_sim.reactive.compiled.geometry import depth_at, gap
+from st_sim.reactive.footprint import corners
+from st_sim.reactive.routes import CROSSING_WINDOW, DEPTH_TOLERANCE_M, DEPTH_WINDOW, OpenGround, Routes
 from st_sim.sim.map_depth import MapDepth
 
 

@@ -12,13 +12,13 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from envs.common.candidates import HEADWAY_M
-from envs.common.compiled.exact import clip, length, maximum
-from envs.common.compiled.geometry import gap, to_body_frame
-from envs.common.compiled.in_the_way import others_in_the_way, robot_in_the_way
-from envs.common.compiled.tables import RouteTables, clear_of_robot, progress
-from envs.common.reaction import MEMORY_S, MOVING_MPS
 from replays.constants import STEP_S
+from st_sim.reactive.candidates import HEADWAY_M
+from st_sim.reactive.compiled.exact import clip, length, maximum
+from st_sim.reactive.compiled.geometry import gap, to_body_frame
+from st_sim.reactive.compiled.in_the_way import others_in_the_way, robot_in_the_way
+from st_sim.reactive.compiled.tables import RouteTables, clear_of_robot, progress
+from st_sim.reactive.reaction import MEMORY_S, MOVING_MPS
 
 
 @njit(cache=True)
