@@ -26,8 +26,9 @@ import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space, concatenate, create_empty_array
 
+from envs.batch_step import StepParts
 from envs.common.errors import EnvInputError
-from envs.vector_env import CrowdVectorEnv, StepParts, batch_infos, sub_env_seeds
+from envs.vector_env import CrowdVectorEnv, batch_infos, sub_env_seeds
 
 EXECUTORS: tuple[str, ...] = ("process", "ray")
 SHARD = "envs.shards:Shard"  # what a worker of a ShardedVectorEnv hosts

@@ -146,26 +146,36 @@ class SimCrowdEnv(CrowdEnv):
 
     @classmethod
     def begin_reset_all(cls, envs: Sequence[SimCrowdEnv], seeds: Sequence[int | None], options: dict | None) -> None:
-        """``begin_reset`` of several envs: their new crowds warm up together (``step_crowds``)."""
-        if len({(id(env.layout), env.crowd_cfg) for env in envs}) > 1:
-            super().begin_reset_all(envs, seeds, options)
-            return
+        """``begin_reset`` of several envs: the new crowds of each world (layout and crowd config) warm up together
+        (``step_crowds``)."""
         for env, seed in zip(envs, seeds, strict=True):
             env.check_reset_seed(seed)
             env.check_reset_options(options)
         for env, seed in zip(envs, seeds, strict=True):
             env._prepare_reset(seed, options)
-        for env, frames in zip(envs, cls._warm_up(envs), strict=True):
-            env._finish_reset(frames)
+        for world in cls._by_world(envs):
+            for env, frames in zip(world, cls._warm_up(world), strict=True):
+                env._finish_reset(frames)
 
     @classmethod
     def advance_all(cls, envs: Sequence[SimCrowdEnv], velocities_mps: Sequence[np.ndarray | None]) -> None:
-        """``advance`` of several envs: one ``step_crowds`` call moves all their crowds."""
+        """``advance`` of several envs: one ``step_crowds`` call moves the crowds of each world (layout and crowd
+        config)."""
+        velocity_of = {id(env): velocity for env, velocity in zip(envs, velocities_mps, strict=True)}
         for env in envs:
             env._previous_xy_m = env.ego_xy_m.copy()
-        step_crowds([env.sim for env in envs], velocities_mps)
+        for world in cls._by_world(envs):
+            step_crowds([env.sim for env in world], [velocity_of[id(env)] for env in world])
         for env in envs:
             env._advanced(env._sim_frame())
+
+    @staticmethod
+    def _by_world(envs: Sequence[SimCrowdEnv]) -> list[list[SimCrowdEnv]]:
+        """The envs grouped by world (the same ``Layout`` object and an equal crowd config), in order."""
+        worlds: dict[tuple[int, CrowdConfig], list[SimCrowdEnv]] = {}
+        for env in envs:
+            worlds.setdefault((id(env.layout), env.crowd_cfg), []).append(env)
+        return list(worlds.values())
 
     @staticmethod
     def _warm_up(envs: Sequence[SimCrowdEnv]) -> list[list[Frame]]:

@@ -7,45 +7,30 @@
 
 Every STCrowd id has this vector entry point (``make_vec``'s default mode for them). The sub-envs are the id's own
 env class, built with the same arguments and sharing one predictor. A step checks every action first (a bad one
-raises before any sub-env moves), advances every sub-env's world 0.4 s, forecasts for the agents of all sub-envs in
-one call (each sub-env a group of its own, so agents of different sub-envs never interact in the predictor), then
-completes every sub-env's observation, reward and info. Results equal those of ``SyncVectorEnv`` over
-``gym.make(id)`` envs with the same seeds and autoreset mode (the futures up to the rounding of a larger batch); the
-time limit truncates as ``TimeLimit`` does and infos are batched as gymnasium's vector envs batch them. Autoreset is
-gymnasium's default, ``AutoresetMode.NEXT_STEP`` (the step after an episode ended resets that sub-env, ignores its
-action and returns its first observation with reward 0), or ``autoreset_mode=AutoresetMode.SAME_STEP`` (the ending
-step resets the sub-env at once and returns its first observation, the last one in ``info["final_obs"]`` and the
-last info in ``info["final_info"]``; the reset sub-envs are forecast in a second batched call), the convention of
-stable-baselines3 and CleanRL-style loops.
+raises before any sub-env moves), then runs ``envs.batch_step``'s two phases: every sub-env's world advanced 0.4 s
+together, one forecast call for the agents of all sub-envs (each sub-env a group of its own, so agents of different
+sub-envs never interact in the predictor), then every sub-env's observation, reward and info. Results equal those
+of ``SyncVectorEnv`` over ``gym.make(id)`` envs with the same seeds and autoreset mode (the futures up to the
+rounding of a larger batch); the time limit truncates as ``TimeLimit`` does and infos are batched as gymnasium's
+vector envs batch them. Autoreset is gymnasium's default, ``AutoresetMode.NEXT_STEP`` (the step after an episode
+ended resets that sub-env, ignores its action and returns its first observation with reward 0), or
+``autoreset_mode=AutoresetMode.SAME_STEP`` (the ending step resets the sub-env at once and returns its first
+observation, the last one in ``info["final_obs"]`` and the last info in ``info["final_info"]``; the reset sub-envs
+are forecast in a second batched call), the convention of stable-baselines3 and CleanRL-style loops.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space, concatenate, create_empty_array, iterate
 
+from envs.batch_step import EnvBatch, StepParts
 from envs.common.crowd_env import CrowdEnv
 from envs.common.errors import EnvInputError
-from envs.common.predictors import Forecast, predict_futures
-
-
-@dataclass(eq=False)
-class StepParts:
-    """One vector step before batching: every sub-env's observation and info (lists), rewards, terminated and
-    truncated (num_envs,), and ``finals``: sub-env -> {"final_obs", "final_info"} of episodes that ended and were
-    reset at once (``AutoresetMode.SAME_STEP``)."""
-
-    observations: list[dict[str, np.ndarray]]
-    rewards: np.ndarray
-    terminated: np.ndarray
-    truncated: np.ndarray
-    infos: list[dict[str, Any]]
-    finals: dict[int, dict[str, Any]]
 
 
 def sub_env_seeds(seed: int | Sequence[int | None] | None, num_envs: int) -> list[int | None]:
@@ -106,42 +91,34 @@ class CrowdVectorEnv(VectorEnv):
                                                for _ in range(num_envs - 1)]
         self.num_envs, self.max_episode_steps = int(num_envs), max_episode_steps
         self.predictor, self.scene, self.num_samples = first.predictor, first.scene, first.num_samples
-        self._env_class = type(first)  # whose begin_reset_all / advance_all step the sub-envs together
         for env in self.envs[1:]:  # the same recording and predictor: forecasts kept by one serve all
             env.forecasts = first.forecasts
         self.render_mode = first.render_mode
         self.single_observation_space, self.single_action_space = first.observation_space, first.action_space
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
-        self._elapsed = np.zeros(self.num_envs, np.int64)
-        self._autoreset = np.zeros(self.num_envs, bool)
-        self._autoreset_seeds = autoreset_seeds
+        self.batch = EnvBatch(self.envs, [max_episode_steps] * self.num_envs, self.autoreset_mode,
+                              [autoreset_seeds] * self.num_envs)
 
     def reset(self, *, seed: int | Sequence[int | None] | None = None, options: dict | None = None):
         """Reset every sub-env: ``seed`` an int (sub-env i gets seed + i), a list of one per sub-env, or None.
         Every seed and the options are checked before any sub-env is reset."""
         observations, infos = self.reset_parts(sub_env_seeds(seed, self.num_envs), options)
-        return self._batch(observations), batch_infos(self, infos, {})
+        return self.batched_observations(observations), batch_infos(self, infos, {})
 
     def reset_parts(self, seeds: list[int | None], options: dict | None
                     ) -> tuple[list[dict[str, np.ndarray]], list[dict[str, Any]]]:
         """``reset`` with one seed per sub-env, unbatched: every sub-env's observation and info."""
-        for i, env_seed in enumerate(seeds):
-            if env_seed is not None and (isinstance(env_seed, bool | np.bool_) or
-                                         not isinstance(env_seed, int | np.integer) or env_seed < 0):
-                raise EnvInputError(f"sub-env {i}: seed={env_seed!r}: expected None or an int >= 0; no sub-env "
-                                    "was reset")
-        self.envs[0].check_reset_options(options)
-        self._env_class.begin_reset_all(self.envs, seeds, options)
-        outputs = [env.end_reset(*prediction) for env, prediction in zip(self.envs, self._predict_all(), strict=True)]
-        self._elapsed[:] = 0
-        self._autoreset[:] = False
-        return [obs for obs, _ in outputs], [info for _, info in outputs]
+        return self.batch.reset_parts(seeds, options)
 
     def step(self, actions: Any):
         """Step every sub-env (or reset those whose episode ended at the previous step) and forecast once."""
-        parts = self.step_parts(self.check_actions(actions))
-        return (self._batch(parts.observations), parts.rewards, parts.terminated, parts.truncated,
+        return self.batched(self.step_parts(self.check_actions(actions)))
+
+    def batched(self, parts: StepParts) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray, np.ndarray,
+                                                 dict[str, Any]]:
+        """``step``'s return value from its unbatched parts."""
+        return (self.batched_observations(parts.observations), parts.rewards, parts.terminated, parts.truncated,
                 batch_infos(self, parts.infos, parts.finals))
 
     def check_actions(self, actions: Any) -> list[np.ndarray | None]:
@@ -154,41 +131,12 @@ class CrowdVectorEnv(VectorEnv):
                                 f"a ragged {type(actions).__name__}") from err
         if actions.shape != self.action_space.shape:
             raise EnvInputError(f"actions must have shape {self.action_space.shape} (num_envs, 2), got {actions.shape}")
-        return [None if self._autoreset[i] else env.check_step(action)
+        return [None if self.batch.autoreset[i] else env.check_step(action)
                 for i, (env, action) in enumerate(zip(self.envs, iterate(self.action_space, actions), strict=True))]
 
     def step_parts(self, velocities: list[np.ndarray | None]) -> StepParts:
         """``step`` after ``check_actions``, unbatched."""
-        resetting = np.flatnonzero(self._autoreset)
-        stepping = np.flatnonzero(~self._autoreset)
-        self._env_class.begin_reset_all([self.envs[i] for i in resetting], self._next_seeds(len(resetting)), None)
-        self._env_class.advance_all([self.envs[i] for i in stepping], [velocities[i] for i in stepping])
-        forecasts = self._predict_all()
-        parts = StepParts([], np.zeros(self.num_envs), np.zeros(self.num_envs, bool), np.zeros(self.num_envs, bool),
-                          [], {})
-        for i, (env, prediction) in enumerate(zip(self.envs, forecasts, strict=True)):
-            if self._autoreset[i]:
-                obs, info = env.end_reset(*prediction)
-                self._elapsed[i] = 0
-            else:
-                obs, parts.rewards[i], parts.terminated[i], parts.truncated[i], info = env.end_step(*prediction)
-                self._elapsed[i] += 1
-                if self.max_episode_steps is not None and self._elapsed[i] >= self.max_episode_steps:
-                    parts.truncated[i] = True
-            parts.observations.append(obs)
-            parts.infos.append(info)
-        ended = parts.terminated | parts.truncated
-        if self.autoreset_mode == AutoresetMode.SAME_STEP:  # reset the ended sub-envs now, one forecast for them
-            ended_ids = np.flatnonzero(ended)
-            for i in ended_ids:
-                parts.finals[int(i)] = {"final_obs": parts.observations[i], "final_info": parts.infos[i]}
-            self._env_class.begin_reset_all([self.envs[i] for i in ended_ids], self._next_seeds(len(ended_ids)), None)
-            for i, prediction in zip(ended_ids, self._predict_all(ended_ids), strict=True):
-                parts.observations[i], parts.infos[i] = self.envs[i].end_reset(*prediction)
-                self._elapsed[i] = 0
-        else:
-            self._autoreset = ended
-        return parts
+        return self.batch.step_parts(velocities)
 
     def render(self) -> tuple[np.ndarray | None, ...]:
         """Every sub-env's ``render()`` (an RGB array each with ``render_mode="rgb_array"``)."""
@@ -198,44 +146,8 @@ class CrowdVectorEnv(VectorEnv):
         for env in self.envs:
             env.close()
 
-    def _next_seeds(self, count: int) -> list[int | None]:
-        """Seeds of ``count`` autoresets: ``autoreset_seeds()`` each, or None (the sub-envs' generators go on)."""
-        if self._autoreset_seeds is None:
-            return [None] * count
-        seeds = [self._autoreset_seeds() for _ in range(count)]
-        for seed in seeds:
-            if isinstance(seed, bool | np.bool_) or not isinstance(seed, int | np.integer) or seed < 0:
-                raise EnvInputError(f"autoreset_seeds returned {seed!r}: expected an int >= 0")
-        return [int(seed) for seed in seeds]
-
-    def _predict_all(self, which: Sequence[int] | None = None) -> list[Forecast]:
-        """(futures, anchors) of the sub-envs ``which`` (None: all), in that order: kept forecasts where a sub-env
-        has one (``ForecastCache``), one predictor call for the agents of all the others. If the predictor fails,
-        every sub-env refuses to step until the vector env is reset (``CrowdEnv.interrupt``)."""
-        try:
-            return self._forecasts(range(self.num_envs) if which is None else which)
-        except Exception as err:
-            for env in self.envs:
-                env.interrupt(f"the predictor failed: {err}")
-            raise
-
-    def _forecasts(self, which: Sequence[int]) -> list[Forecast]:
-        forecasts: dict[int, Forecast | None] = {i: self.envs[i].cached_forecast() for i in which}
-        missing = [i for i, forecast in forecasts.items() if forecast is None]
-        if missing:
-            requests = [self.envs[i].forecast_request() for i in missing]
-            sizes = [len(request.histories_m) for request in requests]
-            targets = np.concatenate([request.targets for request in requests])
-            futures, _ = predict_futures(self.predictor, np.concatenate([r.histories_m for r in requests]),
-                                               self.scene, self.num_samples, np.repeat(np.arange(len(missing)), sizes),
-                                               targets, anchors=False)
-            cuts = np.cumsum([int(request.targets.sum()) for request in requests])[:-1]
-            for i, forecast in zip(missing, np.split(futures, cuts), strict=True):
-                forecasts[i] = (forecast, None)
-                self.envs[i].remember_forecast(forecasts[i])
-        return [forecasts[i] for i in which]
-
-    def _batch(self, observations: list[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
+    def batched_observations(self, observations: list[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
+        """One observation per sub-env batched into the vector env's observation space."""
         out = create_empty_array(self.single_observation_space, self.num_envs)
         return concatenate(self.single_observation_space, observations, out)
 

@@ -8,6 +8,7 @@ hedge between staying and leaving, and staying is the better bet (chosen on the 
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, fields
 
 import numpy as np
@@ -18,7 +19,7 @@ from predictor.baselines import constant_velocity
 from predictor.config_check import check_config
 from predictor.devices import resolve_device
 from predictor.normalize import AgentFrame, agent_frames, rotate
-from predictor.protocol import check_inputs, empty_prediction
+from predictor.protocol import check_inputs, empty_prediction, scenes_of_agents
 from predictor.refiner import SAMPLERS, Refiner, RefinerConfig
 from predictor.singular_space import T_WIN, SingularSpace
 from replays.constants import TASKS
@@ -213,13 +214,15 @@ class SingularTrajectory:
 
     # ---------------------------------------------------------------- prediction
     @torch.inference_mode()
-    def predict_detailed(self, obs: np.ndarray, group: np.ndarray, scene: Scene | None,
+    def predict_detailed(self, obs: np.ndarray, group: np.ndarray, scene: Scene | Sequence[Scene | None] | None,
                          num_samples: int | None = None, steps: int | None = None, targets: np.ndarray | None = None,
                          anchors: bool = True) -> Prediction:
         """Futures, prototype and adapted anchors, each (T, S, 12, 2) world metres, of the T ``targets``.
 
         Args:
             obs: (N, T_obs, 2) world metres.  group: (N,) int64 scene moment of each agent.
+            scene: the scene of every agent, or one per group value (group g's agents lie on ``scene[g]``: moments of
+                several scenes in one call, each adapted to its own map).
             targets: (N,) bool, the agents to forecast; the others are context only: they shape the targets'
                 forecasts (interaction layer, window centroid) exactly as if they were forecast too. None: all.
             anchors: also return the anchor paths (False: both None).
@@ -236,7 +239,8 @@ class SingularTrajectory:
         if not targets.any():
             empty = empty_prediction(num_samples)
             return Prediction(empty, empty if anchors else None, empty if anchors else None)
-        inputs = self.prepare(obs, group, [scene], np.zeros(len(obs), np.int64))
+        scenes, scene_index = scenes_of_agents(scene, group)
+        inputs = self.prepare(obs, group, scenes, scene_index)
         t = {name: tensor.to(self.device) for name, tensor in self.tensors(inputs).items()}
         noise = self.sampler_noise().expand_as(t["anchors"])
         if len(obs) <= BATCH_AGENTS:
@@ -254,10 +258,13 @@ class SingularTrajectory:
         local = self.paths_local(anchors_scaled, residual, t["population"][wanted])
         frames = inputs.frames.subset(targets)
         futures = frames.to_world(local.double().cpu().numpy())  # (T, S, 12, 2) world metres
-        if self.cfg.adapt_output and self.cfg.adapt_anchors and scene is not None:
-            futures, _ = adapt_paths(futures, scene, frames.origin_m, self.cfg.anchor_off_image, self.cfg.anchor_bend)
-        if self.cfg.output_on_map and scene is not None:
-            futures, _ = onto_walkable(futures, scene, self.cfg.on_map_tolerance_m)
+        on_scene = [(where, scene) for where, scene in self._targets_by_scene(scenes, scene_index[targets])
+                    if scene is not None]
+        for where, scene in on_scene if self.cfg.adapt_output and self.cfg.adapt_anchors else ():
+            futures[where], _ = adapt_paths(futures[where], scene, frames.origin_m[where], self.cfg.anchor_off_image,
+                                            self.cfg.anchor_bend)
+        for where, scene in on_scene if self.cfg.output_on_map else ():
+            futures[where], _ = onto_walkable(futures[where], scene, self.cfg.on_map_tolerance_m)
         observed = obs[targets]
         standing = np.linalg.norm(observed[:, -1] - observed[:, -2], axis=-1) < self.cfg.standing_m
         futures[standing] = constant_velocity(observed[standing])[:, None]  # (n, 1, 12, 2) onto every sample
@@ -265,10 +272,22 @@ class SingularTrajectory:
         futures = futures[:, keep].astype(np.float32)
         if not anchors:
             return Prediction(futures, None, None)
-        prototype, adapted = anchor_paths(self.anchors, frames, self.spaces, inputs.population[targets],
-                                          scene if self.cfg.adapt_anchors else None, self.cfg.anchor_off_image,
-                                          self.cfg.anchor_bend)
+        parts = [(where, anchor_paths(self.anchors, frames.subset(where), self.spaces,
+                                      inputs.population[targets][where], scene if self.cfg.adapt_anchors else None,
+                                      self.cfg.anchor_off_image, self.cfg.anchor_bend))
+                 for where, scene in self._targets_by_scene(scenes, scene_index[targets])]
+        prototype, adapted = (np.empty((len(futures), *parts[0][1][k].shape[1:])) for k in (0, 1))
+        for where, (prototype_part, adapted_part) in parts:
+            prototype[where], adapted[where] = prototype_part, adapted_part
         return Prediction(futures, prototype[:, keep].astype(np.float32), adapted[:, keep].astype(np.float32))
+
+    @staticmethod
+    def _targets_by_scene(scenes: list[Scene | None], scene_index: np.ndarray
+                          ) -> list[tuple[slice | np.ndarray, Scene | None]]:
+        """(which targets, their scene) for each scene with targets: a whole slice when there is one scene."""
+        if len(scenes) == 1:
+            return [(slice(None), scenes[0])]
+        return [(scene_index == i, scene) for i, scene in enumerate(scenes) if (scene_index == i).any()]
 
     def sampler_noise(self) -> torch.Tensor:
         """(1, S, K) starting noise x_M, one fixed draw per sample shared by every agent.

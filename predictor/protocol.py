@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Protocol, runtime_checkable
 
 import numpy as np
@@ -43,6 +44,24 @@ def check_inputs(obs: np.ndarray, group: np.ndarray, num_samples: int) -> tuple[
     if int(num_samples) < 1:
         raise ValueError(f"num_samples must be >= 1, got {num_samples}")
     return obs, group.astype(np.int64)
+
+
+def scenes_of_agents(scene: Scene | Sequence[Scene | None] | None, group: np.ndarray
+                     ) -> tuple[list[Scene | None], np.ndarray]:
+    """The distinct scenes of N agents and (N,) int64 which of them each agent lies on, from one ``scene`` for all
+    of them or a sequence holding one scene per group value (group g's agents lie on ``scene[g]``; scenes are told
+    apart by identity, in order of first appearance)."""
+    group = np.asarray(group, np.int64)
+    if scene is None or isinstance(scene, Scene):
+        return [scene], np.zeros(len(group), np.int64)
+    per_group = list(scene)
+    if len(group) and (group.min() < 0 or group.max() >= len(per_group)):
+        raise ValueError(f"scene: one scene per group value expected, got {len(per_group)} scenes for group values "
+                         f"{int(group.min())}..{int(group.max())}")
+    first_of: dict[int, int] = {}
+    index_of_group = np.array([first_of.setdefault(id(s), len(first_of)) for s in per_group], np.int64)
+    distinct = list({id(s): s for s in per_group}.values())
+    return distinct, index_of_group[group] if len(group) else np.zeros(0, np.int64)
 
 
 def empty_prediction(num_samples: int) -> np.ndarray:

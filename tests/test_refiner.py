@@ -246,3 +246,35 @@ def test_ramp_adapted_anchor_coefficients_are_those_of_the_bent_paths(scene: str
         projected = space.project(local[mask].reshape(-1, T_WIN, 2)).reshape(coefs[mask].shape)
         np.testing.assert_allclose(coefs[mask], projected, rtol=0, atol=1e-9)
     assert (np.abs(coefs - model.anchors[population]).max(axis=2) > 1e-6).any(), "some anchors are bent"
+
+
+@settings(max_examples=4, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), moments=st.integers(2, 8))
+def test_moments_of_several_scenes_in_one_call_get_their_own_scenes_forecasts(seed: int, moments: int) -> None:
+    """``scene`` as one scene per group value: each moment is forecast on its own map, as a call for that scene alone
+    forecasts it (futures and anchors; a larger torch batch rounds otherwise in the last bits); a predictor without
+    ``predict_detailed`` gets one call per scene through ``predict_futures``, to the bit."""
+    from envs.common.predictors import predict_futures
+
+    model = load_pretrained("universal")
+    scenes = {name: load_scene(name) for name in ("eth", "zara1")}
+    rng = np.random.default_rng(seed)
+    windows = {name: load_windows("stochastic", name, "test") for name in scenes}
+    picks = [(str(rng.choice(list(scenes))), int(rng.integers(0, 40))) for _ in range(moments)]
+    parts = [windows[name].subset(windows[name].group == g) for name, g in picks]
+    obs = np.concatenate([part.obs for part in parts])
+    group = np.repeat(np.arange(moments), [len(part.obs) for part in parts])
+    targets = rng.random(len(obs)) < 0.7
+    joint = model.predict_detailed(obs, group, [scenes[name] for name, _ in picks], 20, targets=targets)
+    cuts = np.cumsum([int(targets[group == k].sum()) for k in range(moments)])[:-1]
+    for k, (name, _) in enumerate(picks):
+        alone = model.predict_detailed(parts[k].obs, np.zeros(len(parts[k].obs), np.int64), scenes[name], 20,
+                                       targets=targets[group == k])
+        for field in ("futures", "prototype_anchors", "adapted_anchors"):
+            np.testing.assert_allclose(np.split(getattr(joint, field), cuts)[k], getattr(alone, field), rtol=0,
+                                       atol=1e-4, err_msg=f"moment {k} ({name}): {field}")
+    cvm = ConstantVelocity()
+    futures, _ = predict_futures(cvm, obs, [scenes[name] for name, _ in picks], 20, group, targets)
+    np.testing.assert_array_equal(futures, cvm.predict(obs, group, None, 20)[targets])
+    with pytest.raises(ValueError, match="one scene per group value"):
+        model.predict_detailed(obs, group, [scenes["eth"]], 20)

@@ -5,13 +5,14 @@ from __future__ import annotations
 import os
 import sys
 from collections import OrderedDict
-from collections.abc import Hashable, Iterator
+from collections.abc import Hashable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
+from predictor.protocol import scenes_of_agents
 from replays.constants import T_PRED, TASKS
 from replays.scenes import Scene
 from st_sim.metrics import check_futures
@@ -103,13 +104,15 @@ class ForecastRequest:
     anchors: bool = False
 
 
-def predict_futures(model: Any, history_m: np.ndarray, scene: Scene | None, num_samples: int,
-                    group: np.ndarray | None = None, targets: np.ndarray | None = None, anchors: bool = True
-                    ) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray] | None]:
-    """One batched call for all agents of one scene moment, or of several (a vector env's sub-envs).
+def predict_futures(model: Any, history_m: np.ndarray, scene: Scene | Sequence[Scene | None] | None,
+                    num_samples: int, group: np.ndarray | None = None, targets: np.ndarray | None = None,
+                    anchors: bool = True) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray] | None]:
+    """One batched call for all agents of one scene moment, or of several (sub-envs, of one scenario or several).
 
     Args:
         history_m: (P, T_obs, 2) float32 metres, world frame.
+        scene: the scene of every agent, or one per group value (moments of several scenes, each forecast on its own
+            map: SingularTrajectory takes them in one call, any other predictor gets one call per scene).
         group: (P,) int64 scene moment of each agent (agents interact only within one); None: all in one.
         targets: (P,) bool, the agents to forecast; the others only condition them (a predictor with
             ``predict_detailed`` skips their futures; any other forecasts all P and keeps the targets'); None: all.
@@ -137,8 +140,13 @@ def predict_futures(model: Any, history_m: np.ndarray, scene: Scene | None, num_
             if anchors:
                 paths = (detail.prototype_anchors, detail.adapted_anchors)
         else:
-            futures = check_futures(model.predict(history_m, group, scene, num_samples), len(history_m), num_samples,
-                                    name)[targets]
+            futures = np.zeros((len(history_m), num_samples, T_PRED, 2), np.float32)
+            scenes, scene_index = scenes_of_agents(scene, group)
+            for i, one_scene in enumerate(scenes):
+                on_it = scene_index == i
+                futures[on_it] = check_futures(model.predict(history_m[on_it], group[on_it], one_scene, num_samples),
+                                               int(on_it.sum()), num_samples, name)
+            futures = futures[targets]
     return futures, paths
 
 

@@ -23,8 +23,9 @@ episode.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import replace
+from itertools import pairwise
 from typing import Any
 
 import gymnasium as gym
@@ -33,11 +34,14 @@ from gymnasium import spaces
 from gymnasium.vector import AutoresetMode
 from stable_baselines3.common.vec_env import VecEnv
 
+from envs.batch_step import EnvBatch, StepParts
 from envs.common.config import EnvConfig
 from envs.common.errors import EnvInputError
+from envs.common.predictors import resolve_predictor, shipped_checkpoint
 from envs.replay_env import PEDESTRIAN_MODES
 from envs.shards import ProcessShard, one_thread
 from envs.suite import Scenario, TrainSeeds
+from predictor.devices import check_device_name
 from st_sim.apps.navigation.features import NEAREST, FeatureConfig, encode_batch, path_frames, to_velocities
 from st_sim.apps.navigation.predictors import env_predictor
 from st_sim.apps.navigation.world import world_of
@@ -76,46 +80,64 @@ def scenario_env(scenario: Scenario) -> str:
     return scenario.env if mode is None else f"{scenario.env}:{mode}"
 
 
-class FeatureShard:
-    """``num_envs`` sub-envs of one training env (``ID`` or ``ID:MODE``) in this process: one native vector env and
-    its features (arguments as ``FeatureVecEnv``)."""
+def shipped_model_name(env_id: str) -> str:
+    """The shipped SingularTrajectory checkpoint an id's env forecasts with on the stochastic task: a replay's
+    leave-one-out model of its scene, ``universal`` for a simulated layout (``shipped_checkpoint``)."""
+    return shipped_checkpoint("stochastic", gym.registry[env_id].kwargs.get("scene"))
 
-    def __init__(self, env_id: str, num_envs: int, features: FeatureConfig, config: EnvConfig | None = None,
-                 device: str = "auto", worker: bool = False, train_seeds: TrainSeeds | None = None):
-        if worker:
-            one_thread()
+
+class FeatureShard:
+    """``num_envs`` sub-envs of one training env (``ID`` or ``ID:MODE``): its native vector env (the sub-envs, their
+    spaces and batching), its world and the features of its observations; ``FeatureShards`` steps them. ``predictor``:
+    the env's argument (a model object, shared with the shards of other training envs that use the same model, or
+    a name); others as ``FeatureVecEnv``."""
+
+    def __init__(self, env_id: str, num_envs: int, features: FeatureConfig, predictor: Any,
+                 config: EnvConfig | None = None, device: str = "auto", train_seeds: TrainSeeds | None = None):
         config = replace(config or EnvConfig(), sensor_range_m=features.sensor_range_m, forecast_nearest=NEAREST)
         env_id, kwargs = training_env(env_id)
         self.train_seeds = train_seeds
         self._draws = np.random.default_rng()  # the split's seeds of later episodes; seeded by the first reset's
         self.vector = gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point",
                                    autoreset_mode=AutoresetMode.SAME_STEP, config=config, device=device,
-                                   predictor=env_predictor("singular" if features.use_predictions else "none"),
-                                   autoreset_seeds=None if train_seeds is None else self._draw_seed, **kwargs)
+                                   predictor=predictor, **kwargs)
         self.features = features
         self.world = world_of(self.vector.envs[0])  # every sub-env of an id has the same world (scene, limits, map)
         self._frames = np.zeros((num_envs, 2, 2))  # path_frames of the sub-envs' observations, for their next action
 
-    def reset(self, seeds: list[int | None] | None) -> np.ndarray:
-        """(num_envs, size) features of new episodes; sub-env i seeded with ``seeds[i]`` (None: fresh ones; with
-        ``train_seeds``, the split's ``seeds[i]``-th seed, or a drawn one)."""
-        if self.train_seeds is not None:
-            given = [seed for seed in seeds or [] if seed is not None]
-            self._draws = np.random.default_rng(given or None)
-            seeds = [self._draw_seed() if seed is None else int(self.train_seeds.nth(seed % self.train_seeds.count))
-                     for seed in seeds or [None] * self.vector.num_envs]
-        obs, _ = self.vector.reset(seed=seeds)
-        return self._encode_all(obs)
+    @property
+    def autoreset_seeds(self) -> Callable[[], int] | None:
+        """The function drawing the seed of each later episode (None without ``train_seeds``: the generators go on)."""
+        return None if self.train_seeds is None else self._draw_seed
+
+    def reset_seeds(self, seeds: list[int | None] | None) -> list[int | None]:
+        """The env seeds of new episodes for ``reset``'s ``seeds`` (None: fresh ones; with ``train_seeds``, the
+        split's ``seeds[i]``-th seed, or a drawn one)."""
+        seeds = seeds or [None] * self.vector.num_envs
+        if self.train_seeds is None:
+            return list(seeds)
+        given = [seed for seed in seeds if seed is not None]
+        self._draws = np.random.default_rng(given or None)
+        return [self._draw_seed() if seed is None else int(self.train_seeds.nth(seed % self.train_seeds.count))
+                for seed in seeds]
 
     def _draw_seed(self) -> int:
         """A seed of the train split, drawn uniformly."""
         return int(self.train_seeds.nth(self._draws.integers(self.train_seeds.count)))
 
-    def step(self, actions: np.ndarray) -> StepResult:
-        """One step of every sub-env with path-frame actions (num_envs, 2) in [-1, 1]."""
-        velocities = to_velocities(np.asarray(actions, np.float32).reshape(-1, 2), self._frames,
-                                   self.world.max_speed_mps)
-        obs, rewards, terminations, truncations, batched = self.vector.step(velocities)
+    def velocities(self, actions: np.ndarray) -> list[np.ndarray | None]:
+        """The sub-envs' ego velocities (2,) m/s (None where one resets) for path-frame actions (num_envs, 2) in
+        [-1, 1], checked as ``step`` checks them."""
+        return self.vector.check_actions(to_velocities(np.asarray(actions, np.float32).reshape(-1, 2), self._frames,
+                                                       self.world.max_speed_mps))
+
+    def first_features(self, observations: list[dict[str, np.ndarray]]) -> np.ndarray:
+        """(num_envs, size) features of the sub-envs' first observations."""
+        return self._encode_all(self.vector.batched_observations(observations))
+
+    def step_result(self, parts: StepParts) -> StepResult:
+        """Features, rewards, dones and infos of a step (``EnvBatch.step_parts`` of these sub-envs)."""
+        obs, rewards, terminations, truncations, batched = self.vector.batched(parts)
         features = self._encode_all(obs)
         infos = [sub_env_info(batched, i) for i in range(len(features))]
         ended = np.flatnonzero(terminations | truncations)
@@ -128,72 +150,81 @@ class FeatureShard:
                             "TimeLimit.truncated": bool(truncations[i] and not terminations[i])}
         return features, rewards.astype(np.float32), terminations | truncations, infos
 
-    def get_attr(self, attr_name: str, indices: Sequence[int]) -> list[Any]:
-        return [getattr(self.vector.envs[i], attr_name) for i in indices]
-
-    def set_attr(self, attr_name: str, value: Any, indices: Sequence[int]) -> None:
-        for i in indices:
-            setattr(self.vector.envs[i], attr_name, value)
-
-    def env_method(self, method_name: str, method_args: tuple, method_kwargs: dict, indices: Sequence[int]) -> list:
-        return [getattr(self.vector.envs[i], method_name)(*method_args, **method_kwargs) for i in indices]
-
-    def close(self) -> None:
-        self.vector.close()
-
     def _encode_all(self, obs: dict[str, np.ndarray]) -> np.ndarray:
         self._frames = path_frames(obs["ego"], self.world)
         return encode_batch(obs, self.world, self.features, self._frames)
 
 
 class FeatureShards:
-    """The sub-envs of one or more training envs in this process, a ``FeatureShard`` each, stepped as one (what
-    ``FeatureVecEnv`` runs, here or in each worker process).
+    """The sub-envs of one or more training envs in this process, a ``FeatureShard`` each, stepped as one batch
+    (``envs.batch_step.EnvBatch``: every world, then one forecast call per predictor model; what ``FeatureVecEnv``
+    runs, here or in each worker process). Training envs that forecast with the same shipped checkpoint share one
+    model object, so that their forecasts go in one call.
 
     Args:
-        parts: (training env, sub-envs) pairs, in sub-env order.  Others as ``FeatureShard``.
+        parts: (training env, sub-envs) pairs, in sub-env order.  Others as ``FeatureVecEnv``.
     """
 
     def __init__(self, parts: Sequence[tuple[str, int]], features: FeatureConfig, config: EnvConfig | None = None,
                  device: str = "auto", worker: bool = False, train_seeds: TrainSeeds | None = None):
         if worker:
             one_thread()
-        self.shards = [FeatureShard(env_id, size, features, config, device, train_seeds=train_seeds)
-                       for env_id, size in parts]
+        name = env_predictor("singular" if features.use_predictions else "none")
+        models: dict[str, Any] = {}
+        self.shards = []
+        for env_id, size in parts:
+            checkpoint = shipped_model_name(training_env(env_id)[0]) if features.use_predictions else name
+            if checkpoint not in models:
+                models[checkpoint] = resolve_predictor(name, pretrained=checkpoint, device=check_device_name(device))
+            self.shards.append(FeatureShard(env_id, size, features, models[checkpoint], config, device, train_seeds))
+        vectors = [shard.vector for shard in self.shards]
+        self.batch = EnvBatch([env for vector in vectors for env in vector.envs],
+                              [vector.max_episode_steps for vector in vectors for _ in vector.envs],
+                              AutoresetMode.SAME_STEP,
+                              [shard.autoreset_seeds for shard in self.shards for _ in shard.vector.envs])
         self._cuts = np.cumsum([size for _, size in parts])[:-1]
 
     def reset(self, seeds: list[int | None] | None) -> np.ndarray:
         """(num_envs, size) features of new episodes, sub-env i seeded with ``seeds[i]`` (None: fresh ones)."""
         parts = [None] * len(self.shards) if seeds is None else np.split(np.array(seeds, object), self._cuts)
-        return np.concatenate([shard.reset(None if part is None else list(part))
-                               for shard, part in zip(self.shards, parts, strict=True)])
+        env_seeds = [seed for shard, part in zip(self.shards, parts, strict=True)
+                     for seed in shard.reset_seeds(None if part is None else list(part))]
+        observations, _ = self.batch.reset_parts(env_seeds, None)
+        return np.concatenate([shard.first_features(part)
+                               for shard, part in zip(self.shards, self._split(observations), strict=True)])
 
     def step(self, actions: np.ndarray) -> StepResult:
         """One step of every sub-env with path-frame actions (num_envs, 2) in [-1, 1]."""
-        parts = [shard.step(part) for shard, part in zip(self.shards, np.split(actions, self._cuts), strict=True)]
-        return (np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts]),
-                np.concatenate([p[2] for p in parts]), [info for p in parts for info in p[3]])
+        velocities = [velocity for shard, part in zip(self.shards, np.split(actions, self._cuts), strict=True)
+                      for velocity in shard.velocities(part)]
+        step = self.batch.step_parts(velocities)
+        finals = [{i - start: final for i, final in step.finals.items() if start <= i < start + shard.vector.num_envs}
+                  for shard, start in zip(self.shards, np.r_[0, self._cuts].tolist(), strict=True)]
+        results = [shard.step_result(StepParts(obs, rewards, terminated, truncated, infos, final))
+                   for shard, obs, rewards, terminated, truncated, infos, final in zip(
+                       self.shards, self._split(step.observations), np.split(step.rewards, self._cuts),
+                       np.split(step.terminated, self._cuts), np.split(step.truncated, self._cuts),
+                       self._split(step.infos), finals, strict=True)]
+        return (np.concatenate([r[0] for r in results]), np.concatenate([r[1] for r in results]),
+                np.concatenate([r[2] for r in results]), [info for r in results for info in r[3]])
 
     def get_attr(self, attr_name: str, indices: Sequence[int]) -> list[Any]:
-        return [value for shard, local in self._holders(indices) for value in shard.get_attr(attr_name, local)]
+        return [getattr(self.batch.envs[i], attr_name) for i in indices]
 
     def set_attr(self, attr_name: str, value: Any, indices: Sequence[int]) -> None:
-        for shard, local in self._holders(indices):
-            shard.set_attr(attr_name, value, local)
+        for i in indices:
+            setattr(self.batch.envs[i], attr_name, value)
 
     def env_method(self, method_name: str, method_args: tuple, method_kwargs: dict, indices: Sequence[int]) -> list:
-        return [result for shard, local in self._holders(indices)
-                for result in shard.env_method(method_name, method_args, method_kwargs, local)]
+        return [getattr(self.batch.envs[i], method_name)(*method_args, **method_kwargs) for i in indices]
 
     def close(self) -> None:
         for shard in self.shards:
-            shard.close()
+            shard.vector.close()
 
-    def _holders(self, indices: Sequence[int]) -> list[tuple[FeatureShard, list[int]]]:
-        """(shard, [its local index]) for each of ``indices``, in their order."""
-        starts = np.r_[0, self._cuts]
-        holder = np.searchsorted(starts, indices, side="right") - 1
-        return [(self.shards[k], [int(i - starts[k])]) for i, k in zip(indices, holder.tolist(), strict=True)]
+    def _split(self, items: list[Any]) -> list[list[Any]]:
+        """A per-sub-env list cut into the shards' parts."""
+        return [items[a:b] for a, b in pairwise(np.r_[0, self._cuts, len(items)].tolist())]
 
 
 class FeatureVecEnv(VecEnv):

@@ -1,0 +1,180 @@
+"""Crowd envs of any ids stepped together in two phases: every world, then one forecast per predictor model.
+
+A step first moves every sub-env's world 0.4 s, each env class over all its sub-envs at once (``advance_all``:
+simulated crowds of one layout in one ``step_crowds`` call, reactive replays of one scene in one batched pass),
+then forecasts for the agents of every sub-env in one ``predict_futures`` call per predictor model (each sub-env's
+moment a group of its own, on its own scene), then completes each sub-env's observation, reward and info. Resets go
+the same way (``begin_reset_all``, one forecast per model, ``end_reset``). ``CrowdVectorEnv`` is a batch of one id's
+sub-envs; ``st_sim.apps.navigation.training_envs.FeatureShards`` one batch of every training scenario's.
+
+Each sub-env moves exactly as it would stepped alone: worlds never mix, and every sub-env draws from its own
+generator. Only the forecasts depend on the batch, in their last bits (a larger torch batch rounds otherwise).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from gymnasium.vector import AutoresetMode
+
+from envs.common.crowd_env import CrowdEnv
+from envs.common.errors import EnvInputError
+from envs.common.predictors import Forecast, predict_futures
+
+
+@dataclass(eq=False)
+class StepParts:
+    """One step of a batch, unbatched: every sub-env's observation and info (lists), rewards, terminated and
+    truncated (num_envs,), and ``finals``: sub-env -> {"final_obs", "final_info"} of episodes that ended and were
+    reset at once (``AutoresetMode.SAME_STEP``)."""
+
+    observations: list[dict[str, np.ndarray]]
+    rewards: np.ndarray
+    terminated: np.ndarray
+    truncated: np.ndarray
+    infos: list[dict[str, Any]]
+    finals: dict[int, dict[str, Any]]
+
+
+def by_class(envs: Sequence[CrowdEnv]) -> dict[type, list[int]]:
+    """The positions in ``envs`` of each env class's sub-envs, classes in order of first appearance."""
+    groups: dict[type, list[int]] = {}
+    for i, env in enumerate(envs):
+        groups.setdefault(type(env), []).append(i)
+    return groups
+
+
+def begin_resets(envs: Sequence[CrowdEnv], seeds: Sequence[int | None], options: dict | None) -> None:
+    """``begin_reset`` of every env, each class's together (``begin_reset_all``)."""
+    for env_class, members in by_class(envs).items():
+        env_class.begin_reset_all([envs[i] for i in members], [seeds[i] for i in members], options)
+
+
+def advance_worlds(envs: Sequence[CrowdEnv], velocities_mps: Sequence[np.ndarray | None]) -> None:
+    """``advance`` of every env (its ego at ``velocities_mps[i]`` (2,) m/s, None: none), each class's together
+    (``advance_all``)."""
+    for env_class, members in by_class(envs).items():
+        env_class.advance_all([envs[i] for i in members], [velocities_mps[i] for i in members])
+
+
+def forecast_all(envs: Sequence[CrowdEnv]) -> list[Forecast]:
+    """(futures, None) of every env's ``forecast_request()``, in order: kept ones where an env has one
+    (``ForecastCache``), one ``predict_futures`` call per predictor model (and sample count) for all the others'
+    agents."""
+    forecasts: list[Forecast | None] = [env.cached_forecast() for env in envs]
+    models: dict[tuple[int, int], list[int]] = {}
+    for i, forecast in enumerate(forecasts):
+        if forecast is None:
+            models.setdefault((id(envs[i].predictor), envs[i].num_samples), []).append(i)
+    for missing in models.values():
+        first = envs[missing[0]]
+        requests = [envs[i].forecast_request() for i in missing]
+        sizes = [len(request.histories_m) for request in requests]
+        futures, _ = predict_futures(first.predictor, np.concatenate([r.histories_m for r in requests]),
+                                     [envs[i].scene for i in missing], first.num_samples,
+                                     np.repeat(np.arange(len(missing)), sizes),
+                                     np.concatenate([r.targets for r in requests]), anchors=False)
+        cuts = np.cumsum([int(request.targets.sum()) for request in requests])[:-1]
+        for i, forecast in zip(missing, np.split(futures, cuts), strict=True):
+            forecasts[i] = (forecast, None)
+            envs[i].remember_forecast(forecasts[i])
+    return forecasts
+
+
+class EnvBatch:
+    """Sub-envs of any STCrowd ids stepped together, with gymnasium's time limit and autoreset bookkeeping.
+
+    Args:
+        envs: the sub-envs (``CrowdEnv``s); sub-envs that share a predictor object are forecast in one call (their
+            ``num_samples`` equal).
+        max_episode_steps: per sub-env, steps after which its episode is truncated (None: never), as ``TimeLimit``.
+        autoreset_mode: ``AutoresetMode.NEXT_STEP`` or ``SAME_STEP`` (see ``envs.vector_env``).
+        autoreset_seeds: per sub-env, None (its generator goes on) or a function returning the seed (an int >= 0)
+            it starts its next episode with after an autoreset.
+    """
+
+    def __init__(self, envs: Sequence[CrowdEnv], max_episode_steps: Sequence[int | None],
+                 autoreset_mode: AutoresetMode, autoreset_seeds: Sequence[Callable[[], int] | None]):
+        if not len(envs) == len(max_episode_steps) == len(autoreset_seeds):
+            raise ValueError(f"EnvBatch: {len(envs)} envs, {len(max_episode_steps)} time limits and "
+                             f"{len(autoreset_seeds)} autoreset seed functions")
+        self.envs, self.autoreset_mode = list(envs), AutoresetMode(autoreset_mode)
+        self.num_envs = len(self.envs)
+        self._limits = np.array([np.iinfo(np.int64).max if limit is None else limit for limit in max_episode_steps],
+                                np.int64)
+        self._seed_functions = list(autoreset_seeds)
+        self.elapsed = np.zeros(self.num_envs, np.int64)
+        self.autoreset = np.zeros(self.num_envs, bool)
+        """sub-envs whose episode ended at the last step (``NEXT_STEP``: this step resets them)"""
+
+    def reset_parts(self, seeds: Sequence[int | None], options: dict | None
+                    ) -> tuple[list[dict[str, np.ndarray]], list[dict[str, Any]]]:
+        """Every sub-env's first observation and info; sub-env i reset with ``seeds[i]``. Every seed and the options
+        are checked before any sub-env is reset."""
+        for i, env_seed in enumerate(seeds):
+            if env_seed is not None and (isinstance(env_seed, bool | np.bool_) or
+                                         not isinstance(env_seed, int | np.integer) or env_seed < 0):
+                raise EnvInputError(f"sub-env {i}: seed={env_seed!r}: expected None or an int >= 0; no sub-env "
+                                    "was reset")
+        for members in by_class(self.envs).values():
+            self.envs[members[0]].check_reset_options(options)
+        begin_resets(self.envs, seeds, options)
+        outputs = [env.end_reset(*prediction) for env, prediction in zip(self.envs, self._forecasts(self.envs),
+                                                                          strict=True)]
+        self.elapsed[:] = 0
+        self.autoreset[:] = False
+        return [obs for obs, _ in outputs], [info for _, info in outputs]
+
+    def step_parts(self, velocities_mps: Sequence[np.ndarray | None]) -> StepParts:
+        """One step of every sub-env (ego velocities (2,) m/s, None where it resets or has no ego, checked by
+        ``CrowdEnv.check_step``), or the reset of those whose episode ended at the previous step (``NEXT_STEP``)."""
+        resetting, stepping = np.flatnonzero(self.autoreset), np.flatnonzero(~self.autoreset)
+        begin_resets([self.envs[i] for i in resetting], self._next_seeds(resetting), None)
+        advance_worlds([self.envs[i] for i in stepping], [velocities_mps[i] for i in stepping])
+        parts = StepParts([], np.zeros(self.num_envs), np.zeros(self.num_envs, bool), np.zeros(self.num_envs, bool),
+                          [], {})
+        for i, (env, prediction) in enumerate(zip(self.envs, self._forecasts(self.envs), strict=True)):
+            if self.autoreset[i]:
+                obs, info = env.end_reset(*prediction)
+                self.elapsed[i] = 0
+            else:
+                obs, parts.rewards[i], parts.terminated[i], parts.truncated[i], info = env.end_step(*prediction)
+                self.elapsed[i] += 1
+                parts.truncated[i] |= self.elapsed[i] >= self._limits[i]
+            parts.observations.append(obs)
+            parts.infos.append(info)
+        ended = np.flatnonzero(parts.terminated | parts.truncated)
+        if self.autoreset_mode == AutoresetMode.SAME_STEP:  # reset the ended sub-envs now, one forecast for them
+            for i in ended:
+                parts.finals[int(i)] = {"final_obs": parts.observations[i], "final_info": parts.infos[i]}
+            restarted = [self.envs[i] for i in ended]
+            begin_resets(restarted, self._next_seeds(ended), None)
+            for i, prediction in zip(ended, self._forecasts(restarted), strict=True):
+                parts.observations[i], parts.infos[i] = self.envs[i].end_reset(*prediction)
+                self.elapsed[i] = 0
+        else:
+            self.autoreset = parts.terminated | parts.truncated
+        return parts
+
+    def _next_seeds(self, which: np.ndarray) -> list[int | None]:
+        """The seeds the sub-envs ``which`` start their next episode with, drawn in that order (None: their
+        generators go on)."""
+        seeds = [None if self._seed_functions[i] is None else self._seed_functions[i]() for i in which]
+        for seed in seeds:
+            if seed is not None and (isinstance(seed, bool | np.bool_) or not isinstance(seed, int | np.integer)
+                                     or seed < 0):
+                raise EnvInputError(f"autoreset_seeds returned {seed!r}: expected an int >= 0")
+        return [None if seed is None else int(seed) for seed in seeds]
+
+    def _forecasts(self, envs: Sequence[CrowdEnv]) -> list[Forecast]:
+        """``forecast_all``; if a predictor fails, every sub-env refuses to step until it is reset
+        (``CrowdEnv.interrupt``)."""
+        try:
+            return forecast_all(envs)
+        except Exception as err:
+            for env in self.envs:
+                env.interrupt(f"the predictor failed: {err}")
+            raise
