@@ -173,9 +173,9 @@ class ReplayCrowdEnv(CrowdEnv):
     pedestrians ("log": the recording exactly; "reactive": recorded pedestrians step round the robot),
     reaction_traits (reactive only; "fitted" (default): every pedestrian reacts as fitted; "drawn": at each reset
     every pedestrian draws its own noticing distance, reaction time, room and willingness to wait from the fitted
-    spread, ``st_sim.reactive.reaction.fitted_spread``, with the env's ``np_random``: seeded by the reset's seed), device
-    (where a SingularTrajectory the env loads runs: "auto" (default: a CUDA GPU when torch sees one, else the CPU),
-    "cpu", "cuda", "cuda:N" or "mps"; a predictor object passed in runs where it is).
+    spread, ``st_sim.reactive.reaction.fitted_spread``, with the env's ``np_random``: seeded by the reset's seed),
+    device (where a SingularTrajectory the env loads runs: "auto" (default: a CUDA GPU when torch sees one, else the
+    CPU), "cpu", "cuda", "cuda:N" or "mps"; a predictor object passed in runs where it is).
 
     ## Version History
     - v0: initial version. 2026-11-28, same id (the default is unchanged): ``reaction_traits``. 2026-11-26, same
