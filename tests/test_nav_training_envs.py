@@ -56,9 +56,9 @@ class OneWorker:
     """All the sub-envs in one worker process: the ``FeatureShards`` a one-shard ``FeatureVecEnv`` steps in its own
     process, hosted like a shard, so that it and the shards run alike (``--perturb`` patches this process only)."""
 
-    def __init__(self, num_envs: int, features: FeatureConfig):
-        self.worker = ProcessShard("st_sim.apps.navigation.training_envs:FeatureShards", [(ENV_ID, num_envs)],
-                                   features, None, "auto", True)
+    def __init__(self, parts: list[tuple[str, int]], features: FeatureConfig):
+        self.worker = ProcessShard("st_sim.apps.navigation.training_envs:FeatureShards", parts, features, None,
+                                   "auto", True)
 
     def call(self, method: str, *args):
         self.worker.send(method, *args)
@@ -77,7 +77,7 @@ def test_feature_vec_env_in_worker_processes_equals_the_one_process_one() -> Non
     denoising steps carry the difference on (2e-4 seen on one CI machine); sub-envs or pedestrians mixed up would be
     off by whole units."""
     features = FeatureConfig(True, closest_approach=True)
-    one, sharded = OneWorker(5, features), FeatureVecEnv(ENV_ID, 5, features, shards=2)
+    one, sharded = OneWorker([(ENV_ID, 5)], features), FeatureVecEnv(ENV_ID, 5, features, shards=2)
     sharded.seed(7)  # sub-env i resets with seed 7 + i
     np.testing.assert_allclose(one.call("reset", [7 + i for i in range(5)]), sharded.reset(), rtol=0,
                                atol=FORECAST_ATOL)
@@ -132,48 +132,48 @@ def test_sub_env_info_keeps_what_the_sub_env_set(batched: dict, i: int, expected
 
 
 @settings(max_examples=3, deadline=None)
-@given(seed=st.integers(0, 10_000), shards=st.sampled_from([1, 2]), use_predictions=st.booleans())
-def test_several_training_envs_share_the_sub_envs_and_step_as_each_alone(seed: int, shards: int,
-                                                                         use_predictions: bool) -> None:
+@given(seed=st.integers(0, 10_000), use_predictions=st.booleans())
+def test_several_training_envs_share_the_sub_envs_and_step_as_each_alone(seed: int, use_predictions: bool) -> None:
     """Two reactive replay sub-envs, two of a simulated crossing and one of an encounter (three worlds, two predictor
-    models) stepped as one batch, in one or two worker shards: the same transitions as a FeatureVecEnv of
-    each training env alone, seeded as those sub-envs are; bit for bit but for the forecast features, which a larger
-    batch rounds otherwise (FORECAST_ATOL)."""
+    models) stepped as one batch: the same transitions as each training env alone, seeded as those sub-envs are; bit
+    for bit but for the forecast features, which a larger batch rounds otherwise (FORECAST_ATOL). Every side runs in a
+    worker process, as the sharded test's do (``--perturb`` patches this process only)."""
     features = FeatureConfig(use_predictions=use_predictions, closest_approach=use_predictions)
     specs, sizes = ["STCrowd-Hotel-v0:reactive", "STCrowd-SimCrossing-v1", "STCrowd-SimOvertaking-v1"], [2, 2, 1]
-    mixed = FeatureVecEnv(specs, 5, features, shards=shards)
-    alone = [FeatureVecEnv(spec, size, features) for spec, size in zip(specs, sizes, strict=True)]
-    mixed.seed(seed)
-    for vec, start in zip(alone, np.cumsum([0, *sizes[:-1]]).tolist(), strict=True):
-        vec.seed(seed + start)
+    starts = np.cumsum([0, *sizes[:-1]]).tolist()
+    mixed = OneWorker(list(zip(specs, sizes, strict=True)), features)
+    alone = [OneWorker([(spec, size)], features) for spec, size in zip(specs, sizes, strict=True)]
 
     def assert_same(ours: np.ndarray, theirs: np.ndarray, where: str) -> None:
         np.testing.assert_array_equal(drop_predictions(ours, features), drop_predictions(theirs, features),
                                       err_msg=where)
         np.testing.assert_allclose(ours, theirs, rtol=0, atol=FORECAST_ATOL, err_msg=where)
 
-    assert_same(mixed.reset(), np.concatenate([vec.reset() for vec in alone]), "reset")
-    rng, ended = np.random.default_rng(seed), 0
-    for t in range(30):
-        actions = rng.uniform(-1.0, 1.0, (5, 2)).astype(np.float32)
-        actions[:, 0] = np.abs(actions[:, 0])
-        mixed.step_async(actions)
-        for vec, part in zip(alone, np.split(actions, np.cumsum(sizes)[:-1]), strict=True):
-            vec.step_async(part)
-        ours, theirs = mixed.step_wait(), [vec.step_wait() for vec in alone]
-        assert_same(ours[0], np.concatenate([part[0] for part in theirs]), f"step {t}")
-        for k in (1, 2):
-            np.testing.assert_array_equal(ours[k], np.concatenate([part[k] for part in theirs]), err_msg=f"step {t}")
-        theirs_infos = [info for part in theirs for info in part[3]]
-        for i in np.flatnonzero(ours[2]):
-            ended += 1
-            assert ours[3][i]["termination"] == theirs_infos[i]["termination"]
-            assert_same(ours[3][i]["terminal_observation"], theirs_infos[i]["terminal_observation"], f"step {t}")
-    assert ended > 0, "some episode ended within 30 steps, so autoresets were compared"
-    assert mixed.get_attr("pedestrians", [0, 1]) == ["reactive", "reactive"]
-    mixed.close()
-    for vec in alone:
-        vec.close()
+    try:
+        assert_same(mixed.call("reset", [seed + i for i in range(5)]),
+                    np.concatenate([one.call("reset", [seed + start + i for i in range(size)])
+                                    for one, start, size in zip(alone, starts, sizes, strict=True)]), "reset")
+        rng, ended = np.random.default_rng(seed), 0
+        for t in range(30):
+            actions = rng.uniform(-1.0, 1.0, (5, 2)).astype(np.float32)
+            actions[:, 0] = np.abs(actions[:, 0])
+            ours = mixed.call("step", actions)
+            theirs = [one.call("step", part) for one, part in zip(alone, np.split(actions, starts[1:]), strict=True)]
+            assert_same(ours[0], np.concatenate([part[0] for part in theirs]), f"step {t}")
+            for k in (1, 2):
+                np.testing.assert_array_equal(ours[k], np.concatenate([part[k] for part in theirs]),
+                                              err_msg=f"step {t}")
+            theirs_infos = [info for part in theirs for info in part[3]]
+            for i in np.flatnonzero(ours[2]):
+                ended += 1
+                assert ours[3][i]["termination"] == theirs_infos[i]["termination"]
+                assert_same(ours[3][i]["terminal_observation"], theirs_infos[i]["terminal_observation"],
+                            f"step {t}")
+        assert ended > 0, "some episode ended within 30 steps, so autoresets were compared"
+        assert mixed.call("get_attr", "pedestrians", [0, 1]) == ["reactive", "reactive"]
+    finally:
+        for one in [mixed, *alone]:
+            one.worker.close()
 
 
 def test_a_training_env_that_is_not_an_id_or_mode_is_refused() -> None:

@@ -6,16 +6,17 @@
     features = vec.reset()                       # (64, features.size) float32
     vec.step_async(actions); features, rewards, dones, infos = vec.step_wait()
 
-The sub-envs are stepped by ``gym.make_vec(..., vectorization_mode="vector_entry_point")`` with
-``AutoresetMode.SAME_STEP`` (one batched predictor call per step for all of them), which is stable-baselines3's
-convention: an ended episode's sub-env is reset in the same step, its last features go to
-``info["terminal_observation"]`` and ``info["TimeLimit.truncated"]`` says whether the time limit ended it.
-Actions (num_envs, 2) in [-1, 1] are path-frame velocities in speed limits (``features.to_velocities``). Only the
-``NEAREST`` pedestrians the features read are forecast (``EnvConfig.forecast_nearest``; every sensed one still
-conditions their forecast). Several training envs (``ID`` or ``ID:MODE``, a replay's pedestrians "log" or
-"reactive") share the sub-envs evenly, in the order given, one native vector env each. With ``shards`` > 1 the
-sub-envs are split into worker processes (``FeatureShards`` in each, through ``envs.shards``), which step at once and
-send back features, not observations. With a suite's ``train_seeds`` every episode is one of the suite's train split
+The sub-envs are made by ``gym.make_vec(..., vectorization_mode="vector_entry_point")`` and stepped, those of every
+training env together, as one ``envs.batch_step.EnvBatch`` with ``AutoresetMode.SAME_STEP`` (every world, then one
+batched predictor call per model for all of them), which is stable-baselines3's convention: an ended episode's
+sub-env is reset in the same step, its last features go to ``info["terminal_observation"]`` and
+``info["TimeLimit.truncated"]`` says whether the time limit ended it. Actions (num_envs, 2) in [-1, 1] are path-frame
+velocities in speed limits (``features.to_velocities``). Only the ``NEAREST`` pedestrians the features read are
+forecast (``EnvConfig.forecast_nearest``; every sensed one still conditions their forecast). Several training envs
+(``ID`` or ``ID:MODE``, a replay's pedestrians "log" or "reactive") share the sub-envs evenly, in the order given,
+one native vector env each (for its spaces and features). With ``shards`` > 1 the sub-envs are split into worker
+processes (``FeatureShards`` in each, through ``envs.shards``), which step at once and send back features, not
+observations. With a suite's ``train_seeds`` every episode is one of the suite's train split
 (``envs.suite.TrainSeeds``): sub-env i's first reset seed s becomes the split's s-th seed and every later episode
 starts from a seed of the split drawn by the shard (seeded by its first seeds), so training never meets a val or test
 episode.
