@@ -28,7 +28,7 @@ from envs.common.config import EnvConfig
 from envs.suite import load_suite
 from replays.atomic import atomic_path, write_text_atomic
 from st_sim.apps.navigation import train_ppo
-from st_sim.apps.navigation.features import drop_predictions
+from st_sim.apps.navigation.features import FeatureConfig, drop_predictions
 from st_sim.apps.navigation.training_envs import FeatureVecEnv
 
 LINES, FORECASTS = "steps.txt", "forecasts.npz"  # what --out writes
@@ -42,7 +42,7 @@ def run(num_envs: int, steps: int, seed: int) -> tuple[list[str], np.ndarray]:
                         load_suite().train)
     vec.seed(seed)
     features = vec.reset()
-    forecast_columns = ~np.isin(np.arange(features.shape[1]), _kept_columns(features.shape[1], cfg))
+    forecast_columns = ~np.isin(np.arange(features.shape[1]), _kept_columns(features.shape[1], cfg.features))
     lines, forecasts = [], [features[:, forecast_columns]]
     rng = np.random.default_rng(seed)
     for t in range(steps):
@@ -61,10 +61,10 @@ def run(num_envs: int, steps: int, seed: int) -> tuple[list[str], np.ndarray]:
     return lines, np.stack(forecasts)
 
 
-def _kept_columns(size: int, cfg) -> np.ndarray:
+def _kept_columns(size: int, features: FeatureConfig) -> np.ndarray:
     """The feature columns that are not forecasts (``drop_predictions`` keeps them)."""
     probe = np.arange(size, dtype=np.float64)[None]
-    return drop_predictions(probe, cfg.features)[0].astype(np.int64)
+    return drop_predictions(probe, features)[0].astype(np.int64)
 
 
 def compare(base: Path, head: Path) -> None:
