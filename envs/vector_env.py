@@ -90,7 +90,6 @@ class CrowdVectorEnv(VectorEnv):
         self.envs: list[CrowdEnv] = [first] + [make_env(**{**kwargs, "predictor": first.predictor})
                                                for _ in range(num_envs - 1)]
         self.num_envs, self.max_episode_steps = int(num_envs), max_episode_steps
-        self.predictor, self.scene, self.num_samples = first.predictor, first.scene, first.num_samples
         for env in self.envs[1:]:  # the same recording and predictor: forecasts kept by one serve all
             env.forecasts = first.forecasts
         self.render_mode = first.render_mode
