@@ -51,8 +51,8 @@ def time_scenario(scenario: Any, policy_spec: str, predictor: str, seeds: tuple[
     world = world_of(env)
     policy = load_policy(policy_spec, world, predictor)
     crowd = env.unwrapped
-    crowd.advance = watch.wrap("world", crowd.advance)  # instance attributes: this env only
-    crowd._predict = watch.wrap("forecast", crowd._predict)
+    crowd.advance_all = watch.wrap("world", crowd.advance_all)  # instance attributes: this env only
+    crowd._forecast = watch.wrap("forecast", crowd._forecast)
     policy.act = watch.wrap("policy", policy.act)
     steps, start = 0, time.process_time()
     for seed in seeds:

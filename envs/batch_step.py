@@ -22,7 +22,7 @@ from gymnasium.vector import AutoresetMode
 
 from envs.common.crowd_env import CrowdEnv
 from envs.common.errors import EnvInputError
-from envs.common.predictors import Forecast, predict_futures
+from envs.common.predictors import Forecast, forecast_all
 
 
 @dataclass(eq=False)
@@ -58,30 +58,6 @@ def advance_worlds(envs: Sequence[CrowdEnv], velocities_mps: Sequence[np.ndarray
     (``advance_all``)."""
     for env_class, members in by_class(envs).items():
         env_class.advance_all([envs[i] for i in members], [velocities_mps[i] for i in members])
-
-
-def forecast_all(envs: Sequence[CrowdEnv]) -> list[Forecast]:
-    """(futures, None) of every env's ``forecast_request()``, in order: kept ones where an env has one
-    (``ForecastCache``), one ``predict_futures`` call per predictor model (and sample count) for all the others'
-    agents."""
-    forecasts: list[Forecast | None] = [env.cached_forecast() for env in envs]
-    models: dict[tuple[int, int], list[int]] = {}
-    for i, forecast in enumerate(forecasts):
-        if forecast is None:
-            models.setdefault((id(envs[i].predictor), envs[i].num_samples), []).append(i)
-    for missing in models.values():
-        first = envs[missing[0]]
-        requests = [envs[i].forecast_request() for i in missing]
-        sizes = [len(request.histories_m) for request in requests]
-        futures, _ = predict_futures(first.predictor, np.concatenate([r.histories_m for r in requests]),
-                                     [envs[i].scene for i in missing], first.num_samples,
-                                     np.repeat(np.arange(len(missing)), sizes),
-                                     np.concatenate([r.targets for r in requests]), anchors=False)
-        cuts = np.cumsum([int(request.targets.sum()) for request in requests])[:-1]
-        for i, forecast in zip(missing, np.split(futures, cuts), strict=True):
-            forecasts[i] = (forecast, None)
-            envs[i].remember_forecast(forecasts[i])
-    return forecasts
 
 
 class EnvBatch:

@@ -2,7 +2,8 @@
 
 A subclass provides the crowd (and moves the ego) through four hooks: ``_reset_world`` (frames up to
 now, drawn from ``self.np_random``), ``_step_world`` (one 0.4 s step), ``_ego_contact`` (the step's first
-pedestrian contact, wall contact, closest approach) and ``_world_ended``. It keeps ``ego_xy_m``,
+pedestrian contact, wall contact, closest approach) and ``_world_ended``; a class whose worlds start or step as a
+batch overrides ``begin_reset_all`` or ``advance_all`` instead of the first two. It keeps ``ego_xy_m``,
 ``ego_velocity_mps`` and ``goal_m`` up to date (and ``ego_max_accel_mps2`` if its ego has inertia), lists the
 ``reset`` options it reads in ``RESET_OPTIONS`` and checks their values in ``_check_options``.
 
@@ -16,9 +17,10 @@ whether the robot was at fault then (``envs.common.fault``: it moved at 0.05 m/s
 The env never ends an episode for time: "timeout" is the ``TimeLimit`` wrapper's truncation (``truncated``
 with ``termination`` None), like the end of a replay's recording.
 
-``reset`` and ``step`` each come in two halves around the predictor call, ``begin_reset``/``end_reset`` and
-``begin_step``/``end_step`` with ``forecast_request`` in between, so that ``envs.vector_env`` can step many
-envs and forecast for all of them in one batched call; a single env runs the halves back to back.
+``reset`` and ``step`` each come in two halves around the forecast, ``begin_reset_all``/``end_reset`` and
+``advance_all``/``end_step`` with ``forecast_all`` in between, each over a batch of envs: ``envs.batch_step`` steps
+many envs (of any ids) with one world step per class and one forecast per predictor model; a single env is the
+batch of one.
 
 Input contract (both vectorisation modes of gymnasium): every check of an argument, option or action runs
 before anything changes, and raises the env's own ``envs.common.errors.EnvInputError`` (a ValueError) or
@@ -47,7 +49,7 @@ from envs.common.predictors import (
     Forecast,
     ForecastCache,
     ForecastRequest,
-    predict_futures,
+    forecast_all,
     resolve_predictor,
     task_sizes,
 )
@@ -135,37 +137,40 @@ class CrowdEnv(gym.Env):
         """recordings this env has written (a step after ``close`` starts a new, numbered one)"""
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
-        self.begin_reset(seed=seed, options=options)
-        return self.end_reset(*self._predict())
+        self.begin_reset_all([self], [seed], options)
+        return self.end_reset(*self._forecast())
 
     def step(self, action: np.ndarray):
-        self.begin_step(action)
-        try:
-            forecast = self._predict()
-        except Exception as err:
-            self.interrupt(f"the predictor failed: {err}")
-            raise
-        return self.end_step(*forecast)
-
-    def begin_reset(self, *, seed: int | None = None, options: dict | None = None) -> None:
-        """First half of ``reset``: check the arguments, start the episode's world (no prediction yet)."""
-        self._finish_reset(self._reset_world(self._prepare_reset(seed, options)))
+        velocity_mps = self.check_step(action)
+        self.advance_all([self], [velocity_mps])
+        return self.end_step(*self._forecast())
 
     @classmethod
     def begin_reset_all(cls, envs: Sequence[CrowdEnv], seeds: Sequence[int | None], options: dict | None) -> None:
-        """``begin_reset`` of several envs of this class (one batched world start where the class has one); every
-        argument is checked before any env is reset."""
+        """First half of ``reset`` for several envs of this class: check the arguments (all before any env is
+        reset), start each episode's world (one batched world start where the class has one); no forecast yet."""
         for env, seed in zip(envs, seeds, strict=True):
             env.check_reset_seed(seed)
             env.check_reset_options(options)
         for env, seed in zip(envs, seeds, strict=True):
-            env.begin_reset(seed=seed, options=options)
+            env._finish_reset(env._reset_world(env._prepare_reset(seed, options)))
 
     @classmethod
     def advance_all(cls, envs: Sequence[CrowdEnv], velocities_mps: Sequence[np.ndarray | None]) -> None:
-        """``advance`` of several envs of this class (one batched world step where the class has one)."""
-        for env, velocity in zip(envs, velocities_mps, strict=True):
-            env.advance(velocity)
+        """First half of ``step`` for several envs of this class, after ``check_step``: move each world 0.4 s with
+        its ego at ``velocities_mps[i]`` (2,) m/s (one batched world step where the class has one); no forecast
+        yet."""
+        for env, velocity_mps in zip(envs, velocities_mps, strict=True):
+            env._previous_xy_m = env.ego_xy_m.copy()
+            env._advanced(env._step_world(velocity_mps))
+
+    def _forecast(self) -> Forecast:
+        """``forecast_all`` of this env alone; if the predictor fails, the env refuses to step until it is reset."""
+        try:
+            return forecast_all([self])[0]
+        except Exception as err:
+            self.interrupt(f"the predictor failed: {err}")
+            raise
 
     def check_reset_seed(self, seed: Any) -> None:
         """Refuse a seed that is not None or an int >= 0 (``EnvInputError``); nothing changes."""
@@ -196,21 +201,12 @@ class CrowdEnv(gym.Env):
 
     def end_reset(self, predicted: np.ndarray, anchors: tuple[np.ndarray, np.ndarray] | None
                   ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
-        """Second half of ``reset``: the first observation and info, given ``predict_futures``'s output for
+        """Second half of ``reset``: the first observation and info, given the forecast (``forecast_all``) of
         ``forecast_request()``."""
         self._obs = self._observe(predicted, anchors)
         info = self._info(dict.fromkeys(REWARD_PARTS, 0.0), None)
         self._log_rerun(info, 0.0)
         return self._obs, info
-
-    def begin_step(self, action: np.ndarray) -> None:
-        """First half of ``step``: check the action, advance the world 0.4 s (no prediction yet)."""
-        self.advance(self.check_step(action))
-
-    def advance(self, velocity_mps: np.ndarray | None) -> None:
-        """``begin_step`` after its checks: move the world 0.4 s with the ego at ``check_step``'s velocity."""
-        self._previous_xy_m = self.ego_xy_m.copy()
-        self._advanced(self._step_world(velocity_mps))
 
     def _advanced(self, frame: Frame) -> None:
         """Take the world's frame after a step."""
@@ -240,8 +236,8 @@ class CrowdEnv(gym.Env):
         return velocity if self.ego else None
 
     def end_step(self, predicted: np.ndarray, anchors: tuple[np.ndarray, np.ndarray] | None):
-        """Second half of ``step``: observation, reward, terminated, truncated and info, given
-        ``predict_futures``'s output for ``forecast_request()``."""
+        """Second half of ``step``: observation, reward, terminated, truncated and info, given the forecast
+        (``forecast_all``) of ``forecast_request()``."""
         self._obs = self._observe(predicted, anchors)
         parts = self._reward_parts(self._previous_xy_m) if self.ego else dict.fromkeys(REWARD_PARTS, 0.0)
         reward = float(sum(getattr(self.cfg.reward, WEIGHT_OF.get(name, name)) * value
@@ -281,15 +277,6 @@ class CrowdEnv(gym.Env):
         targets[self._rows] = True
         return ForecastRequest(self._history[0][self._context_rows], targets[self._context_rows],
                                self.rerun_target is not None)
-
-    def _predict(self) -> Forecast:
-        forecast = self.cached_forecast()
-        if forecast is None:
-            request = self.forecast_request()
-            forecast = predict_futures(self.predictor, request.histories_m, self.scene, self.num_samples,
-                                       targets=request.targets, anchors=request.anchors)
-            self.remember_forecast(forecast)
-        return forecast
 
     def cached_forecast(self) -> Forecast | None:
         """The forecast of ``forecast_request()`` kept from an earlier visit of this moment, if any."""

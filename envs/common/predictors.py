@@ -8,7 +8,7 @@ from collections import OrderedDict
 from collections.abc import Hashable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -168,6 +168,48 @@ def one_torch_thread() -> Iterator[None]:
 
 Forecast = tuple[np.ndarray, tuple[np.ndarray, np.ndarray] | None]
 """(futures (P, S, 12, 2), anchors (prototype, adapted) or None), as ``predict_futures`` returns them"""
+
+
+class Forecasting(Protocol):
+    """What ``forecast_all`` asks of an env (``envs.common.crowd_env.CrowdEnv``)."""
+
+    predictor: Any
+    num_samples: int
+    scene: Scene | None
+
+    def cached_forecast(self) -> Forecast | None: ...
+    def forecast_request(self) -> ForecastRequest: ...
+    def remember_forecast(self, forecast: Forecast) -> None: ...
+
+
+def forecast_all(envs: Sequence[Forecasting]) -> list[Forecast]:
+    """Every env's forecast of its ``forecast_request()``, in order: the kept one where an env has it
+    (``ForecastCache``), else one ``predict_futures`` call per predictor object and sample count for all the
+    others' agents, each env's moment a group of its own on its own scene. Anchors go to the envs that ask for them
+    (None to the others)."""
+    forecasts: list[Forecast | None] = [env.cached_forecast() for env in envs]
+    models: dict[tuple[int, int], list[int]] = {}
+    for i, forecast in enumerate(forecasts):
+        if forecast is None:
+            models.setdefault((id(envs[i].predictor), envs[i].num_samples), []).append(i)
+    for missing in models.values():
+        first = envs[missing[0]]
+        requests = [envs[i].forecast_request() for i in missing]
+        sizes = [len(request.histories_m) for request in requests]
+        wanted = any(request.anchors for request in requests)
+        futures, anchors = predict_futures(first.predictor, np.concatenate([r.histories_m for r in requests]),
+                                           [envs[i].scene for i in missing], first.num_samples,
+                                           np.repeat(np.arange(len(missing)), sizes),
+                                           np.concatenate([r.targets for r in requests]), anchors=wanted)
+        cuts = np.cumsum([int(request.targets.sum()) for request in requests])[:-1]
+        prototypes = adapted = [None] * len(missing)
+        if anchors is not None:
+            prototypes, adapted = np.split(anchors[0], cuts), np.split(anchors[1], cuts)
+        for i, request, own, prototype, own_adapted in zip(missing, requests, np.split(futures, cuts), prototypes,
+                                                            adapted, strict=True):
+            forecasts[i] = (own, (prototype, own_adapted) if request.anchors and anchors is not None else None)
+            envs[i].remember_forecast(forecasts[i])
+    return forecasts
 
 
 class ForecastCache:
