@@ -104,9 +104,17 @@ class EnvBatch:
         self.autoreset[:] = False
         return [obs for obs, _ in outputs], [info for _, info in outputs]
 
+    def check_actions(self, actions: Sequence[Any]) -> list[np.ndarray | None]:
+        """Every sub-env's ego velocity (2,) m/s for ``actions[i]`` (None where it resets at this step or has no
+        ego), after every check ``step`` makes before anything moves (``CrowdEnv.check_step``)."""
+        if len(actions) != self.num_envs:
+            raise EnvInputError(f"{len(actions)} actions for {self.num_envs} sub-envs")
+        return [None if self.autoreset[i] else env.check_step(action)
+                for i, (env, action) in enumerate(zip(self.envs, actions, strict=True))]
+
     def step_parts(self, velocities_mps: Sequence[np.ndarray | None]) -> StepParts:
-        """One step of every sub-env (ego velocities (2,) m/s, None where it resets or has no ego, checked by
-        ``CrowdEnv.check_step``), or the reset of those whose episode ended at the previous step (``NEXT_STEP``)."""
+        """One step of every sub-env (ego velocities (2,) m/s, None where it resets or has no ego, from
+        ``check_actions``), or the reset of those whose episode ended at the previous step (``NEXT_STEP``)."""
         resetting, stepping = np.flatnonzero(self.autoreset), np.flatnonzero(~self.autoreset)
         begin_resets([self.envs[i] for i in resetting], self._next_seeds(resetting), None)
         advance_worlds([self.envs[i] for i in stepping], [velocities_mps[i] for i in stepping])

@@ -130,8 +130,7 @@ class CrowdVectorEnv(VectorEnv):
                                 f"a ragged {type(actions).__name__}") from err
         if actions.shape != self.action_space.shape:
             raise EnvInputError(f"actions must have shape {self.action_space.shape} (num_envs, 2), got {actions.shape}")
-        return [None if self.batch.autoreset[i] else env.check_step(action)
-                for i, (env, action) in enumerate(zip(self.envs, iterate(self.action_space, actions), strict=True))]
+        return self.batch.check_actions(list(iterate(self.action_space, actions)))
 
     def step_parts(self, velocities: list[np.ndarray | None]) -> StepParts:
         """``step`` after ``check_actions``, unbatched."""

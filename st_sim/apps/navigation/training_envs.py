@@ -126,11 +126,10 @@ class FeatureShard:
         """A seed of the train split, drawn uniformly."""
         return int(self.train_seeds.nth(self._draws.integers(self.train_seeds.count)))
 
-    def velocities(self, actions: np.ndarray) -> list[np.ndarray | None]:
-        """The sub-envs' ego velocities (2,) m/s (None where one resets) for path-frame actions (num_envs, 2) in
-        [-1, 1], checked as ``step`` checks them."""
-        return self.vector.check_actions(to_velocities(np.asarray(actions, np.float32).reshape(-1, 2), self._frames,
-                                                       self.world.max_speed_mps))
+    def velocities(self, actions: np.ndarray) -> np.ndarray:
+        """(num_envs, 2) float32 world-frame ego velocities [m/s] for path-frame actions (num_envs, 2) in [-1, 1]
+        (unchecked: ``EnvBatch.check_actions`` checks them)."""
+        return to_velocities(np.asarray(actions, np.float32).reshape(-1, 2), self._frames, self.world.max_speed_mps)
 
     def first_features(self, observations: list[dict[str, np.ndarray]]) -> np.ndarray:
         """(num_envs, size) features of the sub-envs' first observations."""
@@ -196,9 +195,9 @@ class FeatureShards:
 
     def step(self, actions: np.ndarray) -> StepResult:
         """One step of every sub-env with path-frame actions (num_envs, 2) in [-1, 1]."""
-        velocities = [velocity for shard, part in zip(self.shards, np.split(actions, self._cuts), strict=True)
-                      for velocity in shard.velocities(part)]
-        step = self.batch.step_parts(velocities)
+        velocities = np.concatenate([shard.velocities(part) for shard, part in
+                                     zip(self.shards, np.split(actions, self._cuts), strict=True)])
+        step = self.batch.step_parts(self.batch.check_actions(velocities))
         finals = [{i - start: final for i, final in step.finals.items() if start <= i < start + shard.vector.num_envs}
                   for shard, start in zip(self.shards, np.r_[0, self._cuts].tolist(), strict=True)]
         results = [shard.step_result(StepParts(obs, rewards, terminated, truncated, infos, final))
