@@ -13,7 +13,7 @@ and a 5 m sensor range, a goal-seeking robot with noise (the policy PPO meets ea
 thread, one env at torch's default thread count, and the native vector env of each N (one process; and with
 ``--shards K`` also split into K worker processes). It prints env steps per second (a vector step counts N), each
 one's ratio to one env at one thread, and for the one-process vector env the shares of the time spent in the crowd
-simulator (``SimCrowdEnv.advance_all`` and ``begin_reset_all``: stepping and warming up the crowds), in the
+simulator (``SimCrowdEnv._step_worlds`` and ``_reset_worlds``: stepping and warming up the crowds), in the
 forecast (``predict``) and in the rest (observations, rewards, metrics, sensing, autoresets), and the process's
 peak memory.
 """
@@ -147,7 +147,7 @@ def vector_rate(num_envs: int, steps: int, seed: int, model, shards: int = 1) ->
                            predictor=model, config=config)
     rng = np.random.default_rng(seed)
     steps = max(1, steps // num_envs)
-    with SectionTimer(SimCrowdEnv, ("advance_all", "begin_reset_all")) as crowd:
+    with SectionTimer(SimCrowdEnv, ("_step_worlds", "_reset_worlds")) as crowd:
         obs, _ = vec.reset(seed=seed)
         crowd.seconds, predicting = 0.0, getattr(model, "seconds", 0.0)
         start = time.perf_counter()

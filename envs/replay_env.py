@@ -249,7 +249,13 @@ class ReplayCrowdEnv(CrowdEnv):
             raise ResetOptionsError(f"{self.replay.path}: reset option start_index={start!r}: expected an int "
                                     f"in [0, {last - 1}]")
 
-    def _reset_world(self, options: dict) -> list[Frame]:
+    @classmethod
+    def _reset_worlds(cls, envs: Sequence[ReplayCrowdEnv], options: Sequence[dict]) -> list[list[Frame]]:
+        return [env._start_episode(env_options) for env, env_options in zip(envs, options, strict=True)]
+
+    def _start_episode(self, options: dict) -> list[Frame]:
+        """Pick the start frame (``start_index``, or drawn), place the ego and its goal, put a reactive crowd on its
+        log; the frames up to the start, oldest first."""
         last = len(self.replay.frames) - 1
         if "start_index" in options:
             self.index = int(options["start_index"])  # checked by _check_options
@@ -271,28 +277,17 @@ class ReplayCrowdEnv(CrowdEnv):
         return [self.replay.frame(i) for i in range(first, self.index + 1)]
 
     @classmethod
-    def advance_all(cls, envs: Sequence[ReplayCrowdEnv], velocities_mps: Sequence[np.ndarray | None]) -> None:
-        """``advance`` of several replays, their reactive crowds stepped in one batched call
+    def _step_worlds(cls, envs: Sequence[ReplayCrowdEnv], velocities_mps: Sequence[np.ndarray | None]
+                     ) -> list[Frame]:
+        """Every replay's next frame, its ego moved; the reactive crowds stepped in one batched call
         (``ReactiveCrowd.step_all``)."""
-        if all(env.reactive is None for env in envs):
-            super().advance_all(envs, velocities_mps)
-            return
-        moves = []
-        for env, velocity_mps in zip(envs, velocities_mps, strict=True):
-            env._previous_xy_m = env.ego_xy_m.copy()
-            moves.append(env._move_ego(velocity_mps))
+        moves = [env._move_ego(velocity_mps) for env, velocity_mps in zip(envs, velocities_mps, strict=True)]
         reactive = [(env, move) for env, move in zip(envs, moves, strict=True) if env.reactive is not None]
-        ReactiveCrowd.step_all([env.reactive for env, _ in reactive], [env.index for env, _ in reactive],
-                               [start for _, (start, _) in reactive], [end for _, (_, end) in reactive],
-                               [None] * len(reactive))
-        for env in envs:
-            env._advanced(env._frame_now())
-
-    def _step_world(self, ego_velocity_mps: np.ndarray | None) -> Frame:
-        robot = self._move_ego(ego_velocity_mps)
-        if self.reactive is not None:
-            self.reactive.step(self.index, *robot)
-        return self._frame_now()
+        if reactive:
+            ReactiveCrowd.step_all([env.reactive for env, _ in reactive], [env.index for env, _ in reactive],
+                                   [start for _, (start, _) in reactive], [end for _, (_, end) in reactive],
+                                   [None] * len(reactive))
+        return [env._frame_now() for env in envs]
 
     def _move_ego(self, ego_velocity_mps: np.ndarray | None) -> tuple[np.ndarray | None, np.ndarray | None]:
         """Step to the next frame and move the ego; returns the robot's move over the step as the pedestrians expect

@@ -141,33 +141,21 @@ class SimCrowdEnv(CrowdEnv):
         self.ego_max_accel_mps2 = EgoConfig().max_accel_mps2
         self.sim: CrowdSim | None = None
 
-    def _reset_world(self, options: dict) -> list[Frame]:
-        return self._warm_up([self])[0]
-
     @classmethod
-    def begin_reset_all(cls, envs: Sequence[SimCrowdEnv], seeds: Sequence[int | None], options: dict | None) -> None:
-        """``begin_reset`` of several envs: the new crowds of each world (layout and crowd config) warm up together
-        (``step_crowds``)."""
-        for env, seed in zip(envs, seeds, strict=True):
-            env.check_reset_seed(seed)
-            env.check_reset_options(options)
-        for env, seed in zip(envs, seeds, strict=True):
-            env._prepare_reset(seed, options)
+    def _reset_worlds(cls, envs: Sequence[SimCrowdEnv], options: Sequence[dict]) -> list[list[Frame]]:
+        """New crowds, those of each world (layout and crowd config) warming up together (``_warm_up``)."""
+        frames_of: dict[int, list[Frame]] = {}
         for world in cls._by_world(envs):
-            for env, frames in zip(world, cls._warm_up(world), strict=True):
-                env._finish_reset(frames)
+            frames_of.update({id(env): frames for env, frames in zip(world, cls._warm_up(world), strict=True)})
+        return [frames_of[id(env)] for env in envs]
 
     @classmethod
-    def advance_all(cls, envs: Sequence[SimCrowdEnv], velocities_mps: Sequence[np.ndarray | None]) -> None:
-        """``advance`` of several envs: one ``step_crowds`` call moves the crowds of each world (layout and crowd
-        config)."""
+    def _step_worlds(cls, envs: Sequence[SimCrowdEnv], velocities_mps: Sequence[np.ndarray | None]) -> list[Frame]:
+        """One ``step_crowds`` call moves the crowds of each world (layout and crowd config)."""
         velocity_of = {id(env): velocity for env, velocity in zip(envs, velocities_mps, strict=True)}
-        for env in envs:
-            env._previous_xy_m = env.ego_xy_m.copy()
         for world in cls._by_world(envs):
             step_crowds([env.sim for env in world], [velocity_of[id(env)] for env in world])
-        for env in envs:
-            env._advanced(env._sim_frame())
+        return [env._sim_frame() for env in envs]
 
     @staticmethod
     def _by_world(envs: Sequence[SimCrowdEnv]) -> list[list[SimCrowdEnv]]:
@@ -205,10 +193,6 @@ class SimCrowdEnv(CrowdEnv):
         keep_clear_m = self.crowd_cfg.radius_m + self.cfg.ego_radius_m + self.crowd_cfg.spawn_gap_m
         sim.add(plan.pedestrians(sim.nav, motion, keep_clear_m))
         return sim, plan.ego_goal_m.copy()
-
-    def _step_world(self, ego_velocity_mps: np.ndarray | None) -> Frame:
-        self.sim.step(ego_velocity_mps)
-        return self._sim_frame()
 
     def _ego_contact(self) -> tuple[Contact | None, bool, float]:
         """The simulator's record of the last step: first pedestrian contact within its substeps, wall touched,

@@ -192,7 +192,6 @@ def test_with_a_train_split_every_episode_starts_from_one_of_its_seeds(seed: int
     autoreset, takes a seed of the split (in its range, in no published list); the first ones are the split's
     (seed + i)-th seeds, so the same seed gives the same episodes."""
     from envs.common.crowd_env import CrowdEnv
-    from envs.sim_env import SimCrowdEnv
     from envs.suite import TrainSeeds
 
     split = TrainSeeds(0, 48, tuple(sorted(listed)))
@@ -205,8 +204,7 @@ def test_with_a_train_split_every_episode_starts_from_one_of_its_seeds(seed: int
         return classmethod(begin_reset_all)
 
     patch = pytest.MonkeyPatch()
-    patch.setattr(CrowdEnv, "begin_reset_all", spy(CrowdEnv.begin_reset_all))
-    patch.setattr(SimCrowdEnv, "begin_reset_all", spy(SimCrowdEnv.begin_reset_all))
+    patch.setattr(CrowdEnv, "begin_reset_all", spy(CrowdEnv.begin_reset_all))  # every env class's
     try:
         vec = FeatureVecEnv(["STCrowd-SimCorridor-v1", "STCrowd-Hotel-v0:log"], 4, FeatureConfig(False),
                             train_seeds=split)

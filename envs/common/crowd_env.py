@@ -1,9 +1,9 @@
 """What the replay and simulated crowd environments share: spaces, observation, predictions, reward, info.
 
-A subclass provides the crowd (and moves the ego) through four hooks: ``_reset_world`` (frames up to
-now, drawn from ``self.np_random``), ``_step_world`` (one 0.4 s step), ``_ego_contact`` (the step's first
-pedestrian contact, wall contact, closest approach) and ``_world_ended``; a class whose worlds start or step as a
-batch overrides ``begin_reset_all`` or ``advance_all`` instead of the first two. It keeps ``ego_xy_m``,
+A subclass provides the crowd (and moves the ego) through four hooks: ``_reset_worlds`` (every env's frames up
+to now, drawn from its ``np_random``) and ``_step_worlds`` (one 0.4 s step of every env's world), each over a batch
+of envs of the class, ``_ego_contact`` (the step's first pedestrian contact, wall contact, closest approach) and
+``_world_ended``. It keeps ``ego_xy_m``,
 ``ego_velocity_mps`` and ``goal_m`` up to date (and ``ego_max_accel_mps2`` if its ego has inertia), lists the
 ``reset`` options it reads in ``RESET_OPTIONS`` and checks their values in ``_check_options``.
 
@@ -148,21 +148,22 @@ class CrowdEnv(gym.Env):
     @classmethod
     def begin_reset_all(cls, envs: Sequence[CrowdEnv], seeds: Sequence[int | None], options: dict | None) -> None:
         """First half of ``reset`` for several envs of this class: check the arguments (all before any env is
-        reset), start each episode's world (one batched world start where the class has one); no forecast yet."""
+        reset), then start every episode's world (``_reset_worlds``); no forecast yet."""
         for env, seed in zip(envs, seeds, strict=True):
             env.check_reset_seed(seed)
             env.check_reset_options(options)
-        for env, seed in zip(envs, seeds, strict=True):
-            env._finish_reset(env._reset_world(env._prepare_reset(seed, options)))
+        checked = [env._prepare_reset(seed, options) for env, seed in zip(envs, seeds, strict=True)]
+        for env, frames in zip(envs, cls._reset_worlds(envs, checked), strict=True):
+            env._finish_reset(frames)
 
     @classmethod
     def advance_all(cls, envs: Sequence[CrowdEnv], velocities_mps: Sequence[np.ndarray | None]) -> None:
-        """First half of ``step`` for several envs of this class, after ``check_step``: move each world 0.4 s with
-        its ego at ``velocities_mps[i]`` (2,) m/s (one batched world step where the class has one); no forecast
-        yet."""
-        for env, velocity_mps in zip(envs, velocities_mps, strict=True):
+        """First half of ``step`` for several envs of this class, after ``check_step``: move every world 0.4 s
+        (``_step_worlds``), ego i at ``velocities_mps[i]`` (2,) m/s; no forecast yet."""
+        for env in envs:
             env._previous_xy_m = env.ego_xy_m.copy()
-            env._advanced(env._step_world(velocity_mps))
+        for env, frame in zip(envs, cls._step_worlds(envs, velocities_mps), strict=True):
+            env._advanced(frame)
 
     def _forecast(self) -> Forecast:
         """``forecast_all`` of this env alone; if the predictor fails, the env refuses to step until it is reset."""
@@ -313,12 +314,16 @@ class CrowdEnv(gym.Env):
     def _check_options(self, options: dict[str, Any]) -> None:
         """Raise ``ResetOptionsError`` for a reset option value this env cannot use (keys are checked already)."""
 
-    def _reset_world(self, options: dict) -> list[Frame]:
-        """Start a new episode (randomness from ``self.np_random``); frames oldest first, the last is now."""
+    @classmethod
+    def _reset_worlds(cls, envs: Sequence[CrowdEnv], options: Sequence[dict]) -> list[list[Frame]]:
+        """Start every env's new episode (after ``_prepare_reset``, which checked ``options[i]``; randomness from
+        each env's ``np_random``); each env's frames, oldest first, the last is now."""
         raise NotImplementedError
 
-    def _step_world(self, ego_velocity_mps: np.ndarray | None) -> Frame:
-        """Advance 0.4 s with the ego moving at ``ego_velocity_mps`` (None in spectator mode)."""
+    @classmethod
+    def _step_worlds(cls, envs: Sequence[CrowdEnv], velocities_mps: Sequence[np.ndarray | None]) -> list[Frame]:
+        """Advance every env's world 0.4 s, ego i moving at ``velocities_mps[i]`` (2,) m/s (None in spectator
+        mode); each env's new frame."""
         raise NotImplementedError
 
     def _ego_contact(self) -> tuple[Contact | None, bool, float]:
