@@ -92,16 +92,16 @@ def _another_cpu(request: pytest.FixtureRequest, monkeypatch: pytest.MonkeyPatch
     from predictor import train
     from st_sim.sim import physics
 
-    add_pedestrian, load_windows, manual_seed = physics.add_pedestrian, train.load_windows, torch.manual_seed
+    add_pedestrians, load_windows, manual_seed = physics.add_pedestrians, train.load_windows, torch.manual_seed
 
-    def nudged_pedestrian(space, xy_m, vxy_mps, radius_m):
-        return add_pedestrian(space, _nudge(np.asarray(xy_m, dtype=np.float64), 1e-9), vxy_mps, radius_m)
+    def nudged_pedestrians(space, xy_m, vxy_mps, radius_m):
+        return add_pedestrians(space, _nudge(np.asarray(xy_m, dtype=np.float64), 1e-9), vxy_mps, radius_m)
 
     def nudged_windows(*args, **kwargs):
         windows = load_windows(*args, **kwargs)
         up = np.float32(np.inf)
         return replace(windows, obs=np.nextafter(windows.obs, up), fut=np.nextafter(windows.fut, up))
 
-    monkeypatch.setattr(physics, "add_pedestrian", nudged_pedestrian)
+    monkeypatch.setattr(physics, "add_pedestrians", nudged_pedestrians)
     monkeypatch.setattr(train, "load_windows", nudged_windows)
     monkeypatch.setattr(torch, "manual_seed", lambda seed: manual_seed(seed + 1))

@@ -116,10 +116,8 @@ def step_crowds(sims: Sequence[CrowdSim], ego_velocities_mps: Sequence[np.ndarra
     model, walls_grid, nav = first._model, first._walls, first.nav
     marks = []  # (M, 2) positions of all crowds at the start of every substep, then at the end of the step
     for substep in range(cfg.n_substeps):
-        states = [sim._read() for sim in sims]
-        xy_m = np.concatenate([xy for xy, _ in states]).reshape(-1, 2)
+        xy_m, v_mps = read_crowds(sims)
         marks.append(xy_m)
-        v_mps = np.concatenate([v for _, v in states]).reshape(-1, 2)
         speed2 = v_mps[:, 0] ** 2 + v_mps[:, 1] ** 2
         fastest_mps = np.sqrt(np.array([speed2[a:b].max(initial=0.0) for a, b in pairwise(bounds)]))
         cutoff_m = np.maximum(cfg.steering.agent_cutoff_m, pair_reach_m(2 * widest_m, fastest_mps, dt_s))
@@ -139,18 +137,18 @@ def step_crowds(sims: Sequence[CrowdSim], ego_velocities_mps: Sequence[np.ndarra
             wanted_v[ego_rows] = v_mps[ego_rows] = command
         safe_v = keep_apart(v_mps, radius_m, yielding, seen, walls, dt_s, BODY_GIVE_M, crowd=crowd)
         force_n = mass_kg[:, None] * (wanted_v - safe_v) / dt_s
-        for k, sim in enumerate(sims):
-            rows = slice(bounds[k], bounds[k + 1])
-            sim._batch.write(safe_v[rows], force_n[rows])
+        physics.write_bodies([sim._batch for sim in sims], sizes.tolist(), safe_v, force_n)
+        for sim in sims:
             sim.space.step(dt_s)
-            sim._roster.moved_mps[:] = safe_v[rows]
         if egos:
             ego_xy = np.array([sim._ego_body.position for sim in egos], np.float64).reshape(-1, 2)
             touched = walls_grid.distance_m(ego_xy) - np.array([sim.ego_cfg.radius_m for sim in egos]) \
                 - WALL_RADIUS_M < CONTACT_TOLERANCE_M
             for sim, t in zip(egos, touched, strict=True):
                 sim._ego_touched_wall |= bool(t)
-    xy_m = np.concatenate([sim._read()[0] for sim in sims]).reshape(-1, 2)
+    for k, sim in enumerate(sims):  # the velocities the bodies moved with in the last substep
+        sim._roster.moved_mps[:] = safe_v[bounds[k]:bounds[k + 1]]
+    xy_m = read_crowds(sims)[0]
     marks.append(xy_m)
     sweep_egos(sims, marks, bounds, movable, dt_s)
     at_exit = np.zeros(len(xy_m), bool)
@@ -166,6 +164,24 @@ def step_crowds(sims: Sequence[CrowdSim], ego_velocities_mps: Sequence[np.ndarra
                         strict=True)) if spawning else {}
     for k, sim in enumerate(sims):
         sim._finish_step(arrivals.get(k))
+
+
+def read_crowds(sims: Sequence[CrowdSim]) -> tuple[np.ndarray, np.ndarray]:
+    """Positions (M, 2) [m] and velocities (M, 2) [m/s] of the bodies of crowds of one layout, crowd after crowd, each
+    in roster order; in a periodic layout, bodies that crossed the seam are moved to their image inside the period
+    first."""
+    sizes = [len(sim._roster) for sim in sims]
+    state = physics.read_bodies([sim._batch for sim in sims], sizes)
+    xy_m, v_mps = state[:, 0:2].copy(), state[:, 2:4].copy()
+    period = sims[0].layout.period
+    if period is not None:
+        wrapped = period.wrap(xy_m)
+        first = np.cumsum([0, *sizes])
+        for row in np.flatnonzero(wrapped[:, 0] != xy_m[:, 0]).tolist():
+            k = int(np.searchsorted(first, row, side="right")) - 1
+            sims[k]._bodies[int(sims[k]._roster.body_id[row - first[k]])].position = tuple(wrapped[row])
+        xy_m = wrapped
+    return xy_m, v_mps
 
 
 def sweep_egos(sims: Sequence[CrowdSim], marks: list[np.ndarray], bounds: np.ndarray, pedestrian: np.ndarray,
@@ -415,17 +431,6 @@ class CrowdSim:
     def _ego_seen(self) -> bool:
         return self.ego_cfg is not None and self.ego_cfg.pedestrians_see_ego
 
-    def _read(self) -> tuple[np.ndarray, np.ndarray]:
-        """Positions (K, 2) [m] and velocities (K, 2) [m/s] of the bodies in roster order; in a periodic layout,
-        bodies that crossed the seam are moved to their image inside the period first."""
-        xy_m, v_mps = self._batch.read()
-        if self.layout.period is not None:
-            wrapped = self.layout.period.wrap(xy_m)
-            for row in np.flatnonzero(wrapped[:, 0] != xy_m[:, 0]).tolist():
-                self._bodies[int(self._roster.body_id[row])].position = tuple(wrapped[row])
-            xy_m = wrapped
-        return xy_m, v_mps
-
     def _in_gate(self, xy_m: np.ndarray) -> np.ndarray:
         """(K,) bool, True for bodies inside any entry or exit strip."""
         inside = np.zeros(len(xy_m), bool)
@@ -449,8 +454,7 @@ class CrowdSim:
         n = len(new.xy_m)
         walking = (new.go_step <= self.step_count)[:, None]
         velocity = new.speed_mps[:, None] * self.nav.direction_at(new.exit_idx, new.xy_m) * walking
-        bodies = [physics.add_pedestrian(self.space, p, v, self.cfg.radius_m - BODY_GIVE_M / 2)
-                  for p, v in zip(new.xy_m, velocity, strict=True)]
+        bodies = physics.add_pedestrians(self.space, new.xy_m, velocity, self.cfg.radius_m - BODY_GIVE_M / 2)
         ped_id = self._next_ped_id + np.arange(n, dtype=np.int64)
         self._next_ped_id += n
         self._next_group = max(self._next_group, int(new.group.max(initial=-1)) + 1)
@@ -500,9 +504,8 @@ class CrowdSim:
         gone = at_exit & (rows.ped_id >= 0)
         if not gone.any():
             return ~gone
-        for body_id in rows.body_id[gone].tolist():
-            body = self._bodies.pop(body_id)
-            self.space.remove(body, *body.shapes)
+        bodies = [self._bodies.pop(body_id) for body_id in rows.body_id[gone].tolist()]
+        self.space.remove(*(part for body in bodies for part in (body, *body.shapes)))  # body by body, as one by one
         self._roster = rows.take(~gone)
         return ~gone
 
@@ -511,7 +514,7 @@ class CrowdSim:
         order = self._batch.body_ids()
         if not np.array_equal(order, self._roster.body_id):
             self._roster = self._roster.reorder(order)
-        self._xy_m, _ = self._read()
+        self._xy_m = read_crowds([self])[0]
         is_ped = self._roster.ped_id >= 0
         peds = np.flatnonzero(is_ped)
         self._order = peds[np.argsort(self._roster.ped_id[peds], kind="stable")]

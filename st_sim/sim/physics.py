@@ -1,11 +1,13 @@
 """pymunk set-up of a crowd: the space, wall segments, pedestrian and ego discs, batched state I/O.
 
-Bodies are plain dynamic discs in a zero-gravity space. Every substep one batched call (no per-body Python
-loop) writes all velocities (speculatively trimmed, used to move the bodies) and forces (the steering
+Bodies are plain dynamic discs in a zero-gravity space. Every substep one batched call per space (no per-body
+Python loop) writes all velocities (speculatively trimmed, used to move the bodies) and forces (the steering
 model's velocity change, applied before pymunk resolves the contacts).
 """
 
 from __future__ import annotations
+
+from collections.abc import Sequence
 
 import numpy as np
 import pymunk
@@ -39,31 +41,38 @@ def add_walls(space: pymunk.Space, walls_m: np.ndarray) -> None:
         space.add(line)
 
 
-def _add_disc(space: pymunk.Space, xy_m: np.ndarray, vxy_mps: np.ndarray, radius_m: float,
-              mass_kg: float, collision_type: int) -> pymunk.Body:
-    body = pymunk.Body(mass_kg, float("inf"))  # infinite moment: discs slide, never spin
-    body.position = float(xy_m[0]), float(xy_m[1])
-    body.velocity = float(vxy_mps[0]), float(vxy_mps[1])
-    disc = pymunk.Circle(body, radius_m)
-    disc.friction = 0.0
-    disc.elasticity = 0.0
-    disc.collision_type = collision_type
-    space.add(body, disc)
-    return body
+def _add_discs(space: pymunk.Space, xy_m: np.ndarray, vxy_mps: np.ndarray, radius_m: float, mass_kg: float,
+               collision_type: int) -> list[pymunk.Body]:
+    """Discs at xy_m (M, 2) [m] moving at vxy_mps (M, 2) [m/s], added in one call: pymunk takes the bodies, then
+    the shapes, each in row order, as if added disc by disc. Friction and elasticity keep pymunk's default, 0."""
+    bodies, discs = [], []
+    for position, velocity in zip(np.asarray(xy_m, np.float64).reshape(-1, 2).tolist(),
+                                  np.asarray(vxy_mps, np.float64).reshape(-1, 2).tolist(), strict=True):
+        body = pymunk.Body(mass_kg, float("inf"))  # infinite moment: discs slide, never spin
+        body.position = position
+        body.velocity = velocity
+        disc = pymunk.Circle(body, radius_m)
+        disc.collision_type = collision_type
+        bodies.append(body)
+        discs.append(disc)
+    space.add(*bodies, *discs)
+    return bodies
 
 
-def add_pedestrian(space: pymunk.Space, xy_m: np.ndarray, vxy_mps: np.ndarray, radius_m: float) -> pymunk.Body:
-    """A pedestrian disc at xy_m (2,) [m] moving at vxy_mps (2,) [m/s]."""
-    return _add_disc(space, xy_m, vxy_mps, radius_m, PED_MASS_KG, PED_TYPE)
+def add_pedestrians(space: pymunk.Space, xy_m: np.ndarray, vxy_mps: np.ndarray, radius_m: float
+                    ) -> list[pymunk.Body]:
+    """Pedestrian discs at xy_m (M, 2) [m] moving at vxy_mps (M, 2) [m/s], in row order."""
+    return _add_discs(space, xy_m, vxy_mps, radius_m, PED_MASS_KG, PED_TYPE)
 
 
 def add_ego(space: pymunk.Space, xy_m: np.ndarray, radius_m: float) -> pymunk.Body:
     """The ego disc at xy_m (2,) [m], at rest."""
-    return _add_disc(space, xy_m, np.zeros(2), radius_m, EGO_MASS_KG, EGO_TYPE)
+    return _add_discs(space, xy_m, np.zeros(2), radius_m, EGO_MASS_KG, EGO_TYPE)[0]
 
 
 class BodyBatch:
-    """Read the state of every moving body and write their velocities and forces, one call each (pymunk.batch).
+    """One space's bodies for pymunk.batch: their ids, and the buffers through which ``read_bodies`` and
+    ``write_bodies`` move the state of several spaces' bodies, one pymunk call per space.
 
     pymunk visits the moving bodies in an internal order that changes when bodies are added or removed
     (call ``body_ids`` after such changes to learn it), then the space's static body, which carries the
@@ -83,23 +92,38 @@ class BodyBatch:
         assert ids[-1] == self.space.static_body.id, "pymunk no longer visits the static body last"
         return ids[:-1]
 
-    def read(self) -> tuple[np.ndarray, np.ndarray]:
-        """Positions (K, 2) [m] and velocities (K, 2) [m/s] of the moving bodies, in iteration order."""
-        self._out.clear()
-        fields = pymunk.batch.BodyFields.POSITION | pymunk.batch.BodyFields.VELOCITY
-        pymunk.batch.get_space_bodies(self.space, fields, self._out)
-        state = np.frombuffer(self._out.float_buf(), dtype=np.float64).reshape(-1, 4)[:-1]
-        return state[:, 0:2].copy(), state[:, 2:4].copy()
 
-    def write(self, vxy_mps: np.ndarray, force_n: np.ndarray) -> None:
-        """Set the moving bodies' velocities (K, 2) [m/s] and forces (K, 2) [N], in iteration order.
+def _static_rows(sizes: Sequence[int]) -> np.ndarray:
+    """(S,) rows of the static bodies among the S spaces' rows, space after space, of K_s moving bodies each."""
+    return np.cumsum(np.asarray(sizes, np.int64) + 1) - 1
 
-        In the next space step pymunk moves every body with its velocity, then adds force / mass x dt to the
-        velocity and resolves the contacts; it clears the forces afterwards. The static body stays at rest.
-        """
-        rows = np.zeros((len(vxy_mps) + 1, 4))
-        rows[:-1, 0:2] = vxy_mps
-        rows[:-1, 2:4] = force_n
-        self._in.set_float_buf(rows.reshape(-1))
-        fields = pymunk.batch.BodyFields.VELOCITY | pymunk.batch.BodyFields.FORCE
-        pymunk.batch.set_space_bodies(self.space, fields, self._in)
+
+def read_bodies(batches: Sequence[BodyBatch], sizes: Sequence[int]) -> np.ndarray:
+    """(M, 4) positions [m] and velocities [m/s] (x, y, vx, vy) of the moving bodies of several spaces, space after
+    space, each in iteration order; sizes: (S,) moving bodies per space, M in all."""
+    out = batches[0]._out  # every space appends its rows to one buffer
+    out.clear()
+    fields = pymunk.batch.BodyFields.POSITION | pymunk.batch.BodyFields.VELOCITY
+    for batch in batches:
+        pymunk.batch.get_space_bodies(batch.space, fields, out)
+    return np.delete(np.frombuffer(out.float_buf(), dtype=np.float64).reshape(-1, 4), _static_rows(sizes), axis=0)
+
+
+def write_bodies(batches: Sequence[BodyBatch], sizes: Sequence[int], vxy_mps: np.ndarray, force_n: np.ndarray
+                 ) -> None:
+    """Set the velocities (M, 2) [m/s] and forces (M, 2) [N] of the moving bodies of several spaces, rows as
+    ``read_bodies``'.
+
+    In the next space step pymunk moves every body with its velocity, then adds force / mass x dt to the
+    velocity and resolves the contacts; it clears the forces afterwards. The static bodies stay at rest.
+    """
+    static = _static_rows(sizes)
+    rows = np.zeros((len(vxy_mps) + len(static), 4))
+    moving = np.ones(len(rows), bool)
+    moving[static] = False
+    rows[moving, 0:2] = vxy_mps
+    rows[moving, 2:4] = force_n
+    fields = pymunk.batch.BodyFields.VELOCITY | pymunk.batch.BodyFields.FORCE
+    for batch, first, last in zip(batches, np.r_[0, static[:-1] + 1].tolist(), (static + 1).tolist(), strict=True):
+        batch._in.set_float_buf(rows[first:last].reshape(-1))
+        pymunk.batch.set_space_bodies(batch.space, fields, batch._in)
