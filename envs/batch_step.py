@@ -20,9 +20,9 @@ from typing import Any
 import numpy as np
 from gymnasium.vector import AutoresetMode
 
-from envs.common.crowd_env import CrowdEnv
+from envs.common.crowd_env import CrowdEnv, forecast_or_interrupt, is_seed
 from envs.common.errors import EnvInputError
-from envs.common.predictors import Forecast, forecast_all
+from envs.common.predictors import forecast_all
 
 
 @dataclass(eq=False)
@@ -48,14 +48,14 @@ def by_class(envs: Sequence[CrowdEnv]) -> dict[type, list[int]]:
 
 
 def begin_resets(envs: Sequence[CrowdEnv], seeds: Sequence[int | None], options: dict | None) -> None:
-    """``begin_reset`` of every env, each class's together (``begin_reset_all``)."""
+    """The first half of ``reset`` of every env, each class's together (``CrowdEnv.begin_reset_all``)."""
     for env_class, members in by_class(envs).items():
         env_class.begin_reset_all([envs[i] for i in members], [seeds[i] for i in members], options)
 
 
 def advance_worlds(envs: Sequence[CrowdEnv], velocities_mps: Sequence[np.ndarray | None]) -> None:
-    """``advance`` of every env (its ego at ``velocities_mps[i]`` (2,) m/s, None: none), each class's together
-    (``advance_all``)."""
+    """The first half of ``step`` of every env (its ego at ``velocities_mps[i]`` (2,) m/s, None: none), each class's
+    together (``CrowdEnv.advance_all``)."""
     for env_class, members in by_class(envs).items():
         env_class.advance_all([envs[i] for i in members], [velocities_mps[i] for i in members])
 
@@ -91,20 +91,19 @@ class EnvBatch:
         """Every sub-env's first observation and info; sub-env i reset with ``seeds[i]``. Every seed and the options
         are checked before any sub-env is reset."""
         for i, env_seed in enumerate(seeds):
-            if env_seed is not None and (isinstance(env_seed, bool | np.bool_) or
-                                         not isinstance(env_seed, int | np.integer) or env_seed < 0):
+            if not is_seed(env_seed):
                 raise EnvInputError(f"sub-env {i}: seed={env_seed!r}: expected None or an int >= 0; no sub-env "
                                     "was reset")
         for members in by_class(self.envs).values():
             self.envs[members[0]].check_reset_options(options)
         begin_resets(self.envs, seeds, options)
-        outputs = [env.end_reset(*prediction) for env, prediction in zip(self.envs, self._forecasts(self.envs),
+        outputs = [env.end_reset(*prediction) for env, prediction in zip(self.envs, forecast_all(self.envs),
                                                                           strict=True)]
         self.elapsed[:] = 0
         self.autoreset[:] = False
         return [obs for obs, _ in outputs], [info for _, info in outputs]
 
-    def check_actions(self, actions: Sequence[Any]) -> list[np.ndarray | None]:
+    def check_actions(self, actions: Sequence[Any] | np.ndarray) -> list[np.ndarray | None]:
         """Every sub-env's ego velocity (2,) m/s for ``actions[i]`` (None where it resets at this step or has no
         ego), after every check ``step`` makes before anything moves (``CrowdEnv.check_step``)."""
         if len(actions) != self.num_envs:
@@ -116,11 +115,16 @@ class EnvBatch:
         """One step of every sub-env (ego velocities (2,) m/s, None where it resets or has no ego, from
         ``check_actions``), or the reset of those whose episode ended at the previous step (``NEXT_STEP``)."""
         resetting, stepping = np.flatnonzero(self.autoreset), np.flatnonzero(~self.autoreset)
-        begin_resets([self.envs[i] for i in resetting], self._next_seeds(resetting), None)
-        advance_worlds([self.envs[i] for i in stepping], [velocities_mps[i] for i in stepping])
+        try:
+            begin_resets([self.envs[i] for i in resetting], self._next_seeds(resetting), None)
+            advance_worlds([self.envs[i] for i in stepping], [velocities_mps[i] for i in stepping])
+        except Exception as err:  # some worlds may have moved: the step is lost for every sub-env
+            for env in self.envs:
+                env.interrupt(f"a world's step failed: {err}")
+            raise
         parts = StepParts([], np.zeros(self.num_envs), np.zeros(self.num_envs, bool), np.zeros(self.num_envs, bool),
                           [], {})
-        for i, (env, prediction) in enumerate(zip(self.envs, self._forecasts(self.envs), strict=True)):
+        for i, (env, prediction) in enumerate(zip(self.envs, forecast_or_interrupt(self.envs), strict=True)):
             if self.autoreset[i]:
                 obs, info = env.end_reset(*prediction)
                 self.elapsed[i] = 0
@@ -136,7 +140,7 @@ class EnvBatch:
                 parts.finals[int(i)] = {"final_obs": parts.observations[i], "final_info": parts.infos[i]}
             restarted = [self.envs[i] for i in ended]
             begin_resets(restarted, self._next_seeds(ended), None)
-            for i, prediction in zip(ended, self._forecasts(restarted), strict=True):
+            for i, prediction in zip(ended, forecast_or_interrupt(restarted, self.envs), strict=True):
                 parts.observations[i], parts.infos[i] = self.envs[i].end_reset(*prediction)
                 self.elapsed[i] = 0
         else:
@@ -148,17 +152,6 @@ class EnvBatch:
         generators go on)."""
         seeds = [None if self._seed_functions[i] is None else self._seed_functions[i]() for i in which]
         for seed in seeds:
-            if seed is not None and (isinstance(seed, bool | np.bool_) or not isinstance(seed, int | np.integer)
-                                     or seed < 0):
+            if not is_seed(seed):
                 raise EnvInputError(f"autoreset_seeds returned {seed!r}: expected an int >= 0")
         return [None if seed is None else int(seed) for seed in seeds]
-
-    def _forecasts(self, envs: Sequence[CrowdEnv]) -> list[Forecast]:
-        """``forecast_all``; if a predictor fails, every sub-env refuses to step until it is reset
-        (``CrowdEnv.interrupt``)."""
-        try:
-            return forecast_all(envs)
-        except Exception as err:
-            for env in self.envs:
-                env.interrupt(f"the predictor failed: {err}")
-            raise

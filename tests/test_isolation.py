@@ -123,20 +123,52 @@ def make(**kw):
 
 
 @settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
-@given(fail_at=st.integers(2, 6), env_id=st.sampled_from(["STCrowd-Zara1-v0", "STCrowd-SimCorridor-v1"]),
+@given(fail_at=st.integers(1, 6), env_id=st.sampled_from(["STCrowd-Zara1-v0", "STCrowd-SimCorridor-v1"]),
        vector=st.booleans())
 def test_a_step_whose_predictor_fails_demands_a_reset_and_skips_no_frame(plugin_dir: Path, fail_at: int, env_id: str,
                                                                        vector: bool) -> None:
     spec = write_plugin(plugin_dir, FAILING_TEMPLATE.format(fail_at=fail_at))
-    env = gym.make_vec(env_id, num_envs=2, predictor=spec) if vector else gym.make(env_id, predictor=spec)
+    # gymnasium's env checker breaks on the first step after a first reset that raised: not what is tested here
+    env = gym.make_vec(env_id, num_envs=2, predictor=spec) if vector else \
+        gym.make(env_id, predictor=spec, disable_env_checker=fail_at == 1)
     action = np.zeros((2, 2) if vector else 2, np.float32)
-    env.reset(seed=0)  # the first call
-    with pytest.raises(PluginError, match=f"predict failed on call {fail_at}"):
-        for _ in range(fail_at):
+    if fail_at == 1:  # the reset's forecast: no episode began, so a step asks for a reset
+        with pytest.raises(PluginError, match="predict failed on call 1"):
+            env.reset(seed=0)
+        with pytest.raises(NeedsResetError, match=r"call reset\(\) before step\(\)"):
             env.step(action)
-    for _ in range(2):  # not the next frame: every later step is refused until a reset
-        with pytest.raises(NeedsResetError, match=r"did not finish.*predict failed"):
-            env.step(action)
+    else:
+        env.reset(seed=0)  # the first call
+        with pytest.raises(PluginError, match=f"predict failed on call {fail_at}"):
+            for _ in range(fail_at):
+                env.step(action)
+        for _ in range(2):  # not the next frame: every later step is refused until a reset
+            with pytest.raises(NeedsResetError, match=r"did not finish.*predict failed"):
+                env.step(action)
+    _, info = env.reset(seed=0)
+    assert (np.asarray(env.step(action)[4]["frame"]) > np.asarray(info["frame"])).all()
+    env.close()
+
+
+@pytest.mark.parametrize("vector", [False, True])
+def test_a_step_whose_world_fails_demands_a_reset(monkeypatch: pytest.MonkeyPatch, vector: bool) -> None:
+    from envs.sim_env import SimCrowdEnv
+
+    env = gym.make_vec("STCrowd-SimCorridor-v1", num_envs=2, predictor="cvm") if vector else \
+        gym.make("STCrowd-SimCorridor-v1", predictor="cvm")
+    action = np.zeros((2, 2) if vector else 2, np.float32)
+    env.reset(seed=0)
+    env.step(action)
+
+    def failing(cls: type, batch: list, velocities: list) -> None:
+        raise RuntimeError("the crowd failed")
+
+    monkeypatch.setattr(SimCrowdEnv, "_step_worlds", classmethod(failing))
+    with pytest.raises(RuntimeError, match="the crowd failed"):
+        env.step(action)
+    monkeypatch.undo()
+    with pytest.raises(NeedsResetError, match=r"did not finish.*the crowd failed"):
+        env.step(action)
     _, info = env.reset(seed=0)
     assert (np.asarray(env.step(action)[4]["frame"]) > np.asarray(info["frame"])).all()
     env.close()

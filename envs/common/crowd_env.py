@@ -124,7 +124,7 @@ class CrowdEnv(gym.Env):
         self.forecasts: ForecastCache | None = ForecastCache()
         """forecasts kept for moments that recur (``_forecast_moment``); None: always predict afresh"""
         self._history: tuple[np.ndarray, np.ndarray] | None = None  # TrackBuffer.history() of the newest frame
-        self._rows = np.zeros(0, np.int64)  # observation rows to forecast, chosen by the begin_* half
+        self._rows = np.zeros(0, np.int64)  # observation rows to forecast, chosen when the frame came (``_sense``)
         self._context_rows = np.zeros(0, np.int64)  # rows whose histories the forecast conditions on (_rows among them)
         self._previous_xy_m = np.zeros(2)  # the ego before this step
         self._contact: Contact | None = None  # the step's first pedestrian contact, if any
@@ -136,22 +136,25 @@ class CrowdEnv(gym.Env):
         self.rerun_paths: list[Path] = []
         """recordings this env has written (a step after ``close`` starts a new, numbered one)"""
 
-    def reset(self, *, seed: int | None = None, options: dict | None = None):
+    def reset(self, *, seed: int | None = None, options: dict | None = None
+              ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
         self.begin_reset_all([self], [seed], options)
-        return self.end_reset(*self._forecast())
+        return self.end_reset(*forecast_all([self])[0])  # if it fails, step is refused until a reset succeeds
 
-    def step(self, action: np.ndarray):
+    def step(self, action: np.ndarray) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
         velocity_mps = self.check_step(action)
         self.advance_all([self], [velocity_mps])
-        return self.end_step(*self._forecast())
+        return self.end_step(*forecast_or_interrupt([self])[0])
 
     @classmethod
     def begin_reset_all(cls, envs: Sequence[CrowdEnv], seeds: Sequence[int | None], options: dict | None) -> None:
         """First half of ``reset`` for several envs of this class: check the arguments (all before any env is
         reset), then start every episode's world (``_reset_worlds``); no forecast yet."""
+        if any(type(env) is not cls for env in envs):
+            raise TypeError(f"{cls.__name__}.begin_reset_all: every env must be a {cls.__name__}")
         for env, seed in zip(envs, seeds, strict=True):
-            env.check_reset_seed(seed)
             env.check_reset_options(options)
+            env.check_reset_seed(seed)
         checked = [env._prepare_reset(seed, options) for env, seed in zip(envs, seeds, strict=True)]
         for env, frames in zip(envs, cls._reset_worlds(envs, checked), strict=True):
             env._finish_reset(frames)
@@ -159,24 +162,22 @@ class CrowdEnv(gym.Env):
     @classmethod
     def advance_all(cls, envs: Sequence[CrowdEnv], velocities_mps: Sequence[np.ndarray | None]) -> None:
         """First half of ``step`` for several envs of this class, after ``check_step``: move every world 0.4 s
-        (``_step_worlds``), ego i at ``velocities_mps[i]`` (2,) m/s; no forecast yet."""
+        (``_step_worlds``), ego i at ``velocities_mps[i]`` (2,) m/s; no forecast yet. If a world fails, every env
+        refuses to step until it is reset (``interrupt``)."""
         for env in envs:
             env._previous_xy_m = env.ego_xy_m.copy()
-        for env, frame in zip(envs, cls._step_worlds(envs, velocities_mps), strict=True):
-            env._advanced(frame)
-
-    def _forecast(self) -> Forecast:
-        """``forecast_all`` of this env alone; if the predictor fails, the env refuses to step until it is reset."""
         try:
-            return forecast_all([self])[0]
+            frames = cls._step_worlds(envs, velocities_mps)
         except Exception as err:
-            self.interrupt(f"the predictor failed: {err}")
+            for env in envs:
+                env.interrupt(f"the world's step failed: {err}")
             raise
+        for env, frame in zip(envs, frames, strict=True):
+            env._advanced(frame)
 
     def check_reset_seed(self, seed: Any) -> None:
         """Refuse a seed that is not None or an int >= 0 (``EnvInputError``); nothing changes."""
-        if seed is not None and (isinstance(seed, bool | np.bool_) or not isinstance(seed, int | np.integer)
-                                 or seed < 0):
+        if not is_seed(seed):
             raise EnvInputError(f"{self.where}: seed={seed!r}: expected None or an int >= 0")
 
     def _prepare_reset(self, seed: int | None, options: dict | None) -> dict[str, Any]:
@@ -236,7 +237,8 @@ class CrowdEnv(gym.Env):
                                     "image; it can only be moved there by assigning ego_xy_m")
         return velocity if self.ego else None
 
-    def end_step(self, predicted: np.ndarray, anchors: tuple[np.ndarray, np.ndarray] | None):
+    def end_step(self, predicted: np.ndarray, anchors: tuple[np.ndarray, np.ndarray] | None
+                 ) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
         """Second half of ``step``: observation, reward, terminated, truncated and info, given the forecast
         (``forecast_all``) of ``forecast_request()``."""
         self._obs = self._observe(predicted, anchors)
@@ -272,8 +274,8 @@ class CrowdEnv(gym.Env):
         self._history, self._context_rows, self._rows = (history, mask), rows, targets
 
     def forecast_request(self) -> ForecastRequest:
-        """What to forecast now (after a ``begin_*``): every sensed agent with T_obs frames conditions the forecast,
-        ``targets`` of them get futures (the ``forecast_nearest`` nearest, or all)."""
+        """What to forecast now (after ``begin_reset_all`` or ``advance_all``): every sensed agent with T_obs frames
+        conditions the forecast, ``targets`` of them get futures (the ``forecast_nearest`` nearest, or all)."""
         targets = np.zeros(len(self._history[0]), bool)
         targets[self._rows] = True
         return ForecastRequest(self._history[0][self._context_rows], targets[self._context_rows],
@@ -397,8 +399,8 @@ class CrowdEnv(gym.Env):
 
     def _observe(self, predicted: np.ndarray, anchors: tuple[np.ndarray, np.ndarray] | None
                  ) -> dict[str, np.ndarray]:
-        """Observation of the newest frame, with ``predicted`` (P, S, 12, 2) futures of the rows chosen by the
-        ``begin_*`` half (``_predicted_rows``: every agent with T_obs frames by default)."""
+        """Observation of the newest frame, with ``predicted`` (P, S, 12, 2) futures of the rows chosen when the
+        frame came (``_sense``, ``_predicted_rows``: every agent with T_obs frames by default)."""
         (history, history_mask), rows = self._history, self._rows
         self.anchors = None if anchors is None else (self.tracks.row_ids[rows], *anchors)
         self.metrics.update_predictions(self.tracks, self.tracks.row_ids[rows], predicted)
@@ -484,6 +486,23 @@ class CrowdEnv(gym.Env):
             "at_fault": at_fault,
             "metrics": self.metrics.summary(),
         }
+
+
+def forecast_or_interrupt(envs: Sequence[CrowdEnv], batch: Sequence[CrowdEnv] | None = None) -> list[Forecast]:
+    """``forecast_all`` of envs within a step; if the predictor fails, every env of ``batch`` (default: ``envs``),
+    whose worlds have moved, refuses to step until it is reset (``CrowdEnv.interrupt``)."""
+    try:
+        return forecast_all(envs)
+    except Exception as err:
+        for env in envs if batch is None else batch:
+            env.interrupt(f"the predictor failed: {err}")
+        raise
+
+
+def is_seed(value: Any) -> bool:
+    """True for a seed ``reset`` takes: None or an int >= 0 (not a bool)."""
+    return value is None or (not isinstance(value, bool | np.bool_) and isinstance(value, int | np.integer)
+                             and value >= 0)
 
 
 def rerun_step(obs: dict[str, np.ndarray], info: dict[str, Any], reward: float, ego: bool,

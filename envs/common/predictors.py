@@ -202,7 +202,7 @@ def forecast_all(envs: Sequence[Forecasting]) -> list[Forecast]:
                                            np.repeat(np.arange(len(missing)), sizes),
                                            np.concatenate([r.targets for r in requests]), anchors=wanted)
         cuts = np.cumsum([int(request.targets.sum()) for request in requests])[:-1]
-        prototypes = adapted = [None] * len(missing)
+        prototypes, adapted = [None] * len(missing), [None] * len(missing)
         if anchors is not None:
             prototypes, adapted = np.split(anchors[0], cuts), np.split(anchors[1], cuts)
         for i, request, own, prototype, own_adapted in zip(missing, requests, np.split(futures, cuts), prototypes,

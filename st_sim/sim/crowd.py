@@ -172,7 +172,7 @@ def read_crowds(sims: Sequence[CrowdSim]) -> tuple[np.ndarray, np.ndarray]:
     first."""
     sizes = [len(sim._roster) for sim in sims]
     state = physics.read_bodies([sim._batch for sim in sims], sizes)
-    xy_m, v_mps = state[:, 0:2].copy(), state[:, 2:4].copy()
+    xy_m, v_mps = state[:, 0:2].copy(), state[:, 2:4].copy()  # contiguous, as the arithmetic downstream had them
     period = sims[0].layout.period
     if period is not None:
         wrapped = period.wrap(xy_m)

@@ -106,7 +106,10 @@ def read_bodies(batches: Sequence[BodyBatch], sizes: Sequence[int]) -> np.ndarra
     fields = pymunk.batch.BodyFields.POSITION | pymunk.batch.BodyFields.VELOCITY
     for batch in batches:
         pymunk.batch.get_space_bodies(batch.space, fields, out)
-    return np.delete(np.frombuffer(out.float_buf(), dtype=np.float64).reshape(-1, 4), _static_rows(sizes), axis=0)
+    rows = np.frombuffer(out.float_buf(), dtype=np.float64).reshape(-1, 4)
+    static = _static_rows(sizes)
+    assert len(rows) == static[-1] + 1 and not rows[static].any(), "the spaces hold other bodies than sizes says"
+    return np.delete(rows, static, axis=0)
 
 
 def write_bodies(batches: Sequence[BodyBatch], sizes: Sequence[int], vxy_mps: np.ndarray, force_n: np.ndarray

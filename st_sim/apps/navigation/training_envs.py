@@ -89,7 +89,8 @@ def shipped_model_name(env_id: str) -> str:
 
 class FeatureShard:
     """``num_envs`` sub-envs of one training env (``ID`` or ``ID:MODE``): its native vector env (the sub-envs, their
-    spaces and batching), its world and the features of its observations; ``FeatureShards`` steps them. ``predictor``:
+    spaces and batching; its own ``EnvBatch`` is never stepped), its world and the features of its observations;
+    ``FeatureShards`` steps them in its batch. ``predictor``:
     the env's argument (a model object, shared with the shards of other training envs that use the same model, or
     a name); others as ``FeatureVecEnv``."""
 
