@@ -8,6 +8,7 @@ model's velocity change, applied before pymunk resolves the contacts).
 from __future__ import annotations
 
 from collections.abc import Sequence
+from itertools import accumulate
 
 import numpy as np
 import pymunk
@@ -93,9 +94,9 @@ class BodyBatch:
         return ids[:-1]
 
 
-def _static_rows(sizes: Sequence[int]) -> np.ndarray:
-    """(S,) rows of the static bodies among the S spaces' rows, space after space, of K_s moving bodies each."""
-    return np.cumsum(np.asarray(sizes, np.int64) + 1) - 1
+def _ends(sizes: Sequence[int]) -> list[int]:
+    """One past each space's rows (K_s moving bodies, then its static body), spaces one after another."""
+    return list(accumulate(size + 1 for size in sizes))
 
 
 def read_bodies(batches: Sequence[BodyBatch], sizes: Sequence[int]) -> np.ndarray:
@@ -107,9 +108,9 @@ def read_bodies(batches: Sequence[BodyBatch], sizes: Sequence[int]) -> np.ndarra
     for batch in batches:
         pymunk.batch.get_space_bodies(batch.space, fields, out)
     rows = np.frombuffer(out.float_buf(), dtype=np.float64).reshape(-1, 4)
-    static = _static_rows(sizes)
-    assert len(rows) == static[-1] + 1 and not rows[static].any(), "the spaces hold other bodies than sizes says"
-    return np.delete(rows, static, axis=0)
+    ends = _ends(sizes)
+    assert len(rows) == ends[-1], "the spaces hold other bodies than sizes says"
+    return np.concatenate([rows[end - size - 1:end - 1] for end, size in zip(ends, sizes, strict=True)])
 
 
 def write_bodies(batches: Sequence[BodyBatch], sizes: Sequence[int], vxy_mps: np.ndarray, force_n: np.ndarray
@@ -120,13 +121,13 @@ def write_bodies(batches: Sequence[BodyBatch], sizes: Sequence[int], vxy_mps: np
     In the next space step pymunk moves every body with its velocity, then adds force / mass x dt to the
     velocity and resolves the contacts; it clears the forces afterwards. The static bodies stay at rest.
     """
-    static = _static_rows(sizes)
-    rows = np.zeros((len(vxy_mps) + len(static), 4))
+    ends = _ends(sizes)
+    rows = np.zeros((ends[-1], 4))
     moving = np.ones(len(rows), bool)
-    moving[static] = False
+    moving[np.array(ends) - 1] = False
     rows[moving, 0:2] = vxy_mps
     rows[moving, 2:4] = force_n
     fields = pymunk.batch.BodyFields.VELOCITY | pymunk.batch.BodyFields.FORCE
-    for batch, first, last in zip(batches, np.r_[0, static[:-1] + 1].tolist(), (static + 1).tolist(), strict=True):
-        batch._in.set_float_buf(rows[first:last].reshape(-1))
+    for batch, end, size in zip(batches, ends, sizes, strict=True):
+        batch._in.set_float_buf(rows[end - size - 1:end].reshape(-1))
         pymunk.batch.set_space_bodies(batch.space, fields, batch._in)
