@@ -127,3 +127,43 @@ def test_reactive_replays_keep_no_forecasts() -> None:
     for _ in range(5):
         env.step(np.zeros(2))
     assert env.unwrapped.forecasts.hits == env.unwrapped.forecasts.misses == 0
+
+
+def test_kept_forecasts_serve_a_recording_env_as_far_as_its_predictor_can() -> None:
+    """A recording env needs anchor paths only from a predictor that gives them: without them a kept forecast is a
+    miss (and is replaced by one with them), from a predictor without any it is a hit."""
+    from envs.common.predictors import ForecastCache
+
+    ids, futures = np.array([4, 2]), np.arange(2 * 3 * 12 * 2, dtype=np.float32).reshape(2, 3, 12, 2)
+    paths = (futures + 1, futures + 2)
+    cache = ForecastCache()
+    cache.put(7, ids, (futures, None))
+    assert cache.get(7, ids[::-1])[1] is None and cache.get(7, ids, anchors=True) is None
+    assert (cache.hits, cache.misses) == (1, 1)
+    cache.put(7, ids, (futures, paths))
+    kept = cache.get(7, ids[::-1], anchors=True)
+    np.testing.assert_array_equal(kept[0], futures[::-1])
+    np.testing.assert_array_equal(kept[1][1], paths[1][::-1])
+    cache.put(7, ids, (futures + 5, None))  # an entry with anchors stays
+    np.testing.assert_array_equal(cache.get(7, ids)[0], futures)
+
+
+def test_a_recording_replay_reuses_forecasts_of_a_predictor_without_anchors(tmp_path) -> None:
+    from predictor.baselines import ConstantVelocity
+
+    class Counted(ConstantVelocity):
+        calls = 0
+
+        def predict(self, *args, **kwargs):
+            Counted.calls += 1
+            return super().predict(*args, **kwargs)
+
+    env = gym.make("STCrowd-Zara1-v0", predictor=Counted(), ego=False, rerun=str(tmp_path / "replay.rrd"))
+    calls = []
+    for _ in range(2):  # the same frames twice: the second time from the kept forecasts
+        env.reset(seed=0, options={"start_index": 100})
+        for _ in range(3):
+            env.step(np.zeros(2, np.float32))
+        calls.append(Counted.calls)
+    env.close()
+    assert calls[0] == 4 and calls[1] == calls[0]

@@ -50,6 +50,7 @@ from envs.common.predictors import (
     ForecastCache,
     ForecastRequest,
     forecast_all,
+    gives_anchors,
     resolve_predictor,
     task_sizes,
 )
@@ -286,8 +287,8 @@ class CrowdEnv(gym.Env):
         moment = self._forecast_moment()
         if moment is None or self.forecasts is None:
             return None
-        forecast = self.forecasts.get(moment, self.tracks.row_ids[self._rows], self.tracks.row_ids[self._context_rows])
-        return None if forecast is None or (self.rerun_target is not None and forecast[1] is None) else forecast
+        return self.forecasts.get(moment, self.tracks.row_ids[self._rows], self.tracks.row_ids[self._context_rows],
+                                  anchors=self.rerun_target is not None and gives_anchors(self.predictor))
 
     def remember_forecast(self, forecast: Forecast) -> None:
         """Keep the forecast of ``forecast_request()`` for later visits of this moment (if it can recur)."""

@@ -134,7 +134,7 @@ def predict_futures(model: Any, history_m: np.ndarray, scene: Scene | Sequence[S
     paths = None
     name = getattr(model, "name", type(model).__name__)
     with one_torch_thread():
-        if callable(getattr(model, "predict_detailed", None)):
+        if gives_anchors(model):
             detail = model.predict_detailed(history_m, group, scene, num_samples, targets=targets, anchors=anchors)
             futures = check_futures(detail.futures, int(targets.sum()), num_samples, name)
             if anchors:
@@ -148,6 +148,11 @@ def predict_futures(model: Any, history_m: np.ndarray, scene: Scene | Sequence[S
                                                int(on_it.sum()), num_samples, name)
             futures = futures[targets]
     return futures, paths
+
+
+def gives_anchors(model: Any) -> bool:
+    """True for a predictor with ``predict_detailed`` (SingularTrajectory): it can give its anchor paths."""
+    return callable(getattr(model, "predict_detailed", None))
 
 
 @contextmanager
@@ -225,25 +230,29 @@ class ForecastCache:
         self._entries: OrderedDict[tuple, tuple[np.ndarray, Forecast]] = OrderedDict()
         self.hits = self.misses = 0
 
-    def get(self, moment: Hashable, ids: np.ndarray, context: np.ndarray | None = None) -> Forecast | None:
+    def get(self, moment: Hashable, ids: np.ndarray, context: np.ndarray | None = None, anchors: bool = False
+            ) -> Forecast | None:
         """The forecast of agents ``ids`` (P,) at ``moment`` conditioned on agents ``context`` (C,) (None: on ``ids``
-        alone), in the order of ``ids``, or None if not kept."""
+        alone), in the order of ``ids``, or None if not kept (with ``anchors``: if kept without anchor paths)."""
         key = self._key(moment, ids, context)
         entry = self._entries.get(key)
-        if entry is None:
+        if entry is None or (anchors and entry[1][1] is None):
             self.misses += 1
             return None
         self.hits += 1
         self._entries.move_to_end(key)
-        stored_ids, (futures, anchors) = entry
+        stored_ids, (futures, paths) = entry
         order = np.searchsorted(stored_ids, ids)
-        return futures[order], None if anchors is None else (anchors[0][order], anchors[1][order])
+        return futures[order], None if paths is None else (paths[0][order], paths[1][order])
 
     def put(self, moment: Hashable, ids: np.ndarray, forecast: Forecast, context: np.ndarray | None = None) -> None:
-        """Keep the forecast of agents ``ids`` (P,) at ``moment`` conditioned on agents ``context`` (C,)."""
+        """Keep the forecast of agents ``ids`` (P,) at ``moment`` conditioned on agents ``context`` (C,); one with
+        anchor paths replaces a kept one without."""
         key = self._key(moment, ids, context)
         if key in self._entries:
-            return
+            if self._entries[key][1][1] is not None or forecast[1] is None:
+                return
+            self.used_bytes -= _nbytes(self._entries.pop(key)[1])
         order = np.argsort(ids)
         futures, anchors = forecast
         kept = (futures[order], None if anchors is None else (anchors[0][order], anchors[1][order]))
