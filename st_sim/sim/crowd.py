@@ -93,6 +93,7 @@ def step_crowds(sims: Sequence[CrowdSim], ego_velocities_mps: Sequence[np.ndarra
     sizes = np.array([len(r) for r in rosters])
     crowd = np.repeat(np.arange(len(sims)), sizes)  # (M,) which crowd each body belongs to
     bounds = np.r_[0, np.cumsum(sizes)]
+    counts = sizes.tolist()  # bodies per crowd, fixed over the substeps (arrivals and exits come after them)
     radius_m, exit_idx, ped_id, go_step, preferred_mps = (np.concatenate([getattr(r, name) for r in rosters])
                                                           for name in ("radius_m", "exit_idx", "ped_id", "go_step",
                                                                        "speed_mps"))
@@ -116,7 +117,7 @@ def step_crowds(sims: Sequence[CrowdSim], ego_velocities_mps: Sequence[np.ndarra
     model, walls_grid, nav = first._model, first._walls, first.nav
     marks = []  # (M, 2) positions of all crowds at the start of every substep, then at the end of the step
     for substep in range(cfg.n_substeps):
-        xy_m, v_mps = read_crowds(sims)
+        xy_m, v_mps = read_crowds(sims, counts)
         marks.append(xy_m)
         speed2 = v_mps[:, 0] ** 2 + v_mps[:, 1] ** 2
         fastest_mps = np.sqrt(np.array([speed2[a:b].max(initial=0.0) for a, b in pairwise(bounds)]))
@@ -137,7 +138,7 @@ def step_crowds(sims: Sequence[CrowdSim], ego_velocities_mps: Sequence[np.ndarra
             wanted_v[ego_rows] = v_mps[ego_rows] = command
         safe_v = keep_apart(v_mps, radius_m, yielding, seen, walls, dt_s, BODY_GIVE_M, crowd=crowd)
         force_n = mass_kg[:, None] * (wanted_v - safe_v) / dt_s
-        physics.write_bodies([sim._batch for sim in sims], sizes.tolist(), safe_v, force_n)
+        physics.write_bodies([sim._batch for sim in sims], counts, safe_v, force_n)
         for sim in sims:
             sim.space.step(dt_s)
         if egos:
@@ -148,7 +149,7 @@ def step_crowds(sims: Sequence[CrowdSim], ego_velocities_mps: Sequence[np.ndarra
                 sim._ego_touched_wall |= bool(t)
     for k, sim in enumerate(sims):  # the velocities the bodies moved with in the last substep
         sim._roster.moved_mps[:] = safe_v[bounds[k]:bounds[k + 1]]
-    xy_m = read_crowds(sims)[0]
+    xy_m = read_crowds(sims, counts)[0]
     marks.append(xy_m)
     sweep_egos(sims, marks, bounds, movable, dt_s)
     at_exit = np.zeros(len(xy_m), bool)
@@ -166,11 +167,10 @@ def step_crowds(sims: Sequence[CrowdSim], ego_velocities_mps: Sequence[np.ndarra
         sim._finish_step(arrivals.get(k))
 
 
-def read_crowds(sims: Sequence[CrowdSim]) -> tuple[np.ndarray, np.ndarray]:
+def read_crowds(sims: Sequence[CrowdSim], sizes: list[int]) -> tuple[np.ndarray, np.ndarray]:
     """Positions (M, 2) [m] and velocities (M, 2) [m/s] of the bodies of crowds of one layout, crowd after crowd, each
-    in roster order; in a periodic layout, bodies that crossed the seam are moved to their image inside the period
-    first."""
-    sizes = [len(sim._roster) for sim in sims]
+    in roster order (``sizes``: each crowd's roster length); in a periodic layout, bodies that crossed the seam are
+    moved to their image inside the period first."""
     state = physics.read_bodies([sim._batch for sim in sims], sizes)
     xy_m, v_mps = state[:, 0:2].copy(), state[:, 2:4].copy()  # contiguous, as the arithmetic downstream had them
     period = sims[0].layout.period
@@ -514,7 +514,7 @@ class CrowdSim:
         order = self._batch.body_ids()
         if not np.array_equal(order, self._roster.body_id):
             self._roster = self._roster.reorder(order)
-        self._xy_m = read_crowds([self])[0]
+        self._xy_m = read_crowds([self], [len(self._roster)])[0]
         is_ped = self._roster.ped_id >= 0
         peds = np.flatnonzero(is_ped)
         self._order = peds[np.argsort(self._roster.ped_id[peds], kind="stable")]
