@@ -274,3 +274,31 @@ def test_ppo_starts_from_a_policy_file_and_fits_its_critic_first(tmp_path: Path)
     with pytest.raises(ValueError, match="reads"):
         main(parse_args(["--num-envs", "2", "--shards", "1", "--timesteps", "16", "--n-steps", "8", "--quiet",
                          "--init-policy", str(clone), "--out", str(tmp_path / "other")]))
+
+
+def test_a_run_records_the_init_policy_it_started_from_even_after_that_file_is_replaced(tmp_path: Path) -> None:
+    """``training.json`` keeps the SHA-256 of the ``--init-policy`` file as it was when the run started; a later
+    segment, resumed after another policy took the file's path (as shipping a policy over its own start does),
+    still names the first file."""
+    import hashlib
+    import shutil
+
+    from st_sim.apps.navigation.train_ppo import main, parse_args
+
+    common = ["--no-predictions", "--num-envs", "2", "--shards", "1", "--n-steps", "16", "--batch-size", "16",
+              "--quiet"]
+    first = main(parse_args([*common, "--timesteps", "0", "--seed", "3", "--out", str(tmp_path / "a")]))
+    other = main(parse_args([*common, "--timesteps", "0", "--seed", "4", "--out", str(tmp_path / "b")]))
+    start = tmp_path / "start.pt"
+    shutil.copyfile(first, start)
+    started = hashlib.sha256(start.read_bytes()).hexdigest()
+    run = [*common, "--init-policy", str(start), "--out", str(tmp_path / "run")]
+    main(parse_args([*run, "--timesteps", "32"]))
+    assert json.loads((tmp_path / "run" / "training.json").read_text())["init_policy_sha256"] == started
+    shutil.copyfile(other, start)
+    assert hashlib.sha256(start.read_bytes()).hexdigest() != started
+    main(parse_args([*run, "--timesteps", "64"]))
+    record = json.loads((tmp_path / "run" / "training.json").read_text())
+    assert record["resumed_from"] == 32 and record["init_policy_sha256"] == started
+    scratch = main(parse_args([*common, "--timesteps", "16", "--out", str(tmp_path / "scratch")]))
+    assert json.loads((scratch.parent / "training.json").read_text())["init_policy_sha256"] is None

@@ -27,8 +27,9 @@ Writes into --out: ``policy.pt`` (loadable with ``ppo.load_policy``), ``curve.pn
 learning curve: success, collision and return over the last 100 training episodes against env steps) and
 ``training.json`` (config, wall time, final figures; a resumed run's wall time sums its segments up to each one's
 last save, its ``env_steps_per_s`` is of the steps since ``resumed_from``; ``--minutes`` is a budget per
-segment). ``--ship NAME`` also copies the policy into the
-package's ``pretrained/`` folder and records it in the manifest. The two variants differ only in whether the
+segment; ``init_policy_sha256``, the ``--init-policy`` file's SHA-256 when the run started, kept in
+``init_policy.json`` across segments, as the path may later hold another file). ``--ship NAME`` also copies the
+policy into the package's ``pretrained/`` folder and records it in the manifest. The two variants differ only in whether the
 features hold the predicted futures; same env, seed, budget and hyper-parameters.
 
 Every ``--save-every`` rollouts the whole PPO state goes to ``resume.zip`` (with ``curve.json``); a run started
@@ -40,6 +41,7 @@ bit-identical to an uninterrupted one (the envs restart their episodes).
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import shutil
 import sys
@@ -59,7 +61,15 @@ from replays import strict_json
 from replays.atomic import atomic_path, write_text_atomic
 from st_sim.apps.navigation.demonstrations import DemoSpec, behaviour_clone, concatenate, load_or_collect
 from st_sim.apps.navigation.features import FeatureConfig
-from st_sim.apps.navigation.ppo import EXTRACTORS, PRETRAINED_DIR, build_policy, load_policy, policy_kwargs, save_policy
+from st_sim.apps.navigation.ppo import (
+    EXTRACTORS,
+    PRETRAINED_DIR,
+    build_policy,
+    load_policy,
+    policy_file,
+    policy_kwargs,
+    save_policy,
+)
 
 CURVE_WINDOW = 100  # training episodes averaged per learning-curve point [-]
 DAGGER_SEED_STRIDE = 10_000  # episode seeds between two DAgger rounds (a worker's share is far fewer episodes) [-]
@@ -279,9 +289,9 @@ def clone_teacher(policy: Any, cfg: TrainConfig, net_arch: list[int]) -> dict[st
     return record
 
 
-def start_from(policy: Any, cfg: TrainConfig, net_arch: list[int]) -> None:
+def start_from(policy: Any, cfg: TrainConfig, net_arch: list[int]) -> str:
     """Load the weights of the policy file ``cfg.init_policy`` into ``policy``, its action noise set to
-    ``cfg.log_std_init``.
+    ``cfg.log_std_init``; returns the file's SHA-256 (the run's record keeps it: the path may later hold another file).
 
     Raises:
         ValueError: the file's policy reads other features or has another extractor or network (``PolicyFileError``
@@ -289,6 +299,7 @@ def start_from(policy: Any, cfg: TrainConfig, net_arch: list[int]) -> None:
     """
     import torch
 
+    sha256 = hashlib.sha256(policy_file(cfg.init_policy)[0].read_bytes()).hexdigest()
     saved, features = load_policy(cfg.init_policy)
     if features != cfg.features:
         raise ValueError(f"--init-policy {cfg.init_policy}: the policy reads {features}, this run {cfg.features}")
@@ -300,6 +311,7 @@ def start_from(policy: Any, cfg: TrainConfig, net_arch: list[int]) -> None:
     policy.load_state_dict(theirs)
     with torch.no_grad():  # PPO's exploration starts where the run says, whatever the file's policy had
         policy.log_std.fill_(cfg.log_std_init)
+    return sha256
 
 
 def plot_curve(curves: dict[str, list[dict] | list[list[dict]]], path: Path, title: str) -> Path | None:
@@ -363,7 +375,7 @@ def main(cfg: TrainConfig) -> Path:
 
     # start: continue a saved run, clone the teacher (same demonstrations for both variants), or walk the path
     start = time.perf_counter()
-    cloning, resumed_from, curve, earlier_s = None, 0, [], 0.0
+    cloning, started_from, resumed_from, curve, earlier_s = None, None, 0, [], 0.0
     saved = resumable_state(cfg)
     if saved is not None:
         model = CriticFirstPPO.load(saved[0], env=vec, device=device)
@@ -383,8 +395,11 @@ def main(cfg: TrainConfig) -> Path:
         print(f"resuming {saved[0]} at {resumed_from} env steps")
         if (out / "cloning.json").is_file():
             cloning = json.loads((out / "cloning.json").read_text())
+        if (out / "init_policy.json").is_file():
+            started_from = json.loads((out / "init_policy.json").read_text())
     elif cfg.init_policy is not None:
-        start_from(model.policy, cfg, net_arch)
+        started_from = {"path": cfg.init_policy, "sha256": start_from(model.policy, cfg, net_arch)}
+        write_text_atomic(out / "init_policy.json", strict_json.dumps(started_from, indent=1))
         save_resumable(model, cfg, curve)
     elif cfg.demo_steps > 0:
         cloning = clone_teacher(model.policy, cfg, net_arch)
@@ -416,6 +431,7 @@ def main(cfg: TrainConfig) -> Path:
     write_text_atomic(out / "curve.json", strict_json.dumps(curve, indent=1))
     plot_curve({run_name: curve}, out / "curve.png", run_name)
     record = {"run": run_name, "config": asdict(cfg), "wall_time_s": wall_time_s, "cloning": cloning,
+              "init_policy_sha256": None if started_from is None else started_from["sha256"],
               "resumed_from": resumed_from, "sha256": sha256, "env_steps_per_s": steps_per_s, "time_shares": shares,
               "final": curve[-1] if curve else None, "command": "python -m st_sim.apps.navigation.train_ppo "
               + " ".join(sys.argv[1:])}
@@ -437,7 +453,7 @@ def ship(policy_path: Path, name: str, record: dict) -> Path:
     manifest["policies"][name] = {"file": target.name, "sha256": record["sha256"], "command": record["command"],
                                   "env_ids": record["config"]["env_ids"], "timesteps": record["config"]["timesteps"],
                                   "wall_time_s": round(record["wall_time_s"], 1), "final_training": record["final"],
-                                  "cloning": record["cloning"]}
+                                  "cloning": record["cloning"], "init_policy_sha256": record.get("init_policy_sha256")}
     write_text_atomic(manifest_path, strict_json.dumps(manifest, indent=1, sort_keys=True) + "\n")
     return target
 
