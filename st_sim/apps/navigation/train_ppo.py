@@ -29,8 +29,8 @@ learning curve: success, collision and return over the last 100 training episode
 last save, its ``env_steps_per_s`` is of the steps since ``resumed_from``; ``--minutes`` is a budget per
 segment; ``init_policy_sha256``, the ``--init-policy`` file's SHA-256 when the run started, kept in
 ``init_policy.json`` across segments, as the path may later hold another file). ``--ship NAME`` also copies the
-policy into the package's ``pretrained/`` folder and records it in the manifest. The two variants differ only in whether the
-features hold the predicted futures; same env, seed, budget and hyper-parameters.
+policy into the package's ``pretrained/`` folder and records it in the manifest. The two variants differ only in
+whether the features hold the predicted futures; same env, seed, budget and hyper-parameters.
 
 Every ``--save-every`` rollouts the whole PPO state goes to ``resume.zip`` (with ``curve.json``); a run started
 again with the same --out and settings continues from there up to its --timesteps, so a killed run loses at
@@ -299,8 +299,8 @@ def start_from(policy: Any, cfg: TrainConfig, net_arch: list[int]) -> str:
     """
     import torch
 
+    saved, features = load_policy(cfg.init_policy)  # a missing or damaged file: PolicyFileError, naming it
     sha256 = hashlib.sha256(policy_file(cfg.init_policy)[0].read_bytes()).hexdigest()
-    saved, features = load_policy(cfg.init_policy)
     if features != cfg.features:
         raise ValueError(f"--init-policy {cfg.init_policy}: the policy reads {features}, this run {cfg.features}")
     own = policy.state_dict()
