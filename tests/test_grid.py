@@ -11,6 +11,7 @@ from dataclasses import asdict
 from pathlib import Path
 
 import pytest
+from ray_session import OBJECT_STORE_BYTES, connect_kwargs
 
 from predictor.train import TRAIN_SUMMARY, TrainConfig
 from st_sim.apps.grid import MAX_ATTEMPTS, GridError, Job, raise_on_failure, run_jobs
@@ -56,9 +57,7 @@ def local_ray():
     """Ray on this machine with 2 CPUs; its workers see the data root and the job functions of these tests."""
     import ray  # part of the dev extra
 
-    paths = os.pathsep.join([str(Path(__file__).parent), os.environ.get("PYTHONPATH", "")])
-    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False, runtime_env={"env_vars": {
-        "STCROWD_DATA": str(Path(os.environ["STCROWD_DATA"]).resolve()), "PYTHONPATH": paths}})
+    ray.init(num_cpus=2, object_store_memory=OBJECT_STORE_BYTES, **connect_kwargs(Path(__file__).parent))
     yield
     ray.shutdown()
 

@@ -3,7 +3,6 @@ step by step and through autoresets, with one batched forecast per step."""
 
 from __future__ import annotations
 
-import os
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -14,6 +13,7 @@ from gymnasium.envs.registration import registry
 from gymnasium.vector import AutoresetMode
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from ray_session import OBJECT_STORE_BYTES, connect_kwargs
 
 import envs  # noqa: F401  (registers the ids)
 from envs import STCROWD_IDS
@@ -165,11 +165,9 @@ def test_a_vector_env_on_two_ray_nodes_equals_the_one_process_vector_env(monkeyp
     import ray
     from ray.cluster_utils import Cluster
 
-    paths = os.pathsep.join([str(Path(__file__).parents[1]), os.environ.get("PYTHONPATH", "")])
-    cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": 1})
-    cluster.add_node(num_cpus=1)
-    ray.init(address=cluster.address, include_dashboard=False, log_to_driver=False, runtime_env={"env_vars": {
-        "STCROWD_DATA": str(Path(os.environ["STCROWD_DATA"]).resolve()), "PYTHONPATH": paths}})
+    cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": 1, "object_store_memory": OBJECT_STORE_BYTES})
+    cluster.add_node(num_cpus=1, object_store_memory=OBJECT_STORE_BYTES)
+    ray.init(address=cluster.address, **connect_kwargs(Path(__file__).parents[1]))
     try:
         kwargs = {"num_envs": 4, "max_episode_steps": SHORT, "predictor": "cvm-s"}
         local = gym.make_vec("STCrowd-SimCrossing-v1", **kwargs)
