@@ -41,7 +41,6 @@ bit-identical to an uninterrupted one (the envs restart their episodes).
 from __future__ import annotations
 
 import argparse
-import hashlib
 import json
 import shutil
 import sys
@@ -59,6 +58,7 @@ from envs.common.config import EnvConfig, RewardWeights
 from predictor.devices import DEVICE_HELP, DeviceError, resolve_device
 from replays import strict_json
 from replays.atomic import atomic_path, write_text_atomic
+from replays.data_root import sha256_of
 from st_sim.apps.navigation.demonstrations import DemoSpec, behaviour_clone, concatenate, load_or_collect
 from st_sim.apps.navigation.features import FeatureConfig
 from st_sim.apps.navigation.ppo import (
@@ -300,7 +300,7 @@ def start_from(policy: Any, cfg: TrainConfig, net_arch: list[int]) -> str:
     import torch
 
     saved, features = load_policy(cfg.init_policy)  # a missing or damaged file: PolicyFileError, naming it
-    sha256 = hashlib.sha256(policy_file(cfg.init_policy)[0].read_bytes()).hexdigest()
+    sha256 = sha256_of(policy_file(cfg.init_policy)[0])
     if features != cfg.features:
         raise ValueError(f"--init-policy {cfg.init_policy}: the policy reads {features}, this run {cfg.features}")
     own = policy.state_dict()
