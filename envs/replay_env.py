@@ -13,7 +13,7 @@ import numpy as np
 
 from envs.common.config import EnvConfig
 from envs.common.crowd_env import CrowdEnv, check_flag
-from envs.common.ego import SpawnPoints, move_within, spawn_start_goal, walkable_points
+from envs.common.ego import SpawnPoints, move_along, spawn_start_goal, walkable_points
 from envs.common.errors import EnvInputError, ResetOptionsError
 from envs.common.predictors import shipped_checkpoint
 from envs.common.tracks import Frame
@@ -22,11 +22,13 @@ from replays.data_root import data_root
 from replays.errors import RecordingError
 from replays.recording import read_recording
 from replays.scenes import load_scene, scene_info
+from st_sim.perception import SensingSpec
 from st_sim.reactive.footprint import Body
 from st_sim.reactive.reaction import draw_traits, fitted_spread
 from st_sim.reactive.reactive import ReactiveCrowd
 from st_sim.reactive.routes import Routes
 from st_sim.sim.map_depth import MapDepth
+from st_sim.sim.robot import Robot, RobotSpec
 
 MIN_REPLAY_STEPS = 50  # a random start leaves at least this many steps (20 s) of recording
 MIN_FRAMES = 2  # a replay starts at one listed frame and steps to the next
@@ -97,25 +99,29 @@ class ReplayCrowdEnv(CrowdEnv):
     One step is one listed frame of the recording (0.4 s; frame gaps are ignored, as the benchmark windows ignore
     them). Every pedestrian of the current frame is in the observation; one with T_obs consecutive listed frames
     up to now also gets S predicted futures (one batched predictor call per step, all agents in one group). The
-    ego is a point robot of radius 0.3 m that moves at the commanded velocity at once (``ego_max_accel_mps2`` is
-    inf) and cannot leave the arena (recorded area + 1 m, within the scene's image: a move off the image keeps
-    only the axis that stays on it). With ``pedestrians="log"`` (default) the pedestrians walk exactly as recorded
+    ego is a robot of radius 0.3 m that moves as its robot model (``robot``, ``st_sim.sim.robot``: the same in every
+    world) turns each command into motion within its limits, and cannot leave the arena (recorded area + 1 m, within
+    the scene's image: a move off the image keeps only the axis that stays on it; the edge holds the body back, the
+    robot's velocity stays its model's). With ``pedestrians="log"`` (default) the pedestrians walk exactly as recorded
     and do not react to it; with ``"reactive"`` each one walks its own log until it has noticed the robot (in its
     field of view or hearing), reacted (a reaction time later) and the robot is in its way, then steps aside or slows
     down along its logged route and catches up with its log; noticed or not, nobody walks into the robot's body
     (``st_sim.reactive.reactive``; the reaction fitted on CITR, ``st_sim.reactive.reaction``).
 
     ## Action Space
-    Box(-1.5, 1.5, (2,), float32): ego velocity (vx, vy) [m/s], world frame; scaled down to
-    ``config.max_speed_mps`` (1.5) if faster. Anything but 2 real numbers (complex, text, bools, objects,
-    another shape) raises ``ActionError`` (a ValueError); so does NaN/inf, except when ``ego=False``, where
-    the action's value is ignored.
+    The robot's command. Holonomic (default): Box(-1.5, 1.5, (2,), float32), velocity (vx, vy) [m/s], world frame,
+    scaled down to 1.5 m/s if faster and followed within 2 m/s^2. Differential drive: Box([-0.5, -2], [1.5, 2]),
+    (v [m/s], w [rad/s]), forward speed and turn rate (counter-clockwise), clipped to those ranges and followed
+    within 2 m/s^2 and 4 rad/s^2. Anything but 2 real numbers (complex, text, bools, objects, another shape) raises
+    ``ActionError`` (a ValueError); so does NaN/inf, except when ``ego=False``, where the action's value is ignored.
 
     ## Observation Space
     Dict, all positions in metres, world frame, N_max = most pedestrians in one frame of the scene's
     recordings (ETH 27, HOTEL 18, UNIV 75, ZARA1/2 20; with reactive pedestrians, also counting those who may still
     be on their way to where their log ended, ``ReactiveCrowd.capacity``):
-    - "ego": (6,) float32 x, y [m], vx, vy [m/s], goal x, y [m]; zeros when ``ego=False``.
+    - "ego": (9,) float32 x, y [m], vx, vy [m/s], goal x, y [m], the unit vector the robot faces (cos, sin; a
+      holonomic robot faces where it last moved, every robot starts facing its goal), turn rate [rad/s] (0 for a
+      holonomic robot); zeros when ``ego=False`` (``envs.common.crowd_env.EGO_FIELDS``).
     - "history": (N_max, T_obs, 2) float32, oldest first, last column = now; 0 where unobserved.
     - "history_mask": (N_max, T_obs) bool, agent present in that frame.
     - "futures": (N_max, S, 12, 2) float32 predicted positions, 12 steps of 0.4 s; 0 where not predicted.
@@ -149,7 +155,10 @@ class ReplayCrowdEnv(CrowdEnv):
     frame (recording frame id), agent_ids and predicted_ids (N_max,) int64 (-1 where none), reward_parts,
     termination (what ended the episode on this step, else None), metrics: a read-only mapping
     (``envs.common.running_metrics.Metrics``) of the running ADE/FDE of matured predictions, map violation, ego
-    collisions and least ego-pedestrian distance; a value with nothing to measure yet is None ("n/a"), never 0.0.
+    collisions and least ego-pedestrian distance; a value with nothing to measure yet is None ("n/a"), never 0.0;
+    robot: what became of the step's command (``st_sim.sim.robot.Actuation``: command, applied (after latency and
+    noise), reached (the robot's speeds at the step's end, in the command's terms), gap = |command - reached| per
+    component, clipped: its limits held it back), None after a reset and without an ego.
 
     ## Errors and vector envs
     Every argument, option and action is checked before anything changes, and a bad one raises the env's
@@ -175,10 +184,19 @@ class ReplayCrowdEnv(CrowdEnv):
     every pedestrian draws its own noticing distance, reaction time, room and willingness to wait from the fitted
     spread, ``st_sim.reactive.reaction.fitted_spread``, with the env's ``np_random``: seeded by the reset's seed),
     device (where a SingularTrajectory the env loads runs: "auto" (default: a CUDA GPU when torch sees one, else the
-    CPU), "cpu", "cuda", "cuda:N" or "mps"; a predictor object passed in runs where it is).
+    CPU), "cpu", "cuda", "cuda:N" or "mps"; a predictor object passed in runs where it is), robot (the robot, the
+    same kind and limits in every world: "holonomic" (default), "diff-drive", or an ``st_sim.sim.robot.RobotSpec``;
+    ``robot`` holds the spec in force), sensing (what the robot senses: "oracle" (default: every pedestrian's exact
+    past), "range", "occluded", "noisy",
+    "realistic", or an ``st_sim.perception.SensingSpec``; the observation then holds the tracker's tracks, and
+    ``info["perception"]`` the truth beside them).
 
     ## Version History
-    - v0: initial version. 2026-11-28, same id (the default is unchanged): ``reaction_traits``. 2026-11-26, same
+    - v0: initial version. 2026-12-02, same id (benchmark version 4): the robot moves through its robot model, the
+      simulated crowds' one (2 m/s^2; before, it took any velocity at once), ``robot=`` ("diff-drive"),
+      ``obs["ego"]`` gains the heading and turn rate (its first six fields keep their meaning), ``info["robot"]``;
+      the ``ego_max_accel_mps2`` attribute gives way to ``robot`` (and ``EnvConfig.max_speed_mps`` to its
+      ``max_speed_mps``). 2026-11-28, same id (the default is unchanged): ``reaction_traits``. 2026-11-26, same
       id (the default is unchanged): reactive pedestrians notice the robot within a field of view or hearing,
       react a reaction time later and keep a room that grows with the robot's speed, all fitted on CITR.
       2026-11-25, same id (the default is unchanged): ``pedestrians="reactive"``, ``info["pedestrians"]``,
@@ -193,7 +211,8 @@ class ReplayCrowdEnv(CrowdEnv):
                  task: str = "stochastic", ego: bool = True, render_mode: str | None = None,
                  config: EnvConfig | None = None, root: str | os.PathLike | None = None,
                  benchmark_windows: bool = False, rerun: str | os.PathLike | None = None,
-                 pedestrians: str = "log", device: str = "auto", reaction_traits: str = "fitted"):
+                 pedestrians: str = "log", device: str = "auto", reaction_traits: str = "fitted",
+                 robot: str | RobotSpec | None = None, sensing: str | SensingSpec | None = None):
         check_flag("benchmark_windows", benchmark_windows)
         if not isinstance(pedestrians, str) or pedestrians not in PEDESTRIAN_MODES:
             raise EnvInputError(f"pedestrians={pedestrians!r}: expected one of {', '.join(PEDESTRIAN_MODES)}")
@@ -220,12 +239,13 @@ class ReplayCrowdEnv(CrowdEnv):
                     for r in replays.values())
         super().__init__(load_scene(info.name, root), n_max, str(self.replay.path), predictor, task, ego,
                          render_mode, config, pretrained=shipped_checkpoint(task, info.name), rerun=rerun,
-                         root=root, device=device)
+                         root=root, device=device, robot=robot, sensing=sensing)
         observed = self.replay.xy_m[self.replay.present]
         margin = self.cfg.arena_margin_m  # checked by EnvConfig: [0, 100] m
         self.arena_low_m, self.arena_high_m = observed.min(axis=0) - margin, observed.max(axis=0) + margin
         self.spawn_points = SpawnPoints(walkable_points(self.scene, (*self.arena_low_m, *self.arena_high_m)))
         self.index = 0
+        self._robot: Robot | None = None  # the ego's robot model, made at each reset
         self.reactive: ReactiveCrowd | None = None
         if pedestrians == "reactive":
             self.reactive = ReactiveCrowd.on(reactive_routes(self.replay, info.name, root,
@@ -269,6 +289,7 @@ class ReplayCrowdEnv(CrowdEnv):
                 self.spawn_points, now.xy_m, self.cfg.spawn_clearance_m,
                 self.cfg.goal_min_fraction * diagonal_m, self.np_random)
             self.ego_velocity_mps = np.zeros(2)
+            self._robot = self._new_robot(self.ego_xy_m, self.goal_m)
         if self.reactive is not None:
             agents = self.reactive.routes.present.shape[1]
             self.reactive.reset(self.index, None if self.spread is None else draw_traits(self.np_random, agents,
@@ -277,11 +298,10 @@ class ReplayCrowdEnv(CrowdEnv):
         return [self.replay.frame(i) for i in range(first, self.index + 1)]
 
     @classmethod
-    def _step_worlds(cls, envs: Sequence[ReplayCrowdEnv], velocities_mps: Sequence[np.ndarray | None]
-                     ) -> list[Frame]:
-        """Every replay's next frame, its ego moved; the reactive crowds stepped in one batched call
+    def _step_worlds(cls, envs: Sequence[ReplayCrowdEnv], commands: Sequence[np.ndarray | None]) -> list[Frame]:
+        """Every replay's next frame, its ego moved by its robot model; the reactive crowds stepped in one batched call
         (``ReactiveCrowd.step_all``)."""
-        moves = [env._move_ego(velocity_mps) for env, velocity_mps in zip(envs, velocities_mps, strict=True)]
+        moves = [env._move_ego(command) for env, command in zip(envs, commands, strict=True)]
         reactive = [(env, move) for env, move in zip(envs, moves, strict=True) if env.reactive is not None]
         if reactive:
             ReactiveCrowd.step_all([env.reactive for env, _ in reactive], [env.index for env, _ in reactive],
@@ -289,16 +309,18 @@ class ReplayCrowdEnv(CrowdEnv):
                                    [None] * len(reactive))
         return [env._frame_now() for env in envs]
 
-    def _move_ego(self, ego_velocity_mps: np.ndarray | None) -> tuple[np.ndarray | None, np.ndarray | None]:
-        """Step to the next frame and move the ego; returns the robot's move over the step as the pedestrians expect
-        it, (from, to) (2,) [m] each (None, None without an ego)."""
+    def _move_ego(self, command: np.ndarray | None) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """Step to the next frame and move the ego by its robot model's substeps (the edges of the arena and the image
+        hold the body back; the robot's velocity stays its model's, as wheels that push against a wall); returns the
+        robot's move over the step as the pedestrians expect it, (from, to) (2,) [m] each (None, None without an
+        ego)."""
         self.index += 1  # the base class refuses a step once the recording has ended
         start_m, seen_mps = self.ego_xy_m.copy(), self.ego_velocity_mps.copy()
-        if ego_velocity_mps is not None:
-            moved = move_within(self.scene, self.ego_xy_m, ego_velocity_mps, STEP_S, self.arena_low_m,
-                                self.arena_high_m)
-            self.ego_velocity_mps = (moved - self.ego_xy_m) / STEP_S
-            self.ego_xy_m = moved
+        if command is not None:
+            moves = self._robot.drive(command)
+            self.ego_xy_m = move_along(self.scene, self.ego_xy_m, moves, STEP_S / len(moves), self.arena_low_m,
+                                       self.arena_high_m)
+            self.ego_velocity_mps = self._robot.velocity_mps
         # Pedestrians see where the robot is and how it moved in the last step, not its command for this one: they
         # expect it to keep that velocity over the step (a robot that turns into them can still hit them).
         return (start_m, start_m + seen_mps * STEP_S) if self.ego else (None, None)
@@ -326,12 +348,17 @@ class ReplayCrowdEnv(CrowdEnv):
     def wall_clearance_m(self) -> float:
         return 0.0
 
+    @property
+    def robot_model(self) -> Robot:
+        return self._robot
+
     def _world_ended(self) -> bool:
         return self.index >= len(self.replay.frames) - 1
 
     def _forecast_moment(self) -> Any:
-        """In log mode the frame index: the recording shows the same histories whenever it reaches it."""
-        return self.index if self.reactive is None else None
+        """In log mode with the oracle's eyes the frame index: the recording shows the same histories whenever it
+        reaches it (what a sensor perceives depends on the robot and its draws)."""
+        return self.index if self.reactive is None and self.perception is None else None
 
     def _predicted_rows(self) -> np.ndarray:
         """In benchmark mode, only the agents forming a Social-GAN window that ends its observation now.
@@ -340,7 +367,7 @@ class ReplayCrowdEnv(CrowdEnv):
         only when at least two qualify. The replay knows the future, and the benchmark protocol uses it
         to pick its samples, so the stream sees exactly the samples and groups of ``load_windows``.
         """
-        rows = self.tracks.predictable_rows()
+        rows = self.observed.predictable_rows()
         if not self.benchmark_windows or len(rows) == 0:
             return rows
         future = self.replay.present[self.index + 1:self.index + 1 + T_PRED]

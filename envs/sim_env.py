@@ -17,10 +17,12 @@ from envs.common.predictors import shipped_checkpoint
 from envs.common.tracks import Frame, lookup
 from replays.constants import STEP_S
 from replays.scenes import SCENES
+from st_sim.perception import SensingSpec
 from st_sim.sim import CrowdConfig, CrowdSim, EgoConfig, Layout, PopulationConfig
 from st_sim.sim import population_cap as sim_population_cap
 from st_sim.sim.crowd import step_crowds
 from st_sim.sim.encounters import ENCOUNTERS, EgoMotion, draw_encounter
+from st_sim.sim.robot import Robot, RobotSpec
 from st_sim.sim.sweep import Contact
 
 
@@ -55,15 +57,16 @@ class SimCrowdEnv(CrowdEnv):
     Pedestrians (discs of 0.2 m, steered by the calibrated collision-free speed model, pymunk contacts;
     ``st_sim.sim.CrowdSim``) enter at the layout's entries and leave at its exits; one step is 0.4 s. In a real
     scene's geometry the population (walking speeds, people standing, groups) is the one fitted to that scene's
-    recording. The ego is a heavy disc of radius 0.3 m whose velocity follows the action within an acceleration
-    limit (``ego_max_accel_mps2``, 2 m/s^2). With ``pedestrians_see_ego=True`` (default) pedestrians steer around
-    it as around another pedestrian; with False it is an invisible robot that they meet only by contact (the
-    setting CrowdNav-style benchmarks also report). Every pedestrian present is in the observation; one with
-    T_obs consecutive steps of presence also gets S predicted futures (one batched predictor call per step).
+    recording. The ego is a heavy disc of radius 0.3 m whose body follows its robot model (``robot``,
+    ``st_sim.sim.robot``: the same in every world; holonomic by default, 2 m/s^2). With ``pedestrians_see_ego=True``
+    (default) pedestrians steer around it as around another pedestrian; with False it is an invisible robot that
+    they meet only by contact (the setting CrowdNav-style benchmarks also report). Every pedestrian present is in the
+    observation; one with T_obs consecutive steps of presence also gets S predicted futures (one batched predictor
+    call per step).
 
     ## Action Space
-    Box(-1.5, 1.5, (2,), float32): commanded ego velocity (vx, vy) [m/s], world frame; scaled down to
-    ``config.max_speed_mps`` (1.5) if faster. NaN/inf actions raise ValueError. Ignored when ``ego=False``.
+    As ``ReplayCrowdEnv``: the robot's command (a holonomic robot's velocity (vx, vy) [m/s], world frame; a
+    differential drive's (v [m/s], w [rad/s])). NaN/inf actions raise ValueError. Ignored when ``ego=False``.
 
     ## Observation Space
     As ``ReplayCrowdEnv`` (ego, history, history_mask, futures, futures_mask; metres, world frame), with
@@ -98,13 +101,15 @@ class SimCrowdEnv(CrowdEnv):
     layout (crossing (default), corridor, bottleneck, plaza, doorway, or eth, hotel, univ, zara1, zara2 for a real
     scene's walls and openings, which needs the data root), predictor ("auto" (default): the universal
     SingularTrajectory checkpoint, trained on all five scenes, for 8 or 2 observed frames; or as
-    ``ReplayCrowdEnv``), task, ego, render_mode, config (``EnvConfig``; its ego radius and speed limit go to the
-    simulator), crowd (``st_sim.sim.CrowdConfig``; default: calibrated steering and, in a real scene, its fitted
-    population; in an encounter, nobody arriving), root (data root), rerun (a .rrd path or "spawn": log every step
-    to Rerun), pedestrians_see_ego (True: pedestrians steer around the ego; False: invisible robot), device (as
+    ``ReplayCrowdEnv``), task, ego, render_mode, config (``EnvConfig``; its ego radius goes to the simulator), crowd
+    (``st_sim.sim.CrowdConfig``; default: calibrated steering and, in a real scene, its fitted population; in an
+    encounter, nobody arriving), root (data root), rerun (a .rrd path or "spawn": log every step to Rerun),
+    pedestrians_see_ego (True: pedestrians steer around the ego; False: invisible robot), device (as
     ``ReplayCrowdEnv``: where a SingularTrajectory the env loads runs, "auto" by default), encounter (None, or a
     scripted encounter, which runs in its own layout, so with no layout given: "frontal_approach", "overtaking",
-    "crossing_angle", "doorway", "group").
+    "crossing_angle", "doorway", "group"), robot (the robot, the same kind and limits in every world: "holonomic"
+    (default), "diff-drive", or an ``st_sim.sim.robot.RobotSpec``; ``robot`` holds the spec in force), sensing (as
+    ``ReplayCrowdEnv``).
 
     ## Version History
     - v1 (2026-11-23): calibrated speed-model steering, 0.2 m pedestrians, fitted populations in real scenes,
@@ -114,6 +119,9 @@ class SimCrowdEnv(CrowdEnv):
       2026-11-27, same id (an info addition; observation, reward and dynamics unchanged): ``info["group_ids"]``;
       the ``encounter`` argument, its ids ``STCrowd-Sim{FrontalApproach,Overtaking,CrossingAngle,Doorway,Group}-v1``
       and the ``plaza`` and ``doorway`` layouts.
+      2026-12-02, same id (benchmark version 4; the holonomic default moves as before): ``robot=`` ("diff-drive"),
+      ``obs["ego"]`` gains the heading and turn rate (its first six fields keep their meaning) and its velocity is the
+      robot model's, ``info["robot"]``; ``ego_max_accel_mps2`` gives way to ``robot``.
     - v0: social-force steering; pedestrians reacted to the ego only by contact.
     """
 
@@ -121,7 +129,8 @@ class SimCrowdEnv(CrowdEnv):
                  ego: bool = True, render_mode: str | None = None, config: EnvConfig | None = None,
                  crowd: CrowdConfig | None = None, root: str | os.PathLike | None = None,
                  rerun: str | None = None, pedestrians_see_ego: bool = True, device: str = "auto",
-                 encounter: str | None = None):
+                 encounter: str | None = None, robot: str | RobotSpec | None = None,
+                 sensing: str | SensingSpec | None = None):
         check_encounter(encounter, layout)
         self.encounter = encounter
         if encounter is not None:
@@ -137,8 +146,8 @@ class SimCrowdEnv(CrowdEnv):
             raise EnvInputError(f"{where}: crowd holds at most {n_max} pedestrians, fewer than the encounter's "
                                 f"{ENCOUNTERS[encounter].group_size[1]}")
         super().__init__(self.layout.scene, n_max, where, predictor, task, ego, render_mode, config,
-                         shipped_checkpoint(task, None), rerun=rerun, root=root, device=device)
-        self.ego_max_accel_mps2 = EgoConfig().max_accel_mps2
+                         shipped_checkpoint(task, None), rerun=rerun, root=root, device=device, robot=robot,
+                         sensing=sensing)
         self.sim: CrowdSim | None = None
 
     @classmethod
@@ -150,11 +159,12 @@ class SimCrowdEnv(CrowdEnv):
         return [frames_of[id(env)] for env in envs]
 
     @classmethod
-    def _step_worlds(cls, envs: Sequence[SimCrowdEnv], velocities_mps: Sequence[np.ndarray | None]) -> list[Frame]:
-        """One ``step_crowds`` call moves the crowds of each world (layout and crowd config)."""
-        velocity_of = {id(env): velocity for env, velocity in zip(envs, velocities_mps, strict=True)}
+    def _step_worlds(cls, envs: Sequence[SimCrowdEnv], commands: Sequence[np.ndarray | None]) -> list[Frame]:
+        """One ``step_crowds`` call moves the crowds of each world (layout and crowd config), each ego's body
+        following its robot model."""
+        command_of = {id(env): command for env, command in zip(envs, commands, strict=True)}
         for world in cls._by_world(envs):
-            step_crowds([env.sim for env in world], [velocity_of[id(env)] for env in world])
+            step_crowds([env.sim for env in world], [command_of[id(env)] for env in world])
         return [env._sim_frame() for env in envs]
 
     @staticmethod
@@ -182,17 +192,19 @@ class SimCrowdEnv(CrowdEnv):
         """A fresh crowd drawn from ``np_random`` (the layout's, or the encounter's scripted pedestrians round the
         drawn ego route) and the ego's goal (2,) [m]."""
         plan = None if self.encounter is None else draw_encounter(self.encounter, self.layout, self.np_random)
-        ego_cfg = EgoConfig(radius_m=self.cfg.ego_radius_m, max_speed_mps=self.cfg.max_speed_mps,
-                            max_accel_mps2=self.ego_max_accel_mps2, pedestrians_see_ego=self.pedestrians_see_ego,
+        ego_cfg = EgoConfig(radius_m=self.cfg.ego_radius_m, robot=self.robot,
+                            pedestrians_see_ego=self.pedestrians_see_ego,
                             start_m=None if plan is None else tuple(plan.ego_start_m.tolist())) if self.ego else None
+        start_m = np.asarray(self.layout.ego_start_m if plan is None else plan.ego_start_m, np.float64)
+        goal_m = np.array(self.layout.ego_goal_m if plan is None else plan.ego_goal_m, dtype=np.float64)
+        robot = self._new_robot(start_m, goal_m) if self.ego else None
         if plan is None:
-            return (CrowdSim(self.layout, self.crowd_cfg, self.np_random, ego=ego_cfg),
-                    np.array(self.layout.ego_goal_m, dtype=np.float64))
-        sim = CrowdSim(self.layout, self.crowd_cfg, self.np_random, ego=ego_cfg, n_initial=0)
-        motion = EgoMotion((self.t_obs - 1) * STEP_S, self.cfg.max_speed_mps, self.ego_max_accel_mps2)
+            return CrowdSim(self.layout, self.crowd_cfg, self.np_random, ego=ego_cfg, robot=robot), goal_m
+        sim = CrowdSim(self.layout, self.crowd_cfg, self.np_random, ego=ego_cfg, n_initial=0, robot=robot)
+        motion = EgoMotion((self.t_obs - 1) * STEP_S, self.robot.max_speed_mps, self.robot.max_accel_mps2)
         keep_clear_m = self.crowd_cfg.radius_m + self.cfg.ego_radius_m + self.crowd_cfg.spawn_gap_m
         sim.add(plan.pedestrians(sim.nav, motion, keep_clear_m))
-        return sim, plan.ego_goal_m.copy()
+        return sim, goal_m
 
     def _ego_contact(self) -> tuple[Contact | None, bool, float]:
         """The simulator's record of the last step: first pedestrian contact within its substeps, wall touched,
@@ -207,21 +219,33 @@ class SimCrowdEnv(CrowdEnv):
     def wall_clearance_m(self) -> float:
         return self.cfg.ego_radius_m
 
+    @property
+    def robot_model(self) -> Robot:
+        return self.sim.robot
+
     def _info(self, reward_parts: dict[str, float], termination: str | None) -> dict[str, Any]:
         return {**super()._info(reward_parts, termination), "pedestrians_see_ego": self.pedestrians_see_ego,
                 "group_ids": self._group_ids()}
+
+    def _perception_info(self) -> dict[str, Any]:
+        """The truth beside the perception, with the true people's groups (``true_group_ids``, -1: alone)."""
+        info = super()._perception_info()
+        index = lookup(self.sim.ids, info["true_ids"])
+        info["true_group_ids"] = np.where(index >= 0, self.sim.groups[np.maximum(index, 0)], -1)
+        return info
 
     def _group_ids(self) -> np.ndarray:
         """(N_max,) int64 group of each observation row's pedestrian (rows of ``info["agent_ids"]``), -1 for one
         alone or an empty row."""
         groups = np.full(self.n_max, -1, np.int64)
-        index = lookup(self.sim.ids, self.tracks.row_ids)
+        index = lookup(self.sim.ids, self.true_ids(np.arange(self.n_max)))
         groups[index >= 0] = self.sim.groups[index[index >= 0]]
         return groups
 
     def _sim_frame(self) -> Frame:
-        """The simulator's pedestrians now; also refreshes the ego state."""
+        """The simulator's pedestrians now; also refreshes the ego state (its velocity: its robot model's, which the
+        body follows)."""
         if self.ego:
             self.ego_xy_m = self.sim.ego_position_m
-            self.ego_velocity_mps = self.sim.ego_velocity_mps
+            self.ego_velocity_mps = self.sim.robot.velocity_mps
         return Frame(int(self.sim.step_count), self.sim.ids, self.sim.positions_m)

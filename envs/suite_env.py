@@ -11,12 +11,13 @@ from typing import Any, ClassVar
 import gymnasium as gym
 import numpy as np
 
-from envs.common.config import EnvConfig
 from envs.common.errors import EnvInputError, NeedsResetError, ResetOptionsError
 from envs.common.predictors import task_sizes
 from envs.suite import Scenario, SuiteError, load_suite, make_scenario_env
 from envs.view import NEAREST, RAY_COUNT, FixedView, check_view_sizes, view_space
 from replays.constants import STEP_S
+from st_sim.perception import SensingSpec, SensingSpecError, sensing_spec
+from st_sim.sim.robot import RobotSpec, RobotSpecError, robot_spec
 
 WHERE = "STCrowd-Suite-v1"
 
@@ -36,8 +37,10 @@ class SuiteEnv(gym.Env):
     space for every scenario.
 
     ## Action Space
-    Box(-1.5, 1.5, (2,), float32): the robot's velocity [m/s] in its frame (x along the shortest walkable path to
-    the goal, y to its left), scaled down to 1.5 m/s if faster.
+    The robot's (``robot``: "holonomic" (default), "diff-drive" or a ``st_sim.sim.robot.RobotSpec``, the same in every
+    scenario). Holonomic: Box(-1.5, 1.5, (2,), float32), the robot's velocity [m/s] in its frame (x along the shortest
+    walkable path to the goal, y to its left), scaled down to 1.5 m/s if faster. Differential drive: (v [m/s], w
+    [rad/s]) as the scenario env takes it.
 
     ## Rewards
     The scenario env's (``ReplayCrowdEnv``, ``SimCrowdEnv``).
@@ -63,10 +66,12 @@ class SuiteEnv(gym.Env):
     scenarios; None (default): all), weights (one number >= 0 per scenario, not all 0; None: equal), predictor
     (as the crowd envs', "auto" by default; "cvm" or "none" train fastest), nearest (K, 8), rays (R, 16),
     suite_file (a suite file; None: the shipped one), root (ETH/UCY data root for the replays), device (as the crowd
-    envs'), render_mode (None or "rgb_array": the scenario env's picture).
+    envs'), render_mode (None or "rgb_array": the scenario env's picture), robot and sensing (as the crowd envs': the
+    robot and what it senses, the same in every scenario).
 
     ## Version History
     - v1: first version, over suite stcrowd-nav 1.0 (its scenarios' envs are the v0 replays and v1 simulated crowds).
+      2026-12-02, same id: ``robot=`` and ``sensing=``.
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": round(1 / STEP_S, 1)}
@@ -74,7 +79,8 @@ class SuiteEnv(gym.Env):
     def __init__(self, split: str = "train", scenarios: Sequence[str] | None = None,
                  weights: Sequence[float] | None = None, predictor: Any = "auto", nearest: int = NEAREST,
                  rays: int = RAY_COUNT, suite_file: str | os.PathLike | None = None,
-                 root: str | os.PathLike | None = None, device: str = "auto", render_mode: str | None = None):
+                 root: str | os.PathLike | None = None, device: str = "auto", render_mode: str | None = None,
+                 robot: str | RobotSpec | None = None, sensing: str | SensingSpec | None = None):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise EnvInputError(f"{WHERE}: render_mode={render_mode!r}: expected None or 'rgb_array'")
         check_view_sizes(nearest, rays, WHERE)
@@ -86,12 +92,21 @@ class SuiteEnv(gym.Env):
         self.split, self.render_mode = split, render_mode
         self.scenarios = self._scenarios(scenarios)
         self.probabilities = self._probabilities(weights)
+        try:
+            self.robot = robot_spec(robot)
+            """the robot of every scenario (``st_sim.sim.robot.RobotSpec``)"""
+            self.sensing = sensing_spec(sensing)
+            """what the robot senses in every scenario (``st_sim.perception.SensingSpec``)"""
+        except (RobotSpecError, SensingSpecError) as err:
+            raise EnvInputError(f"{WHERE}: {err}") from None
         self._make_kwargs = {"predictor": predictor, "data_root": None if root is None else os.fspath(root),
-                             "device": device, "render_mode": render_mode}
+                             "device": device, "render_mode": render_mode, "robot": self.robot,
+                             "sensing": self.sensing}
         self._view_sizes = (int(nearest), int(rays))
-        self.observation_space = view_space(*self._view_sizes, *task_sizes("stochastic"))
-        speed = EnvConfig().max_speed_mps
-        self.action_space = gym.spaces.Box(-speed, speed, (2,), np.float32)
+        self.observation_space = view_space(*self._view_sizes, *task_sizes("stochastic"),
+                                            turning=self.robot.kind == "diff-drive")
+        self.action_space = gym.spaces.Box(self.robot.command_low.astype(np.float32),
+                                           self.robot.command_high.astype(np.float32), dtype=np.float32)
         self._envs: dict[str, FixedView] = {}  # scenario name -> its env, made on first draw
         self._current: tuple[Scenario, int] | None = None  # the episode's scenario and seed
 

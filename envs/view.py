@@ -11,7 +11,8 @@ frame: origin at the robot, x along the shortest walkable path to the goal (``Te
 the shipped PPO planner's features), y to its left. Every entry is float32, in that frame:
 
 - ``robot`` (4,): the goal relative to the robot (x, y) [m]; the robot's velocity (x, y) [m/s] (speeds up to the
-  envs' 20 m/s limit are well inside the bounds, 2000);
+  robots' 10 m/s limit are well inside the bounds, 2000); for a differential-drive robot (7,): then the unit vector
+  it faces (x, y) and its turn rate [rad/s];
 - ``walls`` (R,): free distance along R rays, ray r at angle 2 pi r / R from x (anticlockwise), until the robot's body
   would touch a wall (replays: until its centre leaves walkable ground), up to ``RAY_RANGE_M`` [m];
 - ``people`` (K, T_obs, 2): the K nearest pedestrians present now, nearest first (ties in row order): their histories
@@ -19,8 +20,9 @@ the shipped PPO planner's features), y to its left. Every entry is float32, in t
 - ``futures`` (K, S, T_pred, 2): their S forecast paths relative to the robot now [m], 0 without a forecast;
   ``futures_mask`` (K,): 1 for a pedestrian with a forecast.
 
-The action is a (2,) velocity [m/s] in the same frame, with the env's bounds; ``FixedView`` turns it into the world
-frame for the env. The info arrays with one entry per observation row (``ROW_INFO_KEYS``: ``agent_ids``, ...)
+The action of a holonomic robot is a (2,) velocity [m/s] in the same frame, with the env's bounds; ``FixedView`` turns
+it into the world frame for the env. A differential-drive robot's command (v, w) is its own frame's already: it goes
+to the env as it is. The info arrays with one entry per observation row (``ROW_INFO_KEYS``: ``agent_ids``, ...)
 come with one entry per view row, -1 for an empty slot. A model trained on the view (``FixedView``,
 ``STCrowd-Suite-v1``) runs in every scenario: ``python -m st_sim benchmark --policy sb3:PATH.zip`` sees the view's
 keys in the model's observation space and shows it each scenario through ``fixed_view``.
@@ -34,7 +36,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from envs.common.ego import checked_action
+from envs.common.ego import checked_command
 from envs.common.errors import EnvInputError
 from envs.common.terrain import Terrain
 from replays.constants import FORECAST_LIMIT_M, POSITION_LIMIT_M, T_PRED
@@ -47,6 +49,7 @@ VIEW_KEYS: tuple[str, ...] = ("robot", "walls", "people", "people_mask", "future
 """the view's keys: a Dict space holding exactly these is a view's (``view_sizes``)"""
 
 
+ROBOT_FIELDS = (4, 7)  # size of the view's robot entry: a holonomic robot's, a differential drive's (heading, turn)
 ROW_INFO_KEYS: tuple[str, ...] = ("agent_ids", "predicted_ids", "group_ids")
 """info arrays with one entry per observation row: ``FixedView`` gives them one per view row (-1: an empty slot)"""
 
@@ -58,15 +61,17 @@ def check_view_sizes(nearest: Any, rays: Any, where: str) -> None:
             raise EnvInputError(f"{where}: {name}={value!r}: expected an int >= 1")
 
 
-def view_space(nearest: int, rays: int, t_obs: int, samples: int) -> spaces.Dict:
-    """The view's space for K = ``nearest`` pedestrians, R = ``rays`` walls, T_obs observed steps, S samples; its
-    bounds are those of the envs' observations (positions within ``POSITION_LIMIT_M``, forecasts within
+def view_space(nearest: int, rays: int, t_obs: int, samples: int, turning: bool = False) -> spaces.Dict:
+    """The view's space for K = ``nearest`` pedestrians, R = ``rays`` walls, T_obs observed steps, S samples, of a
+    robot that turns (``turning``: a differential drive, whose ``robot`` entry holds its heading and turn rate too);
+    its bounds are those of the envs' observations (positions within ``POSITION_LIMIT_M``, forecasts within
     ``FORECAST_LIMIT_M``) taken relative to the robot."""
     def box(shape: tuple[int, ...], high: float, low: float | None = None) -> spaces.Box:
         return spaces.Box(-high if low is None else low, high, shape, np.float32)
 
     near_m, far_m = 2 * POSITION_LIMIT_M, FORECAST_LIMIT_M + POSITION_LIMIT_M
-    return spaces.Dict({"robot": box((4,), near_m), "walls": box((rays,), RAY_RANGE_M, 0.0),
+    robot_fields = ROBOT_FIELDS[1] if turning else ROBOT_FIELDS[0]
+    return spaces.Dict({"robot": box((robot_fields,), near_m), "walls": box((rays,), RAY_RANGE_M, 0.0),
                         "people": box((nearest, t_obs, 2), near_m), "people_mask": box((nearest, t_obs), 1.0, 0.0),
                         "futures": box((nearest, samples, T_PRED, 2), far_m),
                         "futures_mask": box((nearest,), 1.0, 0.0)})
@@ -83,7 +88,7 @@ def view_sizes(space: spaces.Space) -> tuple[int, int, int, int] | None:
     sizes = (people[0], walls[0], people[1], futures[1])
     if min(sizes) < 1:
         return None
-    view = view_space(*sizes)
+    view = view_space(*sizes, turning=space["robot"].shape == (ROBOT_FIELDS[1],))
     fits = all(isinstance(space[key], spaces.Box) and (space[key].shape, space[key].dtype) == (view[key].shape,
                                                                                               view[key].dtype)
                for key in VIEW_KEYS)
@@ -131,9 +136,10 @@ def nearest_pedestrians(obs: dict[str, np.ndarray], ego_xy_m: np.ndarray, sensor
 
 
 def fixed_view(obs: dict[str, np.ndarray], terrain: Terrain, body_m: float, nearest: int = NEAREST,
-               rays: int = RAY_COUNT, frame: np.ndarray | None = None) -> dict[str, np.ndarray]:
+               rays: int = RAY_COUNT, frame: np.ndarray | None = None, turning: bool = False) -> dict[str, np.ndarray]:
     """The view (see the module docstring) of one STCrowd observation with an ego, on the env's ``terrain`` with its
-    ``wall_clearance_m`` as ``body_m``; ``frame``: its ``frames_along_path`` (2, 2) if already computed."""
+    ``wall_clearance_m`` as ``body_m``; ``frame``: its ``frames_along_path`` (2, 2) if already computed; ``turning``:
+    the robot entry of a differential drive (with its heading and turn rate)."""
     ego = obs["ego"].astype(np.float64)
     xy = ego[:2]
     frame = frames_along_path(ego[None], terrain, body_m)[0] if frame is None else frame
@@ -145,7 +151,8 @@ def fixed_view(obs: dict[str, np.ndarray], terrain: Terrain, body_m: float, near
     futures_mask = obs["futures_mask"][rows] & sensed  # (K,)
     futures = np.where(futures_mask[:, None, None, None],
                        (obs["futures"][rows].astype(np.float64) - xy) @ frame.T, 0.0)
-    robot = np.concatenate([frame @ (ego[4:6] - xy), frame @ ego[2:4]])
+    robot = np.concatenate([frame @ (ego[4:6] - xy), frame @ ego[2:4]]
+                           + ([frame @ ego[6:8], ego[8:9]] if turning else []))
     walls = wall_readings_m(terrain, xy[None], frame[None], body_m, rays)[0]
     return {"robot": robot.astype(np.float32), "walls": walls.astype(np.float32), "people": people.astype(np.float32),
             "people_mask": people_mask.astype(np.float32), "futures": futures.astype(np.float32),
@@ -153,7 +160,8 @@ def fixed_view(obs: dict[str, np.ndarray], terrain: Terrain, body_m: float, near
 
 
 class FixedView(gym.Wrapper):
-    """An STCrowd env with an ego seen through ``fixed_view``, acting in the robot's frame (module docstring).
+    """An STCrowd env with an ego seen through ``fixed_view``, acting in the robot's frame (module docstring): a
+    holonomic robot's velocity turned into the world frame, a differential drive's (v, w) as it is.
 
     Args:
         env: a replay or simulated crowd env (``gym.make`` of an STCrowd id) with ``ego=True``.
@@ -169,7 +177,8 @@ class FixedView(gym.Wrapper):
         self.nearest, self.rays = int(nearest), int(rays)
         self.terrain = Terrain(crowd.scene, crowd.bounds_m)
         self.body_m = crowd.wall_clearance_m
-        self.observation_space = view_space(self.nearest, self.rays, crowd.t_obs, crowd.num_samples)
+        self.turning = crowd.robot.kind == "diff-drive"
+        self.observation_space = view_space(self.nearest, self.rays, crowd.t_obs, crowd.num_samples, self.turning)
         self._frame: np.ndarray | None = None  # the robot's frame of the last observation, for the next action
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
@@ -178,8 +187,10 @@ class FixedView(gym.Wrapper):
     def step(self, action: Any):
         if self._frame is None:  # not reset yet: the env says so
             return self.env.step(action)
-        velocity_mps = to_world(checked_action(action)[None], self._frame[None])[0]
-        obs, reward, terminated, truncated, info = self.env.step(velocity_mps)
+        command = checked_command(action, self.env.unwrapped.robot.command_names)
+        if not self.turning:
+            command = to_world(command[None], self._frame[None])[0]
+        obs, reward, terminated, truncated, info = self.env.step(command)
         obs, info = self._see(obs, info)
         return obs, reward, terminated, truncated, info
 
@@ -189,4 +200,4 @@ class FixedView(gym.Wrapper):
         rows, sensed = nearest_pedestrians({key: obs[key][None] for key in ("history", "history_mask")},
                                            obs["ego"][None, :2].astype(np.float64), np.inf, self.nearest)
         info = {**info, **{key: np.where(sensed[0], info[key][rows[0]], -1) for key in ROW_INFO_KEYS if key in info}}
-        return fixed_view(obs, self.terrain, self.body_m, self.nearest, self.rays, self._frame), info
+        return fixed_view(obs, self.terrain, self.body_m, self.nearest, self.rays, self._frame, self.turning), info

@@ -13,6 +13,9 @@ Timelines: ``step`` (sequence) and ``time`` (seconds, step * 0.4). Entities, all
     world/anchors/prototype      LineStrips2D, anchors before adaptation (M agents x S strips)
     world/anchors/adapted        LineStrips2D, anchors after adaptation to the map
     world/ego, world/ego/goal    Points2D, the ego robot and its goal
+    world/ego/heading            Arrows2D, the way the robot faces (``ego_heading``), one body radius long
+    world/truth, world/detections  Points2D, with a sensor (not the oracle): every true person, and what the sensor
+                                 detected this step (the agents and their forecasts are then the tracker's tracks)
     world/walls                  static LineStrips2D, wall segments (``log_walls``)
     world/events/<name>          Points2D from the step of an event on, labelled (``log_marker``: a collision)
     metrics/<unit>/<name>        Scalars; <unit> is ``metric_unit(name)``: reward, metres, share or count
@@ -263,7 +266,8 @@ class RerunLogger:
                  predictions: np.ndarray | None = None, prediction_ids: np.ndarray | None = None,
                  ego_xy_m: np.ndarray | None = None, ego_goal_m: np.ndarray | None = None,
                  metrics: dict[str, float] | None = None, prototype_anchors: np.ndarray | None = None,
-                 adapted_anchors: np.ndarray | None = None) -> None:
+                 adapted_anchors: np.ndarray | None = None, ego_heading: np.ndarray | None = None,
+                 truth_xy_m: np.ndarray | None = None, detections_xy_m: np.ndarray | None = None) -> None:
         """Log one step (0.4 s); entities not given now but logged at the previous step are cleared.
 
         Raises ``ValueError`` for a malformed argument, and ``RecordingWriteError`` (now and at every later
@@ -282,6 +286,9 @@ class RerunLogger:
             metrics: name -> value, logged as ``metrics/<unit>/<name>`` (unit: ``metric_unit(name)``).
             prototype_anchors: (M, S, T, 2) anchors before adaptation, metres, world frame.
             adapted_anchors: (M, S, T, 2) anchors after adaptation, metres, world frame.
+            ego_heading: (2,) unit vector the ego faces (drawn with the ego).
+            truth_xy_m: (K, 2) every true person, when the agents are what a sensor perceived [m].
+            detections_xy_m: (D, 2) the sensor's detections of this step [m].
         """
         if self._sink.error is not None:
             raise self._sink.error
@@ -299,7 +306,13 @@ class RerunLogger:
         if predictions is not None or prototype_anchors is not None or adapted_anchors is not None:
             logged |= self._log_predictions(predictions, prediction_ids, prototype_anchors, adapted_anchors)
         if ego_xy_m is not None:
-            logged |= self._log_ego(ego_xy_m, ego_goal_m)
+            logged |= self._log_ego(ego_xy_m, ego_goal_m, ego_heading)
+        for path, points, radius, color in (("world/truth", truth_xy_m, AGENT_RADIUS_M, (160, 160, 160)),
+                                            ("world/detections", detections_xy_m, AGENT_RADIUS_M / 3, (255, 255, 0))):
+            if points is not None:
+                self._rec.log(path, rr.Points2D(_as_points(points, path, (None, 2)), radii=radius, colors=color,
+                                                draw_order=9.0))
+                logged.add(path)
         for name, value in (metrics or {}).items():
             self._rec.log(f"metrics/{metric_unit(name)}/{name}", rr.Scalars(float(value)))
         for path in sorted(self._live - logged):
@@ -374,16 +387,22 @@ class RerunLogger:
                 logged.add(f"world/anchors/{name}")
         return logged
 
-    def _log_ego(self, ego_xy_m, ego_goal_m) -> set[str]:
+    def _log_ego(self, ego_xy_m, ego_goal_m, ego_heading=None) -> set[str]:
         ego = _as_points(np.reshape(ego_xy_m, (1, 2)), "ego_xy_m", (1, 2))
         self._rec.log("world/ego", rr.Points2D(ego, radii=EGO_RADIUS_M, colors=(255, 255, 255), labels="ego",
                                                draw_order=11.0))
+        logged = {"world/ego"}
+        if ego_heading is not None:
+            heading = _as_points(np.reshape(ego_heading, (1, 2)), "ego_heading", (1, 2))
+            self._rec.log("world/ego/heading", rr.Arrows2D(origins=ego, vectors=heading * EGO_RADIUS_M,
+                                                           colors=(0, 0, 0), draw_order=12.0))
+            logged.add("world/ego/heading")
         if ego_goal_m is None:
-            return {"world/ego"}
+            return logged
         goal = _as_points(np.reshape(ego_goal_m, (1, 2)), "ego_goal_m", (1, 2))
         self._rec.log("world/ego/goal", rr.Points2D(goal, radii=EGO_RADIUS_M / 2, colors=GT_RGB, labels="goal",
                                                     draw_order=11.0))
-        return {"world/ego", "world/ego/goal"}
+        return logged | {"world/ego/goal"}
 
 
 def _as_points(array, name: str, shape: tuple[int | None, ...], allow_nan: bool = False) -> np.ndarray:

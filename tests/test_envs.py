@@ -15,8 +15,9 @@ from hypothesis import strategies as st
 
 import envs
 from envs import STCROWD_IDS
-from envs.common.ego import SpawnPoints, action_to_velocity, on_image, require_on_map, spawn_start_goal, walkable_points
+from envs.common.ego import SpawnPoints, on_image, require_on_map, spawn_start_goal, walkable_points
 from replays import SCENE_NAMES, load_scene
+from st_sim.sim.robot import ROBOTS, limited_command
 
 ROLLOUT_STEPS = 30
 ACTION_SPACE_ADVICE = ".*symmetric and normalized.*"  # the action is a velocity in m/s, on purpose
@@ -93,14 +94,14 @@ def test_env_action_is_clipped_or_rejected(fuzz_envs: dict[str, gym.Env], env_id
     obs, reward, *_ = env.step(action)
     for key, value in obs.items():
         assert np.isfinite(value).all(), f"{key} not finite after action {action}"
-    assert np.hypot(*obs["ego"][2:4]) <= env.unwrapped.cfg.max_speed_mps + 1e-5, f"speed not clipped: {obs['ego']}"
+    assert np.hypot(*obs["ego"][2:4]) <= env.unwrapped.robot.max_speed_mps + 1e-5, f"speed not clipped: {obs['ego']}"
     assert np.isfinite(reward)
 
 
 @settings(max_examples=200, deadline=None)
 @given(vx=st.floats(allow_nan=False, allow_infinity=False), vy=st.floats(allow_nan=False, allow_infinity=False))
-def test_action_to_velocity_keeps_direction_within_speed_limit(vx: float, vy: float) -> None:
-    velocity = action_to_velocity(np.array([vx, vy]), max_speed_mps=1.5)
+def test_limited_command_keeps_direction_within_speed_limit(vx: float, vy: float) -> None:
+    velocity = limited_command(ROBOTS["holonomic"], np.array([vx, vy]))[0]
     assert np.isfinite(velocity).all() and np.hypot(*velocity) <= 1.5 + 1e-9
     if max(abs(vx), abs(vy)) <= 1.5 and np.hypot(vx, vy) <= 1.5:
         assert velocity.tolist() == [vx, vy]

@@ -68,9 +68,10 @@ def test_replay_collision_is_a_pedestrian_collision() -> None:
 
 def test_sim_ego_velocity_follows_the_command_within_the_exposed_acceleration_limit() -> None:
     env = gym.make(SIM_ID, predictor="cvm")
-    accel_mps2 = env.unwrapped.ego_max_accel_mps2
+    accel_mps2 = env.unwrapped.robot.max_accel_mps2
     assert accel_mps2 == pytest.approx(2.0)
-    assert gym.make("STCrowd-Zara1-v0", predictor="cvm").unwrapped.ego_max_accel_mps2 == float("inf")
+    assert gym.make("STCrowd-Zara1-v0", predictor="cvm").unwrapped.robot == env.unwrapped.robot, \
+        "one robot in every world"
     obs, _ = env.reset(seed=2)
     speeds = []
     for t in range(4):  # full speed toward the goal from standing: 0.8 m/s more per 0.4 s step, no faster

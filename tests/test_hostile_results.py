@@ -387,7 +387,8 @@ def test_markup_and_mathtext_in_labels_draw_as_text(tmp_path: Path) -> None:
 def test_results_of_other_suite_content_metrics_or_seeds_are_not_tabled_together(tmp_path: Path) -> None:
     episodes = plain_lines(Outcome.GOAL, Outcome.TIMEOUT, Outcome.WALL)
     mine = load_result_of(honest([episodes]))
-    for key, value in (("suite_sha256", "cd" * 32), ("benchmark_version", "1")):
+    for key, value in (("suite_sha256", "cd" * 32), ("benchmark_version", "1"), ("robot", "diff-drive"),
+                       ("sensing", "realistic")):
         other = load_result_of(honest([episodes], policy="other", **{key: value}))
         with pytest.raises(LeaderboardError, match=f"different episodes \\({key} "):
             check_comparable([mine, other])

@@ -51,7 +51,7 @@ def test_the_shipped_suite_has_disjoint_seed_lists_and_every_scenario_makes() ->
     assert len(set(names)) == len(names) and {"univ-reactive", "sim-crossing", "frontal-approach"} <= set(names)
     for scenario in SUITE.scenarios:
         env = gym.make(scenario.env, **env_kwargs_of(scenario, "none"))
-        assert env.reset(seed=SUITE.seeds["val"][0])[0]["ego"].shape == (6,), scenario.name
+        assert env.reset(seed=SUITE.seeds["val"][0])[0]["ego"].shape == (9,), scenario.name
         env.close()
 
 
@@ -146,7 +146,7 @@ def test_a_policy_from_outside_the_project_runs_every_scenario_with_a_plain_loop
     assert (summary["suite"], summary["suite_version"], summary["split"]) == (SUITE.name, SUITE.version, "val")
     lines = [json.loads(line) for line in (out / "episodes.jsonl").read_text().splitlines()]
     assert len(lines) == 2 * len(SUITE.scenarios)
-    documented = set(re.findall(r"^\| `(\w+)` \| (?:safety|efficiency|comfort) \|",  # the metrics table's rows
+    documented = set(re.findall(r"^\| `(\w+)` \| (?:safety|efficiency|comfort|perception) \|",  # the table's rows
                                 (REPO / "docs" / "benchmark-your-policy.md").read_text(), re.M))
     assert all(set(line) == {"scenario", "episode", "seed", "outcome"} | documented for line in lines), \
         "an episode line holds exactly the keys the guide lists: scenario, episode, seed, outcome, every metric"

@@ -13,6 +13,7 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 import pytest
+from robot_obs import facing
 
 import envs  # noqa: F401  (registers the ids)
 from replays.constants import STEP_S, T_OBS
@@ -68,7 +69,7 @@ def observation(ego_xy: np.ndarray, ego_v: np.ndarray, goal: np.ndarray,
                 people: list[tuple[np.ndarray, np.ndarray]] = ()) -> dict[str, np.ndarray]:
     """An STCrowd observation: the robot, its goal, and each (position, velocity) person with T_obs frames."""
     rows = max(2, len(people))
-    obs = {"ego": np.array([*ego_xy, *ego_v, *goal], np.float32),
+    obs = {"ego": np.array([*ego_xy, *ego_v, *goal, *facing(ego_xy, ego_v, goal), 0.0], np.float32),
            "history": np.zeros((rows, T_OBS, 2), np.float32), "history_mask": np.zeros((rows, T_OBS), bool),
            "futures": np.zeros((rows, 1, 12, 2), np.float32), "futures_mask": np.zeros(rows, bool)}
     for row, (xy, velocity) in enumerate(people):

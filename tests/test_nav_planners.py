@@ -6,6 +6,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from robot_obs import facing
 
 from replays.constants import STEP_S, T_OBS, T_PRED
 from replays.scenes import Scene
@@ -30,7 +31,7 @@ def observation(ego_xy: np.ndarray, ego_v: np.ndarray, step: int) -> dict[str, n
     fanned out by +-10 degrees."""
     times = (step + np.arange(-T_OBS + 1, T_PRED + 1)) * STEP_S
     track = CROSSER_START + times[:, None] * CROSSER_VELOCITY  # (T_obs + 12, 2)
-    obs = {"ego": np.array([*ego_xy, *ego_v, *GOAL], np.float32),
+    obs = {"ego": np.array([*ego_xy, *ego_v, *GOAL, *facing(ego_xy, ego_v, GOAL), 0.0], np.float32),
            "history": np.zeros((2, T_OBS, 2), np.float32), "history_mask": np.zeros((2, T_OBS), bool),
            "futures": np.zeros((2, SAMPLES, T_PRED, 2), np.float32), "futures_mask": np.zeros(2, bool)}
     obs["history"][0], obs["history_mask"][0] = track[:T_OBS], True
@@ -97,8 +98,9 @@ def test_orca_without_pyrvo_names_the_extra(open_world: NavWorld, monkeypatch: p
 
 
 def test_mpc_weighs_samples_by_their_prior(open_world: NavWorld) -> None:
-    """A pedestrian beside the path: its 15 likely samples stay put, 5 unlikely ones walk onto the path."""
-    obs = observation(np.zeros(2), np.zeros(2), 0)
+    """A pedestrian beside the path: its 15 likely samples stay put, 5 unlikely ones walk onto the path (the robot
+    already drives along it at full speed)."""
+    obs = observation(np.zeros(2), np.array([open_world.max_speed_mps, 0.0]), 0)
     stay = np.array([3.0, 1.5])
     obs["history"][0] = stay
     samples = np.repeat(stay[None, None], SAMPLES, axis=0).repeat(T_PRED, axis=1)  # (S, 12, 2)

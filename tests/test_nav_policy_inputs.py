@@ -32,8 +32,11 @@ from st_sim.apps.navigation.features import (
 from st_sim.apps.navigation.pedestrians import pedestrians_of
 from st_sim.apps.navigation.ppo import build_policy, load_policy, save_policy
 from st_sim.apps.navigation.world import world_of
+from st_sim.sim.robot import RobotSpec
 
 CONFIGS = [FeatureConfig(True), FeatureConfig(False), FeatureConfig(True, closest_approach=True)]
+
+AGILE = RobotSpec(max_accel_mps2=100.0, max_brake_mps2=100.0)  # reaches any command within a 0.2 s substep
 
 
 def _features(cfg: FeatureConfig, rng: np.random.Generator, batch: int, present: np.ndarray) -> torch.Tensor:
@@ -98,11 +101,12 @@ class CourseCrossing:
 @pytest.mark.parametrize("k", [1, 3, 7])
 def test_the_prediction_reward_part_halves_with_each_step_to_the_predicted_meeting(k: int) -> None:
     predictor = CourseCrossing()
-    env = gym.make("STCrowd-Zara1-v0", predictor=predictor, config=EnvConfig(reward=RewardWeights(prediction=-3.0)))
+    env = gym.make("STCrowd-Zara1-v0", predictor=predictor, config=EnvConfig(reward=RewardWeights(prediction=-3.0)),
+                   robot=AGILE)
     env.reset(seed=2)
     unwrapped = env.unwrapped
     velocity = np.array([0.0, 1.5])  # 0.6 m a step: the 0.55 m contact distance covers one step of its course
-    after = unwrapped.ego_xy_m + STEP_S * velocity  # the point robot moves at the commanded velocity at once
+    after = unwrapped.ego_xy_m + STEP_S * velocity  # the agile robot moves at the commanded velocity at once
     predictor.where = after + k * STEP_S * velocity  # where its course will be k steps after this one
     _, reward, terminated, _, info = env.step(velocity)
     assert np.allclose(unwrapped.ego_xy_m, after) and not terminated
@@ -116,7 +120,7 @@ def test_the_prediction_reward_part_halves_with_each_step_to_the_predicted_meeti
 
 def test_closest_approach_features_say_how_near_and_when() -> None:
     predictor = CourseCrossing()
-    env = gym.make("STCrowd-Zara1-v0", predictor=predictor)
+    env = gym.make("STCrowd-Zara1-v0", predictor=predictor, robot=AGILE)
     obs, _ = env.reset(seed=5)
     velocity = np.array([1.0, 0.0])
     predictor.where = env.unwrapped.ego_xy_m + STEP_S * velocity + 6 * STEP_S * velocity + np.array([0.0, 0.3])

@@ -7,6 +7,7 @@ from __future__ import annotations
 import importlib
 import json
 import os
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -118,6 +119,17 @@ def test_the_shipped_predictors_checkpoints_and_stcrowds_own_code_are_part_of_th
     monkeypatch.setattr(benchmark, "stcrowd_identity", lambda: edited)
     refused(tmp_path / "run", "straight", "STCrowd.s version, code or data changed: source_sha256 changed",
             predictor="singular")
+
+
+def test_a_run_on_another_robot_or_sensing_is_refused_on_resume(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    run = BenchmarkRun("straight", str(out), predictor="none", split="val", episodes=1, scenarios=("frontal-approach",))
+    summary = run_benchmark(run, workers=1, progress=False)
+    assert (summary["robot"], summary["sensing"]) == ("holonomic", "oracle")
+    for change in ({"robot": "diff-drive"}, {"sensing": "range"}):
+        key = next(iter(change))
+        with pytest.raises(BenchmarkError, match=f"{key} '"):
+            run_benchmark(replace(run, **change), workers=1, progress=False)
 
 
 def test_another_suite_under_the_same_name_and_version_is_refused_on_resume(tmp_path: Path) -> None:

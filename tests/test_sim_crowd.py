@@ -89,14 +89,15 @@ def test_ego_follows_the_command_within_speed_and_acceleration_limits() -> None:
     for t in range(8):
         sim.step(np.array([5.0, 0.0]))  # asks for more than the top speed
         for _ in range(cfg.n_substeps):
-            command = min(command + ego.max_accel_mps2 * dt_s, ego.max_speed_mps)
+            command = min(command + ego.robot.max_accel_mps2 * dt_s, ego.robot.max_speed_mps)
             expected_x += command * dt_s
         assert sim.ego_velocity_mps == pytest.approx([command, 0.0], abs=1e-9), f"[step {t}]"
         assert sim.ego_position_m == pytest.approx([expected_x, start[1]], abs=1e-9), f"[step {t}]"
         assert not sim.ego_collided, f"[step {t}]"
-    assert command == ego.max_speed_mps
+    assert command == ego.robot.max_speed_mps
     sim.step(None)  # no command = brake
-    assert np.linalg.norm(sim.ego_velocity_mps) == pytest.approx(ego.max_speed_mps - ego.max_accel_mps2 * STEP_S)
+    assert np.linalg.norm(sim.ego_velocity_mps) == pytest.approx(ego.robot.max_speed_mps
+                                                                 - ego.robot.max_brake_mps2 * STEP_S)
 
 
 def test_ego_reports_contact_with_a_wall() -> None:

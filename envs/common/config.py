@@ -80,10 +80,9 @@ class RewardWeights:
 
 @dataclass(frozen=True)
 class EnvConfig:
-    """Ego robot and episode settings shared by the replay and simulated environments (ranges in brackets)."""
+    """Ego robot and episode settings shared by the replay and simulated environments (ranges in brackets). The
+    robot's kind, speed and acceleration limits are the env's ``robot`` (``st_sim.sim.robot.RobotSpec``)."""
 
-    max_speed_mps: float = 1.5
-    """ego speed limit; actions are velocity vectors scaled down to this norm [m/s], (0, 20]"""
     ego_radius_m: float = 0.3
     """ego body radius [m], (0, 5]"""
     pedestrian_radius_m: float = 0.25
@@ -113,7 +112,7 @@ class EnvConfig:
     def __post_init__(self) -> None:
         positive = {"low": 0.0, "low_open": True}
         check_fields(self, {
-            "max_speed_mps": Interval(high=20.0, **positive), "ego_radius_m": Interval(high=5.0, **positive),
+            "ego_radius_m": Interval(high=5.0, **positive),
             "pedestrian_radius_m": Interval(high=5.0, **positive), "goal_radius_m": Interval(high=100.0, **positive),
             "spawn_clearance_m": Interval(0.0, 100.0), "goal_min_fraction": Interval(0.0, 1.0),
             "arena_margin_m": Interval(0.0, 100.0), "sensor_range_m": Interval(high=math.inf, **positive),

@@ -4,8 +4,9 @@ A subclass provides the crowd (and moves the ego) through four hooks: ``_reset_w
 to now, drawn from its ``np_random``) and ``_step_worlds`` (one 0.4 s step of every env's world), each over a batch
 of envs of the class, ``_ego_contact`` (the step's first pedestrian contact, wall contact, closest approach) and
 ``_world_ended``. It keeps ``ego_xy_m``,
-``ego_velocity_mps`` and ``goal_m`` up to date (and ``ego_max_accel_mps2`` if its ego has inertia), lists the
-``reset`` options it reads in ``RESET_OPTIONS`` and checks their values in ``_check_options``.
+``ego_velocity_mps`` and ``goal_m`` up to date, gives the robot model its world moves the ego with (``robot_model``:
+``st_sim.sim.robot``, the same kind and limits in every world, ``robot``), lists the ``reset`` options it reads in
+``RESET_OPTIONS`` and checks their values in ``_check_options``.
 
 How an episode ends is in ``info["termination"]``: "goal", "pedestrian_collision", "wall_collision" (the
 step that terminated the episode; a collision outranks the goal, a pedestrian outranks a wall) or None
@@ -42,7 +43,7 @@ import numpy as np
 from gymnasium import spaces
 
 from envs.common.config import EnvConfig
-from envs.common.ego import action_to_velocity, checked_action, on_image, require_on_map
+from envs.common.ego import checked_command, on_image, require_on_map
 from envs.common.errors import ConfigError, EgoPlacementError, EnvInputError, NeedsResetError, ResetOptionsError
 from envs.common.fault import RobotMotion, robot_at_fault
 from envs.common.predictors import (
@@ -59,10 +60,18 @@ from envs.common.tracks import Frame, TrackBuffer, lookup
 from predictor.devices import DeviceError, check_device_name
 from replays.constants import FORECAST_LIMIT_M, POSITION_LIMIT_M, STEP_S, T_PRED
 from replays.scenes import Scene
+from st_sim.perception import Perception, SensingSpec, SensingSpecError, sensing_spec
+from st_sim.perception.perception import PerceptionInfo
 from st_sim.sim.exact import length
+from st_sim.sim.robot import Robot, RobotSpec, RobotSpecError, robot_spec
 from st_sim.sim.sweep import Contact, closest_approach, first_contact
 
-EGO_FIELDS = ("x_m", "y_m", "vx_mps", "vy_mps", "goal_x_m", "goal_y_m")  # layout of obs["ego"]
+ROBOT_STREAM, SENSING_STREAM = 1, 2  # own_rng streams: the robot's actuation noise, the sensor's draws
+TURN_BOUND_RADPS = 20.0  # obs["ego"] bound of a holonomic robot's turn rate (always 0): the largest a spec allows
+EGO_FIELDS = ("x_m", "y_m", "vx_mps", "vy_mps", "goal_x_m", "goal_y_m", "heading_cos", "heading_sin",
+              "yaw_rate_radps")
+"""layout of ``obs["ego"]``: position, velocity, goal [m, m/s], the unit vector the robot faces, its turn rate [rad/s]
+(a holonomic robot faces where it last moved and does not turn: 0)"""
 REWARD_PARTS = ("progress", "goal", "pedestrian_collision", "wall_collision", "off_map", "time", "discomfort",
                 "predicted_collision")
 WEIGHT_OF: dict[str, str] = {"pedestrian_collision": "collision", "wall_collision": "collision",
@@ -82,7 +91,8 @@ class CrowdEnv(gym.Env):
     def __init__(self, scene: Scene, n_max: int, where: str, predictor: Any = "auto",
                  task: str = "stochastic", ego: bool = True, render_mode: str | None = None,
                  config: EnvConfig | None = None, pretrained: str = "universal",
-                 rerun: str | os.PathLike | None = None, root: str | os.PathLike | None = None, device: str = "auto"):
+                 rerun: str | os.PathLike | None = None, root: str | os.PathLike | None = None, device: str = "auto",
+                 robot: str | RobotSpec | None = None, sensing: str | SensingSpec | None = None):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise EnvInputError(f"render_mode={render_mode!r}: expected None or 'rgb_array'")
         check_flag("ego", ego)
@@ -94,6 +104,15 @@ class CrowdEnv(gym.Env):
             from st_sim.rerun_log import checked_recording_target
 
             rerun = checked_recording_target(rerun)
+        try:
+            self.robot: RobotSpec = robot_spec(robot)
+            """the robot in force: kind and limits (``st_sim.sim.robot.RobotSpec``)"""
+            self.sensing: SensingSpec = sensing_spec(sensing)
+            """what the robot senses (``st_sim.perception.SensingSpec``; the default, ``oracle``: everything)"""
+        except (RobotSpecError, SensingSpecError) as err:
+            raise EnvInputError(f"{where}: {err}") from None
+        if not self.sensing.oracle and not ego:
+            raise EnvInputError(f"{where}: sensing={sensing!r} needs a robot (ego=True); a spectator sees everything")
         self.scene, self.n_max, self.where = scene, n_max, where
         self.cfg = config or EnvConfig()
         self.t_obs, self.num_samples = task_sizes(task)
@@ -103,10 +122,16 @@ class CrowdEnv(gym.Env):
         except DeviceError as err:
             raise EnvInputError(f"{where}: {err}") from None
         self.tracks = TrackBuffer(n_max, self.t_obs, where)
+        """the truth: every pedestrian in the world (collisions, fault and evaluation read it)"""
+        self.perception: Perception | None = None if self.sensing.oracle else Perception(
+            self.sensing, n_max, scene, self.cfg.pedestrian_radius_m, self.cfg.ego_radius_m)
+        self.observed = self.tracks if self.perception is None else TrackBuffer(n_max, self.t_obs, where)
+        """what the observation shows: the truth (``oracle``), or the tracks of what the robot perceived"""
         self.metrics = RunningMetrics(scene)
 
-        limit, reach, speed = POSITION_LIMIT_M, FORECAST_LIMIT_M, self.cfg.max_speed_mps
-        self._ego_high = np.array([limit, limit, speed, speed, limit, limit], np.float32)  # see EGO_FIELDS
+        limit, reach, speed = POSITION_LIMIT_M, FORECAST_LIMIT_M, self.robot.max_speed_mps
+        turn = self.robot.max_yaw_rate_radps if math.isfinite(self.robot.max_yaw_rate_radps) else TURN_BOUND_RADPS
+        self._ego_high = np.array([limit, limit, speed, speed, limit, limit, 1, 1, turn], np.float32)  # EGO_FIELDS
         self.observation_space = spaces.Dict({
             "ego": spaces.Box(-self._ego_high, self._ego_high, dtype=np.float32),
             "history": spaces.Box(-limit, limit, (n_max, self.t_obs, 2), np.float32),
@@ -114,13 +139,12 @@ class CrowdEnv(gym.Env):
             "futures": spaces.Box(-reach, reach, (n_max, self.num_samples, T_PRED, 2), np.float32),
             "futures_mask": spaces.Box(0, 1, (n_max,), np.bool_),
         })
-        self.action_space = spaces.Box(-speed, speed, (2,), np.float32)
+        self.action_space = spaces.Box(self.robot.command_low.astype(np.float32),
+                                       self.robot.command_high.astype(np.float32), dtype=np.float32)
 
         self.ego_xy_m = np.zeros(2)
         self.ego_velocity_mps = np.zeros(2)
         self.goal_m = np.zeros(2)
-        self.ego_max_accel_mps2 = float("inf")
-        """how fast the ego's velocity can change [m/s^2]; inf: it moves at the commanded velocity at once"""
         self._obs: dict[str, np.ndarray] | None = None
         self.forecasts: ForecastCache | None = ForecastCache()
         """forecasts kept for moments that recur (``_forecast_moment``); None: always predict afresh"""
@@ -131,6 +155,7 @@ class CrowdEnv(gym.Env):
         self._contact: Contact | None = None  # the step's first pedestrian contact, if any
         self._motion = RobotMotion()  # the ego's past before this step, as the at-fault rule reads it
         self._episode_over = False  # terminated, or the world ended: step needs a reset first
+        self._episode = 0  # episodes since the last seeded reset (own_rng)
         self._interrupted: str | None = None  # why the last step could not finish: step needs a reset first
         self.anchors: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # (ids, prototype, adapted)
         self.rerun_target, self._rerun, self._rerun_step = rerun, None, 0
@@ -143,8 +168,8 @@ class CrowdEnv(gym.Env):
         return self.end_reset(*forecast_all([self])[0])  # if it fails, step is refused until a reset succeeds
 
     def step(self, action: np.ndarray) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
-        velocity_mps = self.check_step(action)
-        self.advance_all([self], [velocity_mps])
+        command = self.check_step(action)
+        self.advance_all([self], [command])
         return self.end_step(*forecast_or_interrupt([self])[0])
 
     @classmethod
@@ -161,14 +186,14 @@ class CrowdEnv(gym.Env):
             env._finish_reset(frames)
 
     @classmethod
-    def advance_all(cls, envs: Sequence[CrowdEnv], velocities_mps: Sequence[np.ndarray | None]) -> None:
+    def advance_all(cls, envs: Sequence[CrowdEnv], commands: Sequence[np.ndarray | None]) -> None:
         """First half of ``step`` for several envs of this class, after ``check_step``: move every world 0.4 s
-        (``_step_worlds``), ego i at ``velocities_mps[i]`` (2,) m/s; no forecast yet. If a world fails, every env
+        (``_step_worlds``), ego i's robot given ``commands[i]`` (2,); no forecast yet. If a world fails, every env
         refuses to step until it is reset (``interrupt``)."""
         for env in envs:
             env._previous_xy_m = env.ego_xy_m.copy()
         try:
-            frames = cls._step_worlds(envs, velocities_mps)
+            frames = cls._step_worlds(envs, commands)
         except Exception as err:
             for env in envs:
                 env.interrupt(f"the world's step failed: {err}")
@@ -189,13 +214,17 @@ class CrowdEnv(gym.Env):
         self._obs, self._episode_over, self._interrupted = None, False, None
         self._motion = RobotMotion()
         self.tracks.clear()
+        self.observed.clear()
+        self._episode = 0 if seed is not None else self._episode + 1
         self.metrics.reset()
         return options
 
     def _finish_reset(self, frames: list[Frame]) -> None:
         """Take the world's first frames (oldest first) after ``_prepare_reset``; check the ego's placement."""
+        if self.perception is not None:
+            self.perception.reset(self.own_rng(SENSING_STREAM))
         for frame in frames:
-            self.tracks.push(frame)
+            self._take(frame)
         if self.ego:
             require_on_map(self.scene, self.ego_xy_m, "the ego's start", walkable=True)
             require_on_map(self.scene, self.goal_m, "the ego's goal", walkable=True)
@@ -213,8 +242,16 @@ class CrowdEnv(gym.Env):
 
     def _advanced(self, frame: Frame) -> None:
         """Take the world's frame after a step."""
-        self.tracks.push(frame)
+        self._take(frame)
         self._sense()
+
+    def _take(self, frame: Frame) -> None:
+        """Keep the world's newest frame, and what the robot perceives of it (the tracks, as a frame of track ids)."""
+        self.tracks.push(frame)
+        if self.perception is not None:
+            robot = self.robot_model
+            tracks = self.perception.sense(frame.ids, frame.xy_m, self.ego_xy_m, robot.heading)
+            self.observed.push(Frame(frame.frame, tracks.ids, tracks.xy_m))
 
     def interrupt(self, reason: str) -> None:
         """Refuse every ``step`` until ``reset``: the step in progress could not finish (``reason``), and as its world
@@ -222,8 +259,8 @@ class CrowdEnv(gym.Env):
         self._interrupted = f"{reason} (at frame {self.tracks.now.frame if self.tracks.frames else None})"
 
     def check_step(self, action: Any) -> np.ndarray | None:
-        """The ego velocity (2,) m/s that ``action`` commands (None in spectator mode), after every check that
-        ``step`` makes before anything changes; raises ``EnvInputError`` or ``NeedsResetError``."""
+        """The robot's command (2,) that ``action`` gives (None in spectator mode), after every check that ``step``
+        makes before anything changes; raises ``EnvInputError`` or ``NeedsResetError``."""
         if self._interrupted is not None:
             raise NeedsResetError(f"{self.where}: the last step did not finish, {self._interrupted}; its world had "
                                   "already moved, so call reset() before stepping again")
@@ -232,11 +269,11 @@ class CrowdEnv(gym.Env):
         if self._episode_over:
             raise NeedsResetError(f"{self.where}: the episode has ended (goal, collision or end of the "
                                   "recording); call reset() before stepping again")
-        velocity = action_to_velocity(action, self.cfg.max_speed_mps) if self.ego else checked_action(action)
+        command = checked_command(action, self.robot.command_names, finite=self.ego)
         if self.ego and not on_image(self.scene, self.ego_xy_m):
             raise EgoPlacementError(f"{self.where}: the ego is at {self.ego_xy_m.tolist()} m, off the scene's "
                                     "image; it can only be moved there by assigning ego_xy_m")
-        return velocity if self.ego else None
+        return command if self.ego else None
 
     def end_step(self, predicted: np.ndarray, anchors: tuple[np.ndarray, np.ndarray] | None
                  ) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
@@ -259,7 +296,7 @@ class CrowdEnv(gym.Env):
         """What the ego senses of the newest frame: the histories (pedestrians beyond ``sensor_range_m`` emptied)
         and the rows to forecast (``_predicted_rows`` among the sensed; with ``forecast_nearest`` k, among the k
         sensed nearest to the ego, measured as a policy measures them in the observation)."""
-        history, mask = self.tracks.history()
+        history, mask = self.observed.history()
         rows = targets = self._predicted_rows()
         if self.ego and (math.isfinite(self.cfg.sensor_range_m) or self.cfg.forecast_nearest is not None):
             ego_m = np.clip(self.ego_xy_m, -self._ego_high[:2], self._ego_high[:2]).astype(np.float32)
@@ -287,15 +324,15 @@ class CrowdEnv(gym.Env):
         moment = self._forecast_moment()
         if moment is None or self.forecasts is None:
             return None
-        return self.forecasts.get(moment, self.tracks.row_ids[self._rows], self.tracks.row_ids[self._context_rows],
+        return self.forecasts.get(moment, self.observed.row_ids[self._rows], self.observed.row_ids[self._context_rows],
                                   anchors=self.rerun_target is not None and gives_anchors(self.predictor))
 
     def remember_forecast(self, forecast: Forecast) -> None:
         """Keep the forecast of ``forecast_request()`` for later visits of this moment (if it can recur)."""
         moment = self._forecast_moment()
         if moment is not None and self.forecasts is not None:
-            self.forecasts.put(moment, self.tracks.row_ids[self._rows], forecast,
-                               self.tracks.row_ids[self._context_rows])
+            self.forecasts.put(moment, self.observed.row_ids[self._rows], forecast,
+                               self.observed.row_ids[self._context_rows])
 
     def close(self) -> None:
         """Finish the Rerun recording, if any; a later step starts a new, numbered one."""
@@ -324,9 +361,9 @@ class CrowdEnv(gym.Env):
         raise NotImplementedError
 
     @classmethod
-    def _step_worlds(cls, envs: Sequence[CrowdEnv], velocities_mps: Sequence[np.ndarray | None]) -> list[Frame]:
-        """Advance every env's world 0.4 s, ego i moving at ``velocities_mps[i]`` (2,) m/s (None in spectator
-        mode); each env's new frame."""
+    def _step_worlds(cls, envs: Sequence[CrowdEnv], commands: Sequence[np.ndarray | None]) -> list[Frame]:
+        """Advance every env's world 0.4 s, ego i's robot (``robot_model``) driven by ``commands[i]`` (2,) (None in
+        spectator mode); each env's new frame."""
         raise NotImplementedError
 
     def _ego_contact(self) -> tuple[Contact | None, bool, float]:
@@ -362,6 +399,18 @@ class CrowdEnv(gym.Env):
         raise NotImplementedError
 
     @property
+    def robot_model(self) -> Robot:
+        """The ego's robot model now (its motion, heading, pending commands and last report; ``st_sim.sim.robot``),
+        held by the world that moves it."""
+        raise NotImplementedError
+
+    def _new_robot(self, start_m: np.ndarray, goal_m: np.ndarray) -> Robot:
+        """A robot of ``robot`` at rest facing from ``start_m`` to ``goal_m`` (2,) [m]; with actuation noise, its own
+        generator (``own_rng``)."""
+        rng = self.own_rng(ROBOT_STREAM) if self.robot.actuation_noise > 0 else None
+        return Robot(self.robot, np.asarray(goal_m, np.float64) - start_m, rng)
+
+    @property
     def wall_clearance_m(self) -> float:
         """Least distance the ego's centre keeps from non-walkable ground [m]: its radius where walls are solid
         (simulated crowds: touching one is a collision), 0 where they are only marked on the map (replays: an off-map
@@ -378,8 +427,8 @@ class CrowdEnv(gym.Env):
         return None
 
     def _predicted_rows(self) -> np.ndarray:
-        """Observation rows that get predictions this step (default: every agent with T_obs frames)."""
-        return self.tracks.predictable_rows()
+        """Observation rows that get predictions this step (default: every agent, or track, with T_obs frames)."""
+        return self.observed.predictable_rows()
 
     # helpers -----------------------------------------------------------------------------------------
 
@@ -403,15 +452,19 @@ class CrowdEnv(gym.Env):
         """Observation of the newest frame, with ``predicted`` (P, S, 12, 2) futures of the rows chosen when the
         frame came (``_sense``, ``_predicted_rows``: every agent with T_obs frames by default)."""
         (history, history_mask), rows = self._history, self._rows
-        self.anchors = None if anchors is None else (self.tracks.row_ids[rows], *anchors)
-        self.metrics.update_predictions(self.tracks, self.tracks.row_ids[rows], predicted)
+        self.anchors = None if anchors is None else (self.observed.row_ids[rows], *anchors)
+        truth = self.true_ids(rows)
+        scored = (truth >= 0) & first_of_each(truth)  # a false track's forecast has no truth to meet
+        self.metrics.update_predictions(self.tracks, truth[scored], predicted[scored])
         futures = np.zeros((self.n_max, self.num_samples, T_PRED, 2), np.float32)
         futures[rows] = predicted
         futures_mask = np.zeros(self.n_max, bool)
         futures_mask[rows] = True
         ego = np.zeros(len(EGO_FIELDS), np.float32)
         if self.ego:
-            state = np.concatenate([self.ego_xy_m, self.ego_velocity_mps, self.goal_m])
+            robot = self.robot_model
+            state = np.concatenate([self.ego_xy_m, self.ego_velocity_mps, self.goal_m, robot.heading,
+                                    [robot.yaw_rate_radps]])
             ego[:] = np.clip(state, -self._ego_high, self._ego_high)
         return {"ego": ego, "history": history, "history_mask": history_mask,
                 "futures": futures, "futures_mask": futures_mask}
@@ -472,8 +525,10 @@ class CrowdEnv(gym.Env):
         """Fresh info dict; ``agent_ids[i]``/``predicted_ids[i]`` name the agent of observation row i (-1: none);
         ``termination`` is what ended the episode this step (see ``TERMINATIONS``), None otherwise; on a pedestrian
         collision ``contact_time_s`` is the moment of impact [s into the step] and ``at_fault`` the judgement then
-        (``envs.common.fault``), on a wall collision ``at_fault`` is True."""
-        row_ids = self.tracks.row_ids.copy()
+        (``envs.common.fault``), on a wall collision ``at_fault`` is True; ``robot`` what became of the step's command
+        (``st_sim.sim.robot.Actuation``, an object rather than a dict, so that gymnasium's vector envs keep each
+        sub-env's; None at a reset and in spectator mode)."""
+        row_ids = self.observed.row_ids.copy()
         hit = self._contact if termination == "pedestrian_collision" else None
         at_fault = (True if termination == "wall_collision" else None if hit is None
                     else robot_at_fault(hit, self._motion))
@@ -486,7 +541,33 @@ class CrowdEnv(gym.Env):
             "contact_time_s": None if hit is None else float(hit.time_s),
             "at_fault": at_fault,
             "metrics": self.metrics.summary(),
+            "robot": self.robot_model.last if self.ego else None,
+            **({} if self.perception is None else {"perception": PerceptionInfo(self._perception_info())}),
         }
+
+    def _perception_info(self) -> dict[str, Any]:
+        """The step's truth beside the perception (``Perception.last``); a world adds what it knows of the truth."""
+        return dict(self.perception.last)
+
+    def true_ids(self, rows: np.ndarray) -> np.ndarray:
+        """(R,) int64 the true pedestrian id behind each observation row of ``rows`` (-1: an empty row, or a track of
+        false detections): the row's id itself with the ``oracle``, else the true id of its track's last detection
+        (evaluation only)."""
+        ids = self.observed.row_ids[rows]
+        if self.perception is None:
+            return ids.copy()
+        last = self.perception.last
+        order = np.argsort(last["track_ids"])
+        index = lookup(last["track_ids"][order], ids)
+        source = np.append(last["track_from"][order], -1)  # index -1 (no such track) reads the -1 at the end
+        return source[index]
+
+    def own_rng(self, stream: int) -> np.random.Generator:
+        """A generator of its own for ``stream`` (the robot's noise, the sensor's draws), seeded from the episode's seed
+        and the episodes since, without drawing from ``np_random``: what it draws never changes the crowd."""
+        seeds = self.np_random.bit_generator.seed_seq
+        return np.random.default_rng(np.random.SeedSequence(seeds.entropy, spawn_key=(*seeds.spawn_key, stream,
+                                                                                          self._episode)))
 
 
 def forecast_or_interrupt(envs: Sequence[CrowdEnv], batch: Sequence[CrowdEnv] | None = None) -> list[Forecast]:
@@ -498,6 +579,13 @@ def forecast_or_interrupt(envs: Sequence[CrowdEnv], batch: Sequence[CrowdEnv] | 
         for env in envs if batch is None else batch:
             env.interrupt(f"the predictor failed: {err}")
         raise
+
+
+def first_of_each(ids: np.ndarray) -> np.ndarray:
+    """(N,) bool: True at the first occurrence of each value of ``ids`` (N,)."""
+    first = np.zeros(len(ids), bool)
+    first[np.unique(ids, return_index=True)[1]] = True
+    return first
 
 
 def is_seed(value: Any) -> bool:
@@ -519,6 +607,9 @@ def rerun_step(obs: dict[str, np.ndarray], info: dict[str, Any], reward: float, 
             "trails": obs["history"][present], "trail_mask": obs["history_mask"][present],
             "predictions": obs["futures"][predicted], "prediction_ids": info["predicted_ids"][predicted],
             "ego_xy_m": obs["ego"][:2].copy() if ego else None, "ego_goal_m": obs["ego"][4:6].copy() if ego else None,
+            "ego_heading": obs["ego"][6:8].copy() if ego else None,
+            "truth_xy_m": info["perception"]["true_xy_m"].copy() if "perception" in info else None,
+            "detections_xy_m": info["perception"]["detected_xy_m"].copy() if "perception" in info else None,
             "metrics": {**metrics, "reward": float(reward)},
             "prototype_anchors": None if anchors is None else anchors[1],
             "adapted_anchors": None if anchors is None else anchors[2]}

@@ -1,4 +1,4 @@
-"""The ego robot's action check, where it starts and where it goes, and how far it may move."""
+"""The ego robot's command check, where it starts and where it goes, and how far it may move."""
 
 from __future__ import annotations
 
@@ -18,39 +18,31 @@ ROUND_TRIP_TOLERANCE_PX = 1e-6
 NUMBER_KINDS = "iuf"  # numpy dtype kinds an action may have: signed, unsigned, float (not bool, complex, text)
 
 
-def checked_action(action: Any) -> np.ndarray:
-    """The action as a (2,) float64 array, after refusing anything that is not 2 real numbers.
+def checked_command(action: Any, names: tuple[str, str] = ("vx_mps", "vy_mps"), finite: bool = True) -> np.ndarray:
+    """The action as a (2,) float64 command, after refusing anything that is not 2 finite real numbers.
+
+    Args:
+        names: what the two components are (the robot's ``command_names``), for the messages.
+        finite: refuse NaN and inf too (False: a spectator env's action, which nothing reads).
 
     Raises:
-        ActionError: complex, text, bool or object values, or a shape other than (2,).
+        ActionError: complex, text, bool or object values, a shape other than (2,), NaN or inf (a broken policy
+            should fail loudly). Nothing in the env changes before this check.
     """
+    what = f"a robot command ({', '.join(names)})"
     try:
         array = np.asarray(action)
     except (ValueError, TypeError) as err:  # ragged nesting and the like
-        raise ActionError(f"action must be an ego velocity (vx, vy) in m/s, got {type(action).__name__}") from err
+        raise ActionError(f"action must be {what}, got {type(action).__name__}") from err
     if array.dtype.kind not in NUMBER_KINDS:
-        raise ActionError(f"action must be 2 real numbers (vx, vy) in m/s, got dtype {array.dtype} "
+        raise ActionError(f"action must be {what} of 2 real numbers, got dtype {array.dtype} "
                           "(bool, complex, text and objects are refused)")
     if array.shape != (2,):
-        raise ActionError(f"action must be an ego velocity (vx, vy) in m/s of shape (2,), got shape {array.shape}")
-    return array.astype(np.float64)
-
-
-def action_to_velocity(action: Any, max_speed_mps: float) -> np.ndarray:
-    """Ego velocity (2,) float64 m/s from an action, scaled down (direction kept) to ``max_speed_mps``.
-
-    Raises:
-        ActionError: not 2 real numbers (see ``checked_action``), or NaN/inf (a broken policy should fail
-            loudly). Nothing in the env changes before this check.
-    """
-    velocity = checked_action(action)
-    if not np.isfinite(velocity).all():
-        raise ActionError(f"action must be finite, got {velocity.tolist()}")
-    largest = np.abs(velocity).max()
-    if largest <= max_speed_mps and np.hypot(*velocity) <= max_speed_mps:
-        return velocity
-    direction = velocity / largest  # no overflow for huge actions
-    return direction * (max_speed_mps / np.hypot(*direction))
+        raise ActionError(f"action must be {what} of shape (2,), got shape {array.shape}")
+    command = array.astype(np.float64)
+    if finite and not np.isfinite(command).all():
+        raise ActionError(f"action must be finite, got {command.tolist()}")
+    return command
 
 
 def on_image(scene: Scene, xy_m: np.ndarray) -> np.ndarray:
@@ -83,6 +75,39 @@ def move_within(scene: Scene, xy_m: np.ndarray, velocity_mps: np.ndarray, dt_s: 
         if on_image(scene, candidate):
             return candidate
     return xy_m.copy()
+
+
+def point_on_image(scene: Scene, x_m: float, y_m: float) -> bool:
+    """``on_image`` of one finite point (x_m, y_m) [m], on floats: the same sums of products, in the same order, as
+    ``replays.scenes.apply_homography`` (the same answer, without an array's overhead)."""
+    H = scene.H_inv
+    u = x_m * float(H[0, 0]) + y_m * float(H[0, 1]) + float(H[0, 2])
+    v = x_m * float(H[1, 0]) + y_m * float(H[1, 1]) + float(H[1, 2])
+    if not (H[2, 0] == 0.0 and H[2, 1] == 0.0 and H[2, 2] == 1.0):
+        w = x_m * float(H[2, 0]) + y_m * float(H[2, 1]) + float(H[2, 2])
+        if w == 0.0:
+            return False
+        u, v = u / w, v / w
+    low, (height, width) = -ROUND_TRIP_TOLERANCE_PX, scene.walkable.shape
+    return low <= u <= width - 1 - low and low <= v <= height - 1 - low
+
+
+def move_along(scene: Scene, xy_m: np.ndarray, velocities_mps: np.ndarray, dt_s: float, low_m: np.ndarray,
+               high_m: np.ndarray) -> np.ndarray:
+    """(2,) metres after the moves ``velocities_mps`` (K, 2) of ``dt_s`` each, one after another, each as
+    ``move_within``: when every point of the way is inside the box and on the image, the way as it is, else move by
+    move."""
+    x, y = float(xy_m[0]), float(xy_m[1])
+    (low_x, low_y), (high_x, high_y) = low_m.tolist(), high_m.tolist()
+    for vx, vy in velocities_mps.tolist():
+        x, y = x + vx * dt_s, y + vy * dt_s
+        if not (low_x <= x <= high_x and low_y <= y <= high_y and point_on_image(scene, x, y)):
+            break
+    else:
+        return np.array([x, y])
+    for velocity_mps in velocities_mps:
+        xy_m = move_within(scene, xy_m, velocity_mps, dt_s, low_m, high_m)
+    return xy_m
 
 
 def walkable_points(scene: Scene, bounds_m: tuple[float, float, float, float]) -> np.ndarray:

@@ -7,11 +7,12 @@ parameters' defaults are the fitted ones (``fits.steering_defaults``).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Final
 
 from st_sim.sim.checks import bounded, check_fields
 from st_sim.sim.fits import POPULATION_FIT, load_fit, steering_defaults
+from st_sim.sim.robot import RobotSpec
 
 PED_MASS_KG: Final[float] = 80.0  # body mass of a pedestrian [kg]
 EGO_MASS_KG: Final[float] = 400.0  # body mass of the ego robot [kg]; heavier than a pedestrian
@@ -192,14 +193,12 @@ class CrowdConfig:
 
 @dataclass(frozen=True)
 class EgoConfig:
-    """The ego robot: a disc whose velocity follows the action within speed and acceleration limits."""
+    """The ego robot: a disc that moves as its ``robot`` model turns each command into motion (``st_sim.sim.robot``)."""
 
     radius_m: float = bounded(0.3, 0.05, 2.0, "m")
     """ego body radius [m]"""
-    max_speed_mps: float = bounded(1.5, 0.0, 10.0, "m/s", open_low=True)
-    """commanded velocities are clipped to this speed [m/s]"""
-    max_accel_mps2: float = bounded(2.0, 0.0, 100.0, "m/s^2", open_low=True)
-    """the commanded velocity changes by at most this much per second [m/s^2]"""
+    robot: RobotSpec = field(default_factory=RobotSpec)
+    """kind and limits: speed, acceleration, turning (the holonomic default: 1.5 m/s, 2 m/s^2)"""
     start_m: tuple[float, float] | None = bounded(None, -1e6, 1e6, "m", optional=True, length=2)
     """start position [m]; None = the layout's ego_start_m"""
     pedestrians_see_ego: bool = True
@@ -208,5 +207,7 @@ class EgoConfig:
 
     def __post_init__(self) -> None:
         check_fields(self)
+        if not isinstance(self.robot, RobotSpec):
+            raise ValueError(f"EgoConfig.robot = {self.robot!r}: expected an st_sim.sim.robot.RobotSpec")
         if not isinstance(self.pedestrians_see_ego, bool):
             raise ValueError(f"EgoConfig.pedestrians_see_ego = {self.pedestrians_see_ego!r}: expected True or False")

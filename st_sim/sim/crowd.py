@@ -34,11 +34,13 @@ from st_sim.sim.config import (
     SpeedModelConfig,
 )
 from st_sim.sim.contacts import contact_reach_m, keep_apart, pair_reach_m
+from st_sim.sim.exact import cap_speed
 from st_sim.sim.groups import PACE_RANGE, cohesion
 from st_sim.sim.layout import Layout, Region
 from st_sim.sim.navigation import NavigationField
-from st_sim.sim.pairs import Neighbours, cap_speed
+from st_sim.sim.pairs import Neighbours
 from st_sim.sim.population import PROGRESS_M, PopulationError, Roster, choose_exits
+from st_sim.sim.robot import Robot
 from st_sim.sim.spawning import Arrivals, SpawnRequest, initial_crowd, place_arrivals
 from st_sim.sim.stops import start_standing
 from st_sim.sim.sweep import Contact, closest_approach, first_contact, first_touch
@@ -67,7 +69,7 @@ def population_cap(cfg: CrowdConfig, layout: Layout) -> int:
     return cap
 
 
-def step_crowds(sims: Sequence[CrowdSim], ego_velocities_mps: Sequence[np.ndarray | None]) -> None:
+def step_crowds(sims: Sequence[CrowdSim], ego_commands: Sequence[np.ndarray | None]) -> None:
     """Advance crowds of one layout and one config by one 0.4 s step together, as one set of arrays.
 
     Per substep: every crowd's bodies are read (one batched pymunk call each) and stacked; one neighbour search
@@ -77,10 +79,10 @@ def step_crowds(sims: Sequence[CrowdSim], ego_velocities_mps: Sequence[np.ndarra
 
     Args:
         sims: the crowds (the same ``Layout`` object and an equal ``CrowdConfig``).
-        ego_velocities_mps: one commanded ego velocity (2,) [m/s] per crowd (None: stop), as ``CrowdSim.step``.
+        ego_commands: one command (2,) per crowd for its ego's robot (None: stop), as ``CrowdSim.step``.
     """
-    if len(sims) != len(ego_velocities_mps):
-        raise ValueError(f"step_crowds: {len(sims)} crowds but {len(ego_velocities_mps)} ego velocities")
+    if len(sims) != len(ego_commands):
+        raise ValueError(f"step_crowds: {len(sims)} crowds but {len(ego_commands)} ego commands")
     if not sims:
         return
     first = sims[0]
@@ -107,11 +109,9 @@ def step_crowds(sims: Sequence[CrowdSim], ego_velocities_mps: Sequence[np.ndarra
     widest_m = np.array([sim._widest_m for sim in sims])
     ego_rows = np.array([bounds[k] + sim._ego_slot for k, sim in enumerate(sims) if sim._ego_slot is not None], int)
     egos = [sim for sim in sims if sim._ego_slot is not None]
-    commanded = [v for sim, v in zip(sims, ego_velocities_mps, strict=True) if sim._ego_slot is not None]
-    ego_target = np.array([np.zeros(2) if v is None else np.asarray(v, dtype=np.float64).reshape(2)
-                           for v in commanded]).reshape(-1, 2)
-    ego_target = cap_speed(ego_target, np.array([sim.ego_cfg.max_speed_mps for sim in egos]))  # None: stop
-    ego_accel = np.array([sim.ego_cfg.max_accel_mps2 * dt_s for sim in egos])
+    ego_moves = np.array([sim.robot.drive(command, cfg.n_substeps) for sim, command
+                          in zip(sims, ego_commands, strict=True) if sim._ego_slot is not None]).reshape(
+        len(egos), cfg.n_substeps, 2)  # each substep's ego velocity, from its robot model [m/s]
     for sim in egos:
         sim._ego_touched_wall = False
     model, walls_grid, nav = first._model, first._walls, first.nav
@@ -131,11 +131,7 @@ def step_crowds(sims: Sequence[CrowdSim], ego_velocities_mps: Sequence[np.ndarra
         wanted_v = cap_speed(model.walk(heading, v_mps, speed_mps, radius_m, seen, walls, cfg.steering, dt_s),
                              cfg.max_speed_factor * speed_mps)
         if egos:
-            command = np.array([sim._ego_command_mps for sim in egos]).reshape(-1, 2)
-            command = command + cap_speed(ego_target - command, ego_accel)
-            for sim, c in zip(egos, command, strict=True):
-                sim._ego_command_mps = c
-            wanted_v[ego_rows] = v_mps[ego_rows] = command
+            wanted_v[ego_rows] = v_mps[ego_rows] = ego_moves[:, substep]
         safe_v = keep_apart(v_mps, radius_m, yielding, seen, walls, dt_s, BODY_GIVE_M, crowd=crowd)
         force_n = mass_kg[:, None] * (wanted_v - safe_v) / dt_s
         physics.write_bodies([sim._batch for sim in sims], counts, safe_v, force_n)
@@ -227,6 +223,8 @@ class CrowdSim:
         cfg: crowd tunables (population, steering model, contacts).
         rng: the only source of randomness (speeds, placement, groups, stops, spawning, exits).
         ego: ego robot settings (``pedestrians_see_ego`` among them); None = no ego.
+        robot: the ego's robot model (its spec must be ``ego.robot``); None = a new one at rest facing +x. An env
+            gives its own, facing the goal, with the robot's own generator for actuation noise.
         n_initial: pedestrians placed at the start, at most the population cap; None = the cap.
         start_region: where the initial crowd is placed; None = anywhere with a route to an exit.
 
@@ -242,7 +240,7 @@ class CrowdSim:
     """
 
     def __init__(self, layout: Layout, cfg: CrowdConfig, rng: np.random.Generator, ego: EgoConfig | None = None,
-                 n_initial: int | None = None, start_region: Region | None = None):
+                 n_initial: int | None = None, start_region: Region | None = None, robot: Robot | None = None):
         self.layout, self.cfg, self.rng, self.ego_cfg = layout, cfg, rng, ego
         self.step_count = 0
         self.max_pedestrians = population_cap(cfg, layout)
@@ -268,7 +266,8 @@ class CrowdSim:
         self._next_ped_id = 0
         self._next_group = 0
         self._ego_body: pymunk.Body | None = None
-        self._ego_command_mps = np.zeros(2)
+        self.robot: Robot | None = None if ego is None else robot or Robot(ego.robot)
+        """the ego's robot model: its motion, pending commands and noise (None without an ego)"""
         self._ego_contact: Contact | None = None
         self._ego_touched_wall = False
         self._ego_nearest_m = np.inf
@@ -286,7 +285,7 @@ class CrowdSim:
 
     def _top_speed_mps(self) -> float:
         """Fastest any body may move [m/s]: a pedestrian at its cap (and a group's pace), or the ego."""
-        return max(self.cfg.top_speed_mps * PACE_RANGE[1], self.ego_cfg.max_speed_mps if self.ego_cfg else 0.0)
+        return max(self.cfg.top_speed_mps * PACE_RANGE[1], self.ego_cfg.robot.max_speed_mps if self.ego_cfg else 0.0)
 
     def _check_routes(self, clearance_m: float) -> None:
         """Refuse layouts where no pedestrian fits, or no entry reaches any of its exits (a closed door); an
@@ -385,14 +384,15 @@ class CrowdSim:
         return self._ego_nearest_m
 
     # ---------------------------------------------------------------- stepping
-    def step(self, ego_velocity_mps: np.ndarray | None = None) -> None:
+    def step(self, ego_command: np.ndarray | None = None) -> None:
         """Advance one 0.4 s step (``step_crowds`` with this crowd alone).
 
         Args:
-            ego_velocity_mps: (2,) commanded ego velocity [m/s], clipped to the ego's max speed; the ego's
-                velocity moves toward it by at most max_accel_mps2 per second. None = stop (command zero).
+            ego_command: (2,) finite command of the ego's robot (``robot.spec``: a velocity (vx, vy) [m/s] for a
+                holonomic robot, (v [m/s], w [rad/s]) for a differential drive), followed within its limits
+                (``st_sim.sim.robot``). None = stop (command zero).
         """
-        step_crowds([self], [ego_velocity_mps])
+        step_crowds([self], [ego_command])
 
     def _end_step(self, xy_m: np.ndarray, at_exit: np.ndarray, to_exit_m: np.ndarray) -> SpawnRequest | None:
         """After the substeps, at the bodies' positions ``xy_m`` (K, 2) [m]: planned stops, rerouting, arrivals at the

@@ -41,6 +41,13 @@ def length(v: np.ndarray) -> np.ndarray:
     return np.sqrt(dot(v, v))
 
 
+def cap_speed(velocity_mps: np.ndarray, max_speed_mps: np.ndarray) -> np.ndarray:
+    """Scale down rows of (N, 2) velocities whose norm exceeds max_speed_mps (N,) [m/s]."""
+    speed = length(velocity_mps)
+    scale = np.minimum(1.0, max_speed_mps / np.maximum(speed, 1e-9))
+    return velocity_mps * scale[:, None]
+
+
 def total(a: np.ndarray, axis: int) -> np.ndarray:
     """``a.sum(axis)`` added in index order along ``axis`` (one slice after another)."""
     parts = np.moveaxis(np.asarray(a), axis, 0)
@@ -98,3 +105,51 @@ def cos_sin(angle_rad: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
     cos = w + (((1.0 - w) - hz) + (z * r - y0 * y1))
     quadrant = n.astype(np.int64) % 4
     return (np.choose(quadrant, [cos, -sin, -cos, sin]), np.choose(quadrant, [sin, cos, -sin, -cos]))
+
+
+ATAN_HI = (4.63647609000806093515e-01, 7.85398163397448278999e-01, 9.82793723247329054082e-01,
+           1.57079632679489655800e00)  # atan(0.5), atan(1), atan(1.5), atan(inf), high parts (fdlibm's s_atan.c)
+ATAN_LO = (2.26987774529616870924e-17, 3.06161699786838301793e-17, 1.39033110312309984516e-17,
+           6.12323399573676603587e-17)  # their low parts
+ATAN_T = (3.33333333333329318027e-01, -1.99999999998764832476e-01, 1.42857142725034663711e-01,
+          -1.11111104054623557880e-01, 9.09088713343650656196e-02, -7.69187620504482999495e-02,
+          6.66107313738753120669e-02, -5.83357013379057348645e-02, 4.97687799461593236017e-02,
+          -3.65315727442169155270e-02, 1.62858201153657823623e-02)  # atan(x) = x - x^3 (T0 + x^2 T1 + ...) near 0
+PI_HI, PI_LO = 3.1415926535897931160e00, 1.2246467991473531772e-16
+
+
+def atan(x: np.ndarray | float) -> np.ndarray:
+    """Arctangent elementwise [rad] (float64, any shape): |x| reduced to one of five ranges round 0, 0.5, 1, 1.5 and
+    infinity, where atan is a known constant plus the atan of a small argument (fdlibm's polynomial)."""
+    x = np.asarray(x, np.float64)
+    a = np.abs(x)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        reduced = np.select([a < 0.4375, a < 0.6875, a < 1.1875, a < 2.4375],
+                            [a, (2.0 * a - 1.0) / (2.0 + a), (a - 1.0) / (a + 1.0), (a - 1.5) / (1.0 + 1.5 * a)],
+                            -1.0 / a)
+    part = np.select([a < 0.4375, a < 0.6875, a < 1.1875, a < 2.4375], [-1, 0, 1, 2], 3)
+    z = reduced * reduced
+    w = z * z
+    t = ATAN_T
+    s1 = z * (t[0] + w * (t[2] + w * (t[4] + w * (t[6] + w * (t[8] + w * t[10])))))
+    s2 = w * (t[1] + w * (t[3] + w * (t[5] + w * (t[7] + w * t[9]))))
+    hi, lo = np.asarray(ATAN_HI)[np.maximum(part, 0)], np.asarray(ATAN_LO)[np.maximum(part, 0)]
+    near = reduced - reduced * (s1 + s2)
+    far = hi - ((reduced * (s1 + s2) - lo) - reduced)
+    return np.copysign(np.where(part < 0, near, far), x)
+
+
+def atan2(y: np.ndarray | float, x: np.ndarray | float) -> np.ndarray:
+    """The angle of the points (x, y) elementwise [rad], in [-pi, pi], as ``np.arctan2`` for finite arguments (0 at
+    the origin, pi or -pi at a negative zero x): ``atan`` of the smaller over the larger magnitude, then placed in its
+    octant."""
+    y, x = np.broadcast_arrays(np.asarray(y, np.float64), np.asarray(x, np.float64))
+    ay, ax = np.abs(y), np.abs(x)
+    steep = ay > ax
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        ratio = np.where(steep, ax / np.where(steep, ay, 1.0), ay / np.where(ax > 0, ax, 1.0))
+    base = atan(ratio)  # in [0, pi / 4]
+    half_pi = ATAN_HI[3]
+    angle = np.where(steep, (half_pi - base) + ATAN_LO[3], base)  # angle of (|x|, |y|), in [0, pi / 2]
+    angle = np.where(np.signbit(x), (PI_HI - angle) + PI_LO, angle)  # -0.0 too, as arctan2
+    return np.copysign(angle, y)

@@ -17,13 +17,6 @@ from st_sim.sim.layout import Period
 SQUEEZE_M = 0.05  # a walker may brush past another this much inside body contact (shoulders turn) [m]
 
 
-def cap_speed(velocity_mps: np.ndarray, max_speed_mps: np.ndarray) -> np.ndarray:
-    """Scale down rows of (N, 2) velocities whose norm exceeds max_speed_mps (N,) [m/s]."""
-    speed = length(velocity_mps)
-    scale = np.minimum(1.0, max_speed_mps / np.maximum(speed, 1e-9))
-    return velocity_mps * scale[:, None]
-
-
 @dataclass(frozen=True)
 class Neighbours:
     """Agent pairs closer than a cutoff, with their geometry.

@@ -64,12 +64,15 @@ from st_sim.apps.navigation.world import world_of
 CHUNK_EPISODES = 25  # episodes of one scenario per grid job [-]
 SIGNIFICANT_DIGITS = 6  # figures are written with this many significant digits [-]
 RESULT_FORMAT = "stcrowd-nav-benchmark/1"
-BENCHMARK_VERSION = "3"
+BENCHMARK_VERSION = "4"
 """the version of what the metrics mean (docs: Benchmark your policy, "Versions"): 1, the suite as published on
 2026-11-27; 2, from 2026-11-28, a pedestrian collision at the robot's fault when the robot closed the gap; 3, from
-2026-11-29, when the robot was moving and not hit from behind (``envs.common.fault``), peers tuned on val. Bumped
+2026-11-29, when the robot was moving and not hit from behind (``envs.common.fault``), peers tuned on val; 4, from
+2026-12-02, one robot model in every scenario (``st_sim.sim.robot``: the replays' robot gained the simulated crowds'
+acceleration limit, a differential-drive track beside the holonomic one). Bumped
 whenever a metric changes meaning; results of different versions are never tabled or paired together"""
-RUN_IDENTITY = ("policy", "fingerprint", "predictor", "predictor_fingerprint", "trust_policy_file", "suite",
+RUN_IDENTITY = ("policy", "fingerprint", "predictor", "predictor_fingerprint", "trust_policy_file", "robot", "sensing",
+                "suite",
                 "suite_version", "suite_sha256", "benchmark_version", "stcrowd", "split", "scenarios", "episodes")
 """what must match for a rerun to resume the runs already in an output folder"""
 RAN_ON = "ran_on"
@@ -107,6 +110,10 @@ class BenchmarkRun:
     trust_policy_file: bool = False
     """load an sb3: model with stable-baselines3's own loader, which runs code stored in the file (``policies``); not
     part of the results"""
+    robot: str = "holonomic"
+    """the robot of every scenario, by kind (``st_sim.sim.robot.ROBOTS``: its documented default limits)"""
+    sensing: str = "oracle"
+    """what the robot senses in every scenario, by level (``st_sim.perception.SENSING_LEVELS``)"""
 
 
 def json_value(value: Any) -> Any:
@@ -127,7 +134,7 @@ def episode_record(scenario: str, episode: int, seed: int, metrics: dict[str, An
 
 def run_chunk(suite_file: str | None, scenario: str, split: str, first: int, count: int, policy: str,
               predictor: str, part: str, data_root: str | None = None, record: str = "none",
-              trust_policy_file: bool = False) -> None:
+              trust_policy_file: bool = False, robot: str = "holonomic", sensing: str = "oracle") -> None:
     """Grid job: episodes ``first .. first + count - 1`` of ``scenario``, appended to ``part`` (.jsonl) one line each
     as they finish; then the chunk's timing into ``part`` with suffix .json. Episodes already in ``part`` are kept
     and skipped (a torn last line, from a killed run, is dropped). ``record`` chooses the episodes recorded into
@@ -143,7 +150,7 @@ def run_chunk(suite_file: str | None, scenario: str, split: str, first: int, cou
     lines_path.parent.mkdir(parents=True, exist_ok=True)
     done = _finished_lines(lines_path, {first + i: seed for i, seed in enumerate(seeds)})
     start, policy_s, steps = time.perf_counter(), 0.0, 0
-    env = make_scenario_env(entry, predictor, data_root)
+    env = make_scenario_env(entry, predictor, data_root, robot=robot, sensing=sensing)
     try:
         world = world_of(env)
         checked = load_policy(policy, world, predictor, trust_file=trust_policy_file)
@@ -205,7 +212,7 @@ def plan(run: BenchmarkRun, suite: Suite) -> list[Job]:
                       "count": min(CHUNK_EPISODES, count - first), "policy": _portable(run.policy),
                       "predictor": run.predictor,
                       "part": str(part), "data_root": data_root, "record": run.record,
-                      "trust_policy_file": run.trust_policy_file}
+                      "trust_policy_file": run.trust_policy_file, "robot": run.robot, "sensing": run.sensing}
             jobs.append(Job(f"{scenario.name}/{first}", "st_sim.apps.navigation.benchmark:run_chunk", kwargs,
                             str(part.with_suffix(".json"))))
     return jobs
@@ -229,7 +236,7 @@ def check_run(run: BenchmarkRun, suite: Suite) -> dict[str, Any]:
     scenarios = suite.select(run.scenarios)
     outside = [run.out, resolve_data_root(run.data_root, check=False)]  # the envs' data: checked by its sums
     with ReadAudit(outside) as predictor_audit:
-        env = make_scenario_env(scenarios[0], run.predictor, run.data_root)
+        env = make_scenario_env(scenarios[0], run.predictor, run.data_root, robot=run.robot, sensing=run.sensing)
     try:
         world = world_of(env)
         with ReadAudit(outside) as policy_audit:
@@ -239,7 +246,7 @@ def check_run(run: BenchmarkRun, suite: Suite) -> dict[str, Any]:
     finally:
         env.close()
     if policy.observation_space is not None:
-        _check_fits(policy.spec, policy.observation_space, scenarios, suite, run.data_root)
+        _check_fits(policy.spec, policy.observation_space, scenarios, suite, run.data_root, run.robot)
     identity = _identity(run, suite, policy_fingerprint(run.policy, policy.policy, policy_audit),
                          predictor_fingerprint(run.predictor, predictor_audit))
     marker = Path(run.out) / "run.json"
@@ -252,12 +259,12 @@ def check_run(run: BenchmarkRun, suite: Suite) -> dict[str, Any]:
 
 
 def _check_fits(spec: str, own: spaces.Space, scenarios: tuple[Scenario, ...], suite: Suite,
-                data_root: str | None) -> None:
+                data_root: str | None, robot: str = "holonomic") -> None:
     """Refuse a policy whose observation space does not fit every asked scenario: ``PolicyError`` naming the first
     that does not and the suite's scenarios that fit (or saying none does, and why)."""
     env_spaces = {}
     for scenario in suite.scenarios:
-        env = make_scenario_env(scenario, "none", data_root)
+        env = make_scenario_env(scenario, "none", data_root, robot=robot)
         env_spaces[scenario.name] = env.observation_space
         env.close()
     misfits = [scenario.name for scenario in scenarios if not observation_fits(own, env_spaces[scenario.name])]
@@ -291,7 +298,8 @@ def _differences(held: dict[str, Any], identity: dict[str, Any]) -> list[str]:
 def _identity(run: BenchmarkRun, suite: Suite, fingerprint: dict[str, str],
               predictor_parts: dict[str, str]) -> dict[str, Any]:
     return {"policy": run.policy, "fingerprint": fingerprint, "predictor": run.predictor,
-            "predictor_fingerprint": predictor_parts, "trust_policy_file": run.trust_policy_file,
+            "predictor_fingerprint": predictor_parts, "trust_policy_file": run.trust_policy_file, "robot": run.robot,
+            "sensing": run.sensing,
             "suite": suite.name, "suite_version": suite.version, "suite_sha256": suite.content_sha256,
             "benchmark_version": BENCHMARK_VERSION, "stcrowd": stcrowd_identity(), "split": run.split,
             "scenarios": [scenario.name for scenario in suite.select(run.scenarios)],

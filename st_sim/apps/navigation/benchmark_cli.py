@@ -18,6 +18,8 @@ from st_sim.apps.navigation.episode_recording import RECORD_CHOICES
 from st_sim.apps.navigation.policies import SPEC_HELP, TRUST_HELP
 from st_sim.apps.navigation.predictors import predictor_argument
 from st_sim.command_line import CliError, add_grid_arguments, check_writable, positive_int
+from st_sim.perception import SENSING_LEVELS
+from st_sim.sim.robot import ROBOTS
 
 
 def add_parsers(subparsers: argparse._SubParsersAction) -> None:
@@ -44,6 +46,12 @@ def add_parsers(subparsers: argparse._SubParsersAction) -> None:
                        help="write a Rerun recording of these episodes into DIR/recordings/<scenario>/<episode>.rrd: "
                             "failures (every episode that did not reach the goal), all, or none (default: none)")
     add_grid_arguments(bench)
+    bench.add_argument("--robot", choices=list(ROBOTS), default="holonomic",
+                       help="the robot of every scenario (its kind with the documented default limits, docs: The "
+                       "robot); each kind is a track of its own on the leaderboard")
+    bench.add_argument("--sensing", choices=list(SENSING_LEVELS), default="oracle",
+                       help="what the robot senses in every scenario (docs: What the robot senses): oracle (every "
+                       "pedestrian's exact past), or a sensor and a tracker; each level is a track of its own")
     bench.add_argument("--data-root", default=None, help="ETH/UCY folder (default: $STCROWD_DATA or the cache)")
     bench.add_argument("--quiet", action="store_true", help="no progress bar")
 
@@ -94,7 +102,7 @@ def run_benchmark_command(args: argparse.Namespace) -> int:
     run = BenchmarkRun(policy=args.policy, out=args.out, predictor=args.predictor, split=args.split,
                        episodes=args.episodes, scenarios=None if args.scenarios is None else tuple(args.scenarios),
                        suite_file=args.suite_file, data_root=args.data_root, record=args.record,
-                       trust_policy_file=args.trust_policy_file)
+                       trust_policy_file=args.trust_policy_file, robot=args.robot, sensing=args.sensing)
     summary = run_benchmark(run, executor=args.executor, workers=args.workers, address=args.ray_address,
                             progress=not args.quiet)
     print(markdown([summary]))

@@ -14,6 +14,8 @@ from replays.atomic import write_text_atomic
 from st_sim.apps.navigation.planners import READS_POLICY_FILE
 from st_sim.apps.navigation.policies import SPEC_HELP, TRUST_HELP, check_policy_spec
 from st_sim.apps.navigation.predictors import predictor_argument
+from st_sim.perception import SENSING_LEVELS
+from st_sim.sim.robot import ROBOTS
 
 SEE_EGO_CHOICES = {"yes": True, "no": False, "default": None}
 
@@ -46,6 +48,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
                           "instead of the shipped one")
     nav.add_argument("--json", default=None, help="write settings, per-episode figures and the summary here")
     nav.add_argument("--rerun", default=None, help="write one Rerun recording per episode into this folder")
+    nav.add_argument("--robot", choices=list(ROBOTS), default="holonomic",
+                     help="the robot's kind, with its documented default limits (docs: The robot)")
+    nav.add_argument("--sensing", choices=list(SENSING_LEVELS), default="oracle",
+                     help="what the robot senses (docs: What the robot senses; default: oracle)")
     nav.add_argument("--data-root", default=None, help="ETH/UCY folder (default: $STCROWD_DATA or the cache)")
     nav.add_argument("--quiet", action="store_true", help="no progress bar")
     return nav
@@ -65,7 +71,7 @@ def run(args: argparse.Namespace) -> int:
                      seed=args.seed, pedestrians_see_ego=SEE_EGO_CHOICES[args.pedestrians_see_ego],
                      pedestrians=args.pedestrians, sensor_range_m=args.sensor_range,
                      rerun_dir=args.rerun, data_root=args.data_root, policy_file=args.policy_file,
-                     trust_policy_file=args.trust_policy_file)
+                     trust_policy_file=args.trust_policy_file, robot=args.robot, sensing=args.sensing)
     result = run_navigation(nav_run, progress=not args.quiet)
     print(summary_text(result))
     if args.json:

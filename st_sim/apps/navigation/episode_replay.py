@@ -160,6 +160,8 @@ def replay_episode(folder: str | os.PathLike, scenario: str, episode: int, rerun
     from st_sim.apps.navigation.metrics import episode_metrics
     from st_sim.apps.navigation.policies import load_policy
     from st_sim.apps.navigation.world import world_of
+    from st_sim.perception import SENSING_LEVELS
+    from st_sim.sim.robot import ROBOTS
 
     summary = read_run(folder) if summary is None else summary
     entry, expected = find_episode(summary, folder, scenario, episode)
@@ -172,7 +174,12 @@ def replay_episode(folder: str | os.PathLike, scenario: str, episode: int, rerun
         check_scenario(entry["env"], kwargs, f"{folder}: scenario {scenario}")
     except SuiteError as err:
         raise CliError(str(err)) from None
-    kwargs |= {"predictor": predictor} | ({} if data_root is None else {"root": data_root})
+    robot, sensing = summary.get("robot", "holonomic"), summary.get("sensing", "oracle")
+    if robot not in ROBOTS or sensing not in SENSING_LEVELS:
+        raise CliError(f"{folder}: robot {robot!r}, sensing {sensing!r}: expected one of {', '.join(ROBOTS)} and one "
+                       f"of {', '.join(SENSING_LEVELS)}")
+    kwargs |= ({"predictor": predictor, "robot": robot, "sensing": sensing}
+               | ({} if data_root is None else {"root": data_root}))
     env = gym.make(entry["env"], **kwargs)
     try:
         world = world_of(env)

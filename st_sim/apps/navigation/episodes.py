@@ -22,7 +22,7 @@ from envs.common.config import EnvConfig
 from replays import strict_json
 from replays.atomic import write_text_atomic
 from st_sim.apps.grid import Job
-from st_sim.apps.navigation.metrics import EpisodeTrace, Outcome, episode_metrics, outcome_of, summarize
+from st_sim.apps.navigation.metrics import NAN, EpisodeTrace, Outcome, episode_metrics, outcome_of, summarize
 from st_sim.apps.navigation.mpc import MpcConfig
 from st_sim.apps.navigation.planners import READS_POLICY_FILE, Planner
 from st_sim.apps.navigation.policies import load_policy
@@ -65,6 +65,10 @@ class NavRun:
     """the PPO planner: a policy file (``train_ppo``'s policy.pt) instead of the shipped policy"""
     trust_policy_file: bool = False
     """an sb3: model: load it with stable-baselines3's own loader, which runs code stored in the file"""
+    robot: str = "holonomic"
+    """the robot, by kind (``st_sim.sim.robot.ROBOTS``)"""
+    sensing: str = "oracle"
+    """what the robot senses, by level (``st_sim.perception.SENSING_LEVELS``)"""
 
 
 def accepts_keyword(env_id: str, name: str) -> bool:
@@ -78,7 +82,7 @@ def accepts_keyword(env_id: str, name: str) -> bool:
 
 def make_nav_env(run: NavRun, rerun_path: str | None = None) -> gym.Env:
     """The env of ``run``, with its predictor (``none``: pedestrians predicted to stand still)."""
-    kwargs: dict[str, Any] = {"predictor": env_predictor(run.predictor)}
+    kwargs: dict[str, Any] = {"predictor": env_predictor(run.predictor), "robot": run.robot, "sensing": run.sensing}
     if run.pedestrians_see_ego is not None and accepts_keyword(run.env_id, SEE_EGO_KWARG):
         kwargs[SEE_EGO_KWARG] = run.pedestrians_see_ego
     if run.pedestrians is not None:
@@ -114,10 +118,12 @@ class TraceRecorder:
         self.groups: dict[int, int] | None = None  # pedestrian id -> group id (-1 alone); None: the env has none
         self.goal_m = np.zeros(2)
         self.deviation: list[float] = []  # reactive replays: the pedestrians' mean distance from their logs [m]
+        self.clipped: list[bool] = []  # per step: the robot's limits clipped its command
+        self.last_info: dict[str, Any] = {}  # the newest info (the episode's tracking and forecast figures)
 
     def start(self, obs: dict[str, np.ndarray], info: dict[str, Any]) -> None:
         """The state after ``reset`` (forgets any earlier episode)."""
-        self.xy, self.velocity, self.seen, self.deviation = [], [], [], []
+        self.xy, self.velocity, self.seen, self.deviation, self.clipped = [], [], [], [], []
         self.goal_m = obs["ego"][4:6].astype(np.float64)
         self.groups = {} if "group_ids" in info else None
         self._state(obs, info)
@@ -127,10 +133,20 @@ class TraceRecorder:
         self._state(obs, info)
         if "log_deviation_m" in info:
             self.deviation.append(info["log_deviation_m"])
+        if info.get("robot") is not None:
+            self.clipped.append(bool(info["robot"].clipped))
 
     def _state(self, obs: dict[str, np.ndarray], info: dict[str, Any]) -> None:
+        self.last_info = info
         self.xy.append(obs["ego"][:2].astype(np.float64))
         self.velocity.append(obs["ego"][2:4].astype(np.float64))
+        truth = info.get("perception")
+        if truth is not None:  # the robot's sensor and tracker: every figure is judged on the truth beside them
+            ids = truth["true_ids"].tolist()
+            self.seen.append(dict(zip(ids, truth["true_xy_m"], strict=True)))
+            if self.groups is not None:
+                self.groups.update(zip(ids, truth["true_group_ids"].tolist(), strict=True))
+            return
         rows = np.flatnonzero(obs["history_mask"][:, -1])
         ids = info["agent_ids"][rows].tolist()
         self.seen.append(dict(zip(ids, obs["history"][rows, -1].astype(np.float64), strict=True)))
@@ -154,7 +170,19 @@ class TraceRecorder:
                             at_fault=at_fault, log_deviation_m=np.array(self.deviation, np.float64),
                             pedestrians_xy_m=pedestrians, pedestrian_groups=groups,
                             ego_radius_m=self.world.ego_radius_m, pedestrian_radius_m=self.world.pedestrian_radius_m,
-                            goal_radius_m=self.world.goal_radius_m, step_s=self.world.step_s)
+                            goal_radius_m=self.world.goal_radius_m, step_s=self.world.step_s,
+                            clipped=np.array(self.clipped, bool), tracking=self._tracking(),
+                            forecast_ade_m=self._figure("ade_m"), forecast_fde_m=self._figure("fde_m"))
+
+    def _tracking(self) -> dict[str, float] | None:
+        """The episode's tracking figures (the newest info's), None with the oracle's eyes."""
+        truth = self.last_info.get("perception")
+        return None if truth is None else dict(truth["mot"])
+
+    def _figure(self, name: str) -> float:
+        """A running figure of the newest info's ``metrics`` (NaN while it has none)."""
+        value = self.last_info.get("metrics", {}).get(name) if self.last_info else None
+        return NAN if value is None else float(value)
 
 
 def run_episode(env: gym.Env, planner: Planner, world: NavWorld, seed: int) -> tuple[EpisodeTrace, float]:

@@ -26,12 +26,28 @@ from st_sim.apps.navigation.report import metric_label
 from st_sim.apps.navigation.result_folder import LeaderboardError, load_result, shell_words, shown
 
 BASELINES_DIR = Path(__file__).resolve().parents[3] / "results" / "benchmark"
-"""the shipped planners' committed results, one folder each holding ``summary.json.gz`` (a clone of the repository
-has them)"""
-SAME_EPISODES = ("suite", "suite_version", "suite_sha256", "benchmark_version", "split", "episodes_per_scenario")
+"""the shipped planners' committed results on the main track (the holonomic robot, the oracle's eyes), one folder each
+holding ``summary.json.gz`` (a clone of the repository has them)"""
+TRACKS_DIR = BASELINES_DIR.parent / "benchmark-tracks"
+"""the other tracks' committed results: one folder per robot and sensing level (``diff-drive-oracle``,
+``holonomic-realistic``, ...), one folder per result in it"""
+
+
+def committed_folders(folder: Path = BASELINES_DIR) -> list[Path]:
+    """The committed result folders of every track: ``folder``'s, then each track's in ``TRACKS_DIR`` beside it."""
+    tracks = folder.parent / TRACKS_DIR.name
+    folders = sorted(path for path in folder.iterdir() if path.is_dir())
+    if tracks.is_dir():
+        folders += sorted(path for track in sorted(tracks.iterdir()) if track.is_dir()
+                          for path in track.iterdir() if path.is_dir())
+    return folders
+SAME_EPISODES = ("suite", "suite_version", "suite_sha256", "benchmark_version", "robot", "sensing", "split",
+                 "episodes_per_scenario")
 """what results tabled side by side share: the suite's name, version and content (its SHA-256: seeds, scenarios, env
-settings), the version of the metrics' definitions, the seed list and the episodes per scenario"""
-GROUP_TITLES = {"safety": "Safety", "efficiency": "Efficiency", "comfort": "Comfort and social"}
+settings), the version of the metrics' definitions, the robot and what it senses (their track), the seed list and the
+episodes per scenario"""
+GROUP_TITLES = {"safety": "Safety", "efficiency": "Efficiency", "comfort": "Comfort and social",
+                "perception": "Perception and forecasts"}
 
 
 def baseline_results(like: dict[str, Any], folder: Path = BASELINES_DIR,
@@ -41,9 +57,10 @@ def baseline_results(like: dict[str, Any], folder: Path = BASELINES_DIR,
     can, a sentence that says why and how to get them."""
     if not folder.is_dir():
         return [], f"the shipped planners' results are not here ({folder} is missing: a clone of the repository has it)"
-    found = [load_result(path) for path in sorted(folder.iterdir()) if path.is_dir()]
-    same = [result for result in found if all(result[key] == like[key] for key in SAME_EPISODES)]
+    same = [result for path in committed_folders(folder)
+            if (result := load_result(path, only={key: like[key] for key in SAME_EPISODES})) is not None]
     if not same:
+        found = [load_result(path) for path in committed_folders(folder)[:1]]
         measured = "" if not found else " (" + "; ".join(
             f"{key} {shown(str(found[0][key]))} there, {shown(str(like[key]))} here" for key in SAME_EPISODES
             if found[0][key] != like[key]) + ")"
@@ -70,7 +87,8 @@ def label(result: dict[str, Any]) -> str:
 def episodes_line(result: dict[str, Any]) -> str:
     """The episodes a result was measured on, in words (``shown``): suite, version, split, episodes per scenario."""
     return (f"{shown(result['suite'])} {shown(result['suite_version'])}, {shown(result['split'])} seeds, "
-            f"{result['episodes_per_scenario']} episodes per scenario")
+            f"{result['episodes_per_scenario']} episodes per scenario, {shown(result['robot'])} robot, "
+            f"{shown(result['sensing'])} sensing")
 
 
 def pooled_line(result: dict[str, Any]) -> str:

@@ -63,7 +63,9 @@ def worst_table(folders: list[Path], results: list[dict[str, Any]], count: int =
         worst = worst_scenarios(result, count)
         cells = ", ".join(f"{shown(s['name'])} {s['summary']['success']['value']:.2f}, "
                           f"{s['summary']['collision_at_fault']['value']:.2f}" for s in worst)
-        record = _command("benchmark", "--policy", result["policy"], "--predictor", result["predictor"],
+        track = [*(["--robot", result["robot"]] if result["robot"] != "holonomic" else []),
+                 *(["--sensing", result["sensing"]] if result["sensing"] != "oracle" else [])]
+        record = _command("benchmark", "--policy", result["policy"], "--predictor", result["predictor"], *track,
                           "--scenarios", *(s["name"] for s in worst), "--record", "failures", "--out",
                           f"runs/bench/{folder.name}-worst")
         failed = next((line for line in worst[0]["episodes"] if not RATES["success"](line)), None)

@@ -106,6 +106,12 @@ class EpisodeTrace:
             figures are then NaN).
         ego_radius_m, pedestrian_radius_m: body radii [m].  goal_radius_m: the goal is reached this close to its
             centre [m].  step_s: seconds per step.
+        clipped: (T,) bool, the robot's limits clipped the step's command (``info["robot"].clipped``); empty: not
+            recorded (the figure is then NaN).
+        tracking: the episode's CLEAR MOT and IDF1 figures (``st_sim.perception.MotAccumulator.summary``); None with
+            the oracle's eyes (the figures are then NaN).
+        forecast_ade_m, forecast_fde_m: best-of-S ADE and FDE of the forecasts the robot got in the episode against
+            where the people really went (``info["metrics"]``; NaN when none matured) [m].
     """
 
     ego_xy_m: np.ndarray
@@ -122,6 +128,10 @@ class EpisodeTrace:
     pedestrian_radius_m: float = EnvConfig.pedestrian_radius_m
     goal_radius_m: float = EnvConfig.goal_radius_m
     step_s: float = STEP_S
+    clipped: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
+    tracking: dict[str, float] | None = None
+    forecast_ade_m: float = NAN
+    forecast_fde_m: float = NAN
 
     def __post_init__(self) -> None:
         states = len(self.ego_xy_m)
@@ -149,7 +159,15 @@ def episode_metrics(trace: EpisodeTrace) -> dict[str, float | int | str | bool]:
                                                                    trace.contact_m)
     nearest = _step_ends(trace.clearance_m if gaps is None else nearest_gap_m(gaps))
     return {"outcome": trace.outcome.value, **_safety(trace, gaps, nearest), **_efficiency(trace),
-            **_comfort(trace, gaps, nearest)}
+            **_comfort(trace, gaps, nearest), **_perception(trace)}
+
+
+def _perception(trace: EpisodeTrace) -> dict[str, float]:
+    """CLEAR MOT and IDF1 of the robot's tracks (NaN with the oracle's eyes), the forecasts' ADE and FDE."""
+    tracking = trace.tracking or {}
+    return {"mota": tracking.get("mota", NAN), "motp_m": tracking.get("motp_m", NAN), "idf1": tracking.get("idf1", NAN),
+            "id_switches": float(tracking.get("id_switches", NAN)), "forecast_ade_m": trace.forecast_ade_m,
+            "forecast_fde_m": trace.forecast_fde_m}
 
 
 def _safety(trace: EpisodeTrace, gaps: np.ndarray | None, nearest: np.ndarray) -> dict[str, float | int | bool]:
@@ -194,7 +212,7 @@ def _comfort(trace: EpisodeTrace, gaps: np.ndarray | None, nearest: np.ndarray) 
             "acceleration_mps2": _mean(acceleration), "jerk_mps3": _mean(jerk),
             "path_irregularity_rad": path_irregularity_rad(trace.ego_xy_m, STOPPED_MPS * step_s),
             **_groups(trace), "discomfort": float(np.mean(nearest < DISCOMFORT_M)),
-            "log_ade_m": _mean(trace.log_deviation_m)}
+            "log_ade_m": _mean(trace.log_deviation_m), "clipped_command_share": _mean(trace.clipped.astype(float))}
 
 
 def _entries(trace: EpisodeTrace, gaps: np.ndarray | None, limit_m: float, zone: str) -> dict[str, float | int]:
@@ -224,8 +242,8 @@ def _mean(values: np.ndarray) -> float:
     return float(values.mean()) if values.size else NAN
 
 
-Group = Literal["safety", "efficiency", "comfort"]
-GROUPS: tuple[Group, ...] = ("safety", "efficiency", "comfort")
+Group = Literal["safety", "efficiency", "comfort", "perception"]
+GROUPS: tuple[Group, ...] = ("safety", "efficiency", "comfort", "perception")
 
 
 @dataclass(frozen=True)
@@ -336,6 +354,19 @@ METRICS: dict[str, Metric] = {
                          "CrowdNav++"),
     "log_ade_m": Metric("comfort", "mean", "m", "reactive replays: mean distance of the pedestrians from their "
                         "recorded paths (how far the robot pushed them); NaN elsewhere", "ours"),
+    "clipped_command_share": Metric("comfort", "mean", "share", "share of steps whose command the robot's limits "
+                                    "clipped (speed, acceleration, turn: ``st_sim.sim.robot``)", "robot_sf"),
+    "mota": Metric("perception", "mean", "share", "CLEAR MOT accuracy of the robot's tracks in its field of view: 1 - "
+                   "(misses + false tracks + identity switches) / true people (``st_sim.perception.mot``); NaN with "
+                   "the oracle's eyes", "robot_sf (diagnostic)"),
+    "motp_m": Metric("perception", "mean", "m", "CLEAR MOT precision: mean distance of a matched track from its "
+                     "person", "robot_sf (diagnostic)"),
+    "idf1": Metric("perception", "mean", "share", "IDF1: share of true people and tracks that one identity "
+                   "pairing over the episode explains", "ours (Ristani et al. 2016)"),
+    "id_switches": Metric("perception", "mean", "count", "times a tracked person's track changed", "ours"),
+    "forecast_ade_m": Metric("perception", "mean", "m", "best-of-S ADE of the forecasts the robot got (made from what "
+                             "it perceived) against where the people went, 12 steps on", "ours"),
+    "forecast_fde_m": Metric("perception", "mean", "m", "best-of-S FDE of the same forecasts", "ours"),
 }
 """every figure of ``episode_metrics``, by group"""
 FORMER_NAMES: dict[str, tuple[str, ...]] = {"min_step_end_gap_m": ("min_distance_m", "min_clearance_m")}

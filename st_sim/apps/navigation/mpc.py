@@ -1,7 +1,9 @@
 """Prediction-aware sampling MPC: candidate velocity commands rolled out 3.2 s and scored against the samples.
 
-Each decision rolls out K candidate commands (24 headings x 3 speeds, standing still, and the previous
-choice) through the ego's acceleration limit, at two checks per 0.4 s step, and scores them against the
+Each decision rolls out K candidate commands of the robot it drives (a holonomic robot: 24 headings x 3 speeds; a
+differential drive: 9 turn rates x 3 forward speeds, standing and reversing; both: standing still and the previous
+choice) through the robot's own model (``st_sim.sim.robot``: its limits, its kinematics), at two checks per 0.4 s
+step, so it only plans what the robot can reach, and scores them against the
 predicted samples of every pedestrian: the expected number of collisions, the clearance, the progress along
 the geodesic cost-to-go of the walkability map, and the change of command. Paths that go deeper into a wall
 than the ego already is are discarded. The predictor is whatever the env put in the observation; with
@@ -28,6 +30,8 @@ import numpy as np
 from st_sim.apps.navigation.modes import SampleBelief
 from st_sim.apps.navigation.pedestrians import Pedestrians, pedestrians_of
 from st_sim.apps.navigation.world import NavWorld
+from st_sim.sim.exact import length
+from st_sim.sim.robot import Motion, limited_command, substep
 
 INFEASIBLE = 1e6  # cost of a candidate that goes into a wall [-]
 RISK_PENALTY = 1e3  # cost of breaking the risk limit, plus this times the expected collisions [-]
@@ -43,7 +47,9 @@ class MpcConfig:
     checks_per_step: int = 2
     """collision checks per step (positions interpolated linearly in between)"""
     headings: int = 24
-    """candidate directions, evenly spaced [-]"""
+    """holonomic robot: candidate directions, evenly spaced [-]"""
+    turn_rates: int = 9
+    """differential drive: candidate turn rates, evenly spaced within its limit (an odd count keeps 0) [-]"""
     speed_fractions: tuple[float, ...] = (1.0, 0.66, 0.33)
     """candidate speeds as shares of the speed limit [-]"""
     safety_margin_m: float = 0.15
@@ -85,7 +91,8 @@ class MpcConfig:
 
 
 class MpcPlanner:
-    """Sampling MPC over candidate commands, scored against the predicted futures.
+    """Sampling MPC over candidate commands of its robot, scored against the predicted futures; ``act`` returns the
+    robot's own command (``drives_robot``).
 
     Args:
         world: the env's facts (limits, radii, map).
@@ -98,10 +105,18 @@ class MpcPlanner:
         prior = world.sample_prior
         self._belief = (SampleBelief(prior, self.cfg.mode_sigma_m, self.cfg.mode_floor)
                         if self.cfg.track_modes and self.cfg.use_prior and prior is not None else None)
-        angles = np.linspace(0.0, 2 * np.pi, self.cfg.headings, endpoint=False)
-        unit = np.stack([np.cos(angles), np.sin(angles)], axis=1)
         speeds = world.max_speed_mps * np.asarray(self.cfg.speed_fractions)
-        self._commands = np.concatenate([(speeds[:, None, None] * unit[None]).reshape(-1, 2), np.zeros((1, 2))])
+        robot = world.robot
+        if robot.kind == "holonomic":
+            angles = np.linspace(0.0, 2 * np.pi, self.cfg.headings, endpoint=False)
+            unit = np.stack([np.cos(angles), np.sin(angles)], axis=1)
+            commands = (speeds[:, None, None] * unit[None]).reshape(-1, 2)
+        else:
+            turns = np.linspace(-robot.max_yaw_rate_radps, robot.max_yaw_rate_radps, self.cfg.turn_rates)
+            forward = np.r_[speeds, 0.0, -min(robot.max_reverse_mps, speeds.min())]
+            commands = np.stack(np.broadcast_arrays(forward[:, None], turns[None]), axis=-1).reshape(-1, 2)
+        self._commands = np.concatenate([commands, np.zeros((1, 2))])
+        self._scale = np.abs(robot.command_high)  # one of each command component: its largest value
         steps = np.arange(1, self.cfg.horizon_steps * self.cfg.checks_per_step + 1) / self.cfg.checks_per_step
         self._check_steps = steps  # (J,) time of each check in steps
         self._weights = (self.cfg.discount ** (steps - 1 / self.cfg.checks_per_step)).astype(np.float32)  # (J,)
@@ -114,8 +129,11 @@ class MpcPlanner:
         if self._belief is not None:
             self._belief.reset()
 
+    drives_robot = True
+    """``act`` gives the robot's own command (a differential drive's (v, w)), not a velocity to be converted"""
+
     def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
-        """Velocity command (2,) [m/s], world frame."""
+        """The robot's command (2,): a holonomic robot's velocity [m/s], world frame; a differential drive's (v, w)."""
         commands, cost, risk, _ = self._scored(obs, self._commands)
         return self._choose(commands, cost, risk)
 
@@ -144,38 +162,42 @@ class MpcPlanner:
         """(commands (K, 2) [m/s]: ``candidates`` then the previous command, their costs (K,), their expected
         collisions (K,), whether each path goes deeper into a wall than the ego is (K,) bool); updates the sample
         belief with ``obs``."""
-        ego_xy, ego_v, goal = (obs["ego"][i:i + 2].astype(np.float64) for i in (0, 2, 4))
+        ego_xy, ego_v, goal, heading = (obs["ego"][i:i + 2].astype(np.float64) for i in (0, 2, 4, 6))
+        robot = self.world.robot
+        speed = float(length(ego_v)) if robot.kind == "holonomic" else float(ego_v @ heading)
+        motion = Motion(ego_v[None], heading[None] / length(heading), np.array([speed]),
+                        np.array([float(obs["ego"][8])]))
         peds = pedestrians_of(obs, self.cfg.horizon_steps, self.use_predictions)
         weights = None
         if self._belief is not None and self.use_predictions:
             weights = self._belief.update(obs)[obs["history_mask"][:, -1]]  # (P, S), rows of ``peds``
         commands = np.concatenate([candidates, self._previous[None]])
-        path = self._rollout(ego_xy, ego_v, commands, goal)  # (K, J, 2)
+        path = self._rollout(ego_xy, motion, commands, goal)  # (K, J, 2)
         risk, crowding = self._risk_terms(path, ego_xy, peds, weights)
         walls = self._walls(path, ego_xy)
         cost = (self.cfg.risk_weight * risk + self.cfg.clearance_weight * crowding
                 + self.cfg.progress_weight * self._progress(path, ego_xy, goal)
-                + self.cfg.smooth_weight * self._smoothness(commands, ego_v)
+                + self.cfg.smooth_weight * self._smoothness(commands, motion.command_state(robot)[0])
                 + walls
                 + np.where(risk > self.cfg.risk_limit, RISK_PENALTY * (1.0 + risk), 0.0))
         return commands, cost, risk, walls >= INFEASIBLE
 
     # ---------------------------------------------------------------- rollout
-    def _rollout(self, ego_xy: np.ndarray, ego_v: np.ndarray, commands: np.ndarray, goal: np.ndarray) -> np.ndarray:
-        """(K, J, 2) ego positions at the checks [m]: velocity moves toward the command within the accel limit.
+    def _rollout(self, ego_xy: np.ndarray, motion: Motion, commands: np.ndarray, goal: np.ndarray) -> np.ndarray:
+        """(K, J, 2) ego positions at the checks [m]: each command held, through the robot's model from its ``motion``
+        now (one robot substep per check).
 
         A rollout that comes within ARRIVAL_SHARE of the goal radius stays there: the episode would end.
         """
         dt_s = self.world.step_s / self.cfg.checks_per_step
-        max_dv = self.world.max_accel_mps2 * dt_s
-        velocity = np.broadcast_to(ego_v, commands.shape).copy()
+        k = len(commands)
+        motion = Motion(*(np.repeat(part, k, axis=0) for part in motion))
+        target = limited_command(self.world.robot, commands)
         position = np.broadcast_to(ego_xy, commands.shape).copy()
-        arrived = np.zeros(len(commands), bool)
-        out = np.empty((len(commands), len(self._check_steps), 2))
+        arrived = np.zeros(k, bool)
+        out = np.empty((k, len(self._check_steps), 2))
         for j in range(len(self._check_steps)):
-            change = commands - velocity
-            norm = np.linalg.norm(change, axis=1, keepdims=True)
-            velocity = velocity + change * np.minimum(1.0, max_dv / np.maximum(norm, 1e-9))
+            motion, velocity = substep(self.world.robot, motion, target, dt_s)
             position = np.where(arrived[:, None], position, position + velocity * dt_s)
             arrived |= np.linalg.norm(position - goal, axis=1) <= ARRIVAL_SHARE * self.world.goal_radius_m
             out[:, j] = position
@@ -247,10 +269,11 @@ class MpcPlanner:
         end = terrain.cost_to_go(path[:, -1], goal, body_m)
         return (end - now) / (self.world.max_speed_mps * self.world.step_s * self.cfg.horizon_steps)
 
-    def _smoothness(self, commands: np.ndarray, ego_v: np.ndarray) -> np.ndarray:
-        """Squared command change from the current velocity and the previous command, in speed limits."""
-        scale = self.world.max_speed_mps ** 2
-        return (np.sum((commands - ego_v) ** 2, axis=1) + np.sum((commands - self._previous) ** 2, axis=1)) / scale
+    def _smoothness(self, commands: np.ndarray, now: np.ndarray) -> np.ndarray:
+        """Squared command change from where the robot is now (``now`` (2,), in the command's terms) and from the
+        previous command, each component in units of its largest value (the speed limit, the turn-rate limit)."""
+        return (np.sum(((commands - now) / self._scale) ** 2, axis=1)
+                + np.sum(((commands - self._previous) / self._scale) ** 2, axis=1))
 
     def _walls(self, path: np.ndarray, ego_xy: np.ndarray) -> np.ndarray:
         """Wall-comfort cost, or INFEASIBLE for a path that goes deeper into a wall than the ego is now."""

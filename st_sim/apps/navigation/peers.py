@@ -319,8 +319,11 @@ class PeerPlanner:
 
 
 class NavgroundPlanner(PeerPlanner):
-    """A navground behaviour (``behavior``) steering an omnidirectional robot of the env's radius and speed limit,
-    with the settings' optimal speed, horizon, safety margin and the behaviour's own properties."""
+    """A navground behaviour (``behavior``) steering a robot of the env's radius and speed limit, with the settings'
+    optimal speed, horizon, safety margin and the behaviour's own properties. The robot is navground's own model of
+    the env's kind: omnidirectional for a holonomic robot (``act``: a velocity); two-wheel differential drive for a
+    differential drive, its wheel axis chosen so that its turn-rate limit is the robot's (``act``: the robot's (v, w),
+    ``drives_robot``)."""
 
     behavior: ClassVar[str]
     tuned: ClassVar[NavgroundSettings] = NavgroundSettings()
@@ -328,14 +331,18 @@ class NavgroundPlanner(PeerPlanner):
     def __init__(self, world: NavWorld, use_predictions: bool = False, settings: NavgroundSettings | None = None):
         super().__init__(world, use_predictions, settings)
         self.core = _navground()
-        from navground.core.kinematics import OmnidirectionalKinematics
+        from navground.core.kinematics import OmnidirectionalKinematics, TwoWheelsDifferentialDriveKinematics
 
         self.agent = self.core.Behavior.make_type(self.behavior)
         if self.agent is None:
             raise ImportError(f"navground has no behaviour {self.behavior!r} (it has "
                               f"{', '.join(t for t in self.core.Behavior.types if t)}): {PEERS_EXTRA}")
         settings = self.settings
-        self.agent.kinematics = OmnidirectionalKinematics(world.max_speed_mps, MAX_TURN_RADPS)
+        robot = world.robot
+        self.drives_robot = robot.kind == "diff-drive"
+        self.agent.kinematics = (TwoWheelsDifferentialDriveKinematics(
+            robot.max_speed_mps, 2 * robot.max_speed_mps / robot.max_yaw_rate_radps) if self.drives_robot
+            else OmnidirectionalKinematics(world.max_speed_mps, MAX_TURN_RADPS))
         self.agent.radius = world.ego_radius_m
         self.agent.optimal_speed = settings.speed_share * world.max_speed_mps
         self.agent.horizon = settings.horizon_m
@@ -345,10 +352,11 @@ class NavgroundPlanner(PeerPlanner):
             setattr(self.agent, name, value)               # uncertainty_offset as an int, which set() truncates
 
     def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
-        """(2,) velocity command [m/s], world frame."""
+        """(2,) velocity command [m/s], world frame; a differential drive's (v [m/s], w [rad/s])."""
         core, agent = self.core, self.agent
         ego_xy, ego_v, target, people, walls = self.situation(obs)
-        heading = ego_v if np.linalg.norm(ego_v) >= STILL_MPS else target - ego_xy
+        heading = (obs["ego"][6:8].astype(np.float64) if self.drives_robot
+                   else ego_v if np.linalg.norm(ego_v) >= STILL_MPS else target - ego_xy)
         agent.position = ego_xy
         agent.orientation = float(np.arctan2(heading[1], heading[0]))
         agent.set_velocity(ego_v, core.Frame.absolute)
@@ -358,6 +366,10 @@ class NavgroundPlanner(PeerPlanner):
         state.neighbors = [core.Neighbor(xy, self.world.pedestrian_radius_m, v, k)
                            for k, (xy, v) in enumerate(zip(people.xy_m, people.velocity_mps, strict=True))]
         self.show_walls(state, walls)
+        if self.drives_robot:
+            agent.actuated_twist = core.Twist2(ego_v, float(obs["ego"][8]), core.Frame.absolute)
+            twist = agent.compute_cmd(self.world.step_s, core.Frame.relative)
+            return np.array([twist.velocity[0], twist.angular_speed], np.float32)
         twist = agent.compute_cmd(self.world.step_s, core.Frame.absolute)
         return np.asarray(twist.velocity, np.float32)
 

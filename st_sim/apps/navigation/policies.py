@@ -87,7 +87,7 @@ def load_policy(spec: str, world: NavWorld, predictor: str = "singular", *, trus
         policy = Sb3Policy(Path(spec.removeprefix(SB3_PREFIX)).expanduser(), world, trust_file)
     else:
         policy = _build(spec, _factory(spec), world, predictor != "none")
-    return CheckedPolicy(spec, policy)
+    return CheckedPolicy(spec, policy, world)
 
 
 def _factory(spec: str) -> Callable[..., Any]:
@@ -124,15 +124,19 @@ def _build(spec: str, factory: Callable[..., Any], world: NavWorld, use_predicti
 
 class CheckedPolicy:
     """A policy behind checks: ``act`` gets copies of the observation's arrays, and what it returns must be a (2,)
-    velocity of finite numbers; anything else, or an exception inside it, raises ``PolicyError``.
+    velocity of finite numbers; anything else, or an exception inside it, raises ``PolicyError``. The velocity becomes
+    the robot's command (``NavWorld.command_for``: itself for a holonomic robot, a turn and a forward speed for a
+    differential drive), unless the policy says it gives the robot's own command (an attribute ``drives_robot =
+    True``, as the MPC does).
 
     Attributes:
-        spec: the policy as named.  policy: what was built.
+        spec: the policy as named.  policy: what was built.  world: the env's facts (its robot among them); None: the
+            policy's output goes to the env as it is.
         observation_space: the policy's own observation space, if it declares one (an SB3 model does), else None.
     """
 
-    def __init__(self, spec: str, policy: Any):
-        self.spec, self.policy = spec, policy
+    def __init__(self, spec: str, policy: Any, world: NavWorld | None = None):
+        self.spec, self.policy, self.world = spec, policy, world
         self.observation_space: spaces.Space | None = getattr(policy, "observation_space", None)
 
     def __repr__(self) -> str:
@@ -149,7 +153,7 @@ class CheckedPolicy:
             raise PolicyError(f"policy {self.spec!r}: reset raised {describe_error(err)}") from err
 
     def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
-        """(2,) float32 velocity command [m/s], world frame."""
+        """(2,) float32 command of the robot (a holonomic robot's velocity [m/s], world frame)."""
         try:
             action = self.policy.act({key: np.array(value) for key, value in obs.items()})
         except (Exception, SystemExit) as err:
@@ -164,7 +168,9 @@ class CheckedPolicy:
                               "(vx, vy) [m/s]")
         if not np.isfinite(velocity).all():
             raise PolicyError(f"policy {self.spec!r}: act returned {velocity.tolist()}; expected finite numbers")
-        return velocity.astype(np.float32)
+        if self.world is not None and getattr(self.policy, "drives_robot", False) is not True:
+            velocity = self.world.command_for(obs, velocity)
+        return np.asarray(velocity, np.float32)
 
     def check_fits(self, env_space: spaces.Space, scenario: str) -> None:
         """Refuse a policy whose observation space does not fit a scenario's (``PolicyError`` naming the scenario,

@@ -87,11 +87,12 @@ def shell_words(*words: str) -> str:
     return " ".join(shlex.quote(shown(word)) for word in words)
 
 
-def load_result(folder: str | os.PathLike) -> dict[str, Any]:
+def load_result(folder: str | os.PathLike, only: dict[str, Any] | None = None) -> dict[str, Any] | None:
     """The summary of a benchmark output folder, checked: its ``summary.json`` (or gzipped ``summary.json.gz``, as
     the committed results are kept) read within ``replays.bounded_json``'s caps, every field a reader uses checked
     (``check_summary``), its figures computed again from its episodes (``check_figures``). ``LeaderboardError``
-    names the file and what is wrong."""
+    names the file and what is wrong. With ``only`` (field -> value), a summary whose fields differ is not checked
+    further: None."""
     path = Path(folder) / "summary.json"
     if not path.exists() and path.with_suffix(".json.gz").exists():
         path = path.with_suffix(".json.gz")
@@ -103,6 +104,10 @@ def load_result(folder: str | os.PathLike) -> dict[str, Any]:
     except DataFormatError as err:
         raise LeaderboardError(str(err)) from err
     check_summary(result, path)
+    result.setdefault("robot", "holonomic")  # written before the robot was recorded (benchmark version 3 and older)
+    result.setdefault("sensing", "oracle")  # written before sensing existed
+    if only is not None and any(result.get(key) != value for key, value in only.items()):
+        return None
     check_figures(result, path)
     return result
 
@@ -121,6 +126,9 @@ def check_summary(result: Any, path: Path) -> None:
                                "metrics meant when it ran, see the changelog in docs/benchmark-your-policy.md)")
     for key in ("policy", "predictor", "suite", "suite_version", "benchmark_version", "split"):
         field(path, result, key, NAME)
+    for key in ("robot", "sensing"):
+        if key in result:
+            field(path, result, key, NAME)
     field(path, result, "suite_sha256", SHA256)
     count = field(path, result, "episodes_per_scenario", COUNT)
     names = [_check_scenario(path, scenario, f"scenarios[{i}]", count)
@@ -172,8 +180,9 @@ def check_episode(path: Path, episode: Any, where: str) -> None:
 
 def check_figures(result: dict[str, Any], path: Path) -> None:
     """Compute the figures of every scenario and the pooled ones again from the episodes (``metrics.summarize``, as
-    the benchmark writes them), refuse a summary whose stored ones differ (``LeaderboardError`` naming the figure),
-    and keep the computed ones in ``result``."""
+    the benchmark writes them), refuse a summary whose stored ones differ (``LeaderboardError`` naming the figure;
+    a figure that none of the episodes holds may be absent: the file is older than it), and keep the computed ones in
+    ``result``."""
     every = []
     for index, scenario in enumerate(result["scenarios"]):
         _check_figures(path, scenario, f"scenarios[{index}].summary", scenario["episodes"])
@@ -194,6 +203,8 @@ def _check_figures(path: Path, owner: dict[str, Any], where: str, episodes: list
     if unknown is not None:
         raise LeaderboardError(f"{path}: {where}: {_quoted(unknown)} is not a figure of the benchmark's metrics")
     for name, cell in computed.items():
+        if name not in stored and cell["n"] == 0:  # a figure added after the file was written: none of its episodes
+            continue                               # holds it, so there is nothing to check
         held = field(path, stored, name, OBJECT, where)
         if set(held) != set(cell):
             raise LeaderboardError(f"{path}: {where}.{name}: holds {', '.join(map(_quoted, held))}; expected "

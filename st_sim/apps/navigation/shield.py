@@ -49,9 +49,13 @@ class ShieldedPlanner:
         self.inner.reset()
         self.mpc.reset()
 
+    drives_robot = True
+    """``act`` gives the robot's own command (the inner planner's velocity converted by ``NavWorld.command_for``)"""
+
     def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
-        """(2,) float32 velocity command [m/s], world frame."""
-        command, vetoed = self.mpc.vet(obs, self.inner.act(obs))
+        """(2,) float32 command of the robot (a holonomic robot's velocity [m/s], world frame)."""
+        proposal = self.mpc.world.command_for(obs, self.inner.act(obs))
+        command, vetoed = self.mpc.vet(obs, proposal)
         self.decisions += 1
         self.vetoes += int(vetoed)
         return command

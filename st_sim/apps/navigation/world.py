@@ -13,6 +13,7 @@ from envs.common.terrain import Terrain
 from replays.constants import STEP_S
 from replays.scenes import Scene
 from st_sim.apps.navigation.sample_prior import sample_prior
+from st_sim.sim.robot import ROBOTS, RobotSpec, command_toward
 
 
 @dataclass(frozen=True, eq=False)
@@ -22,9 +23,7 @@ class NavWorld:
     Attributes:
         scene: the walkability map.  bounds_m: (xmin, ymin, xmax, ymax) where the ego can be [m].
         ego_radius_m, pedestrian_radius_m: body radii [m].
-        max_speed_mps: the ego's speed limit [m/s].
-        max_accel_mps2: how fast the ego's velocity follows the command [m/s^2] (the env's
-            ``ego_max_accel_mps2``; inf for the replays' point robot).
+        robot: the robot's kind and limits (the env's ``robot``, ``st_sim.sim.robot.RobotSpec``).
         goal_radius_m: the goal counts as reached this close [m].
         wall_clearance_m: least distance the ego's centre keeps from non-walkable ground [m]: its radius
             where walls are solid (simulated crowds: touching one is a collision), 0 where they are only
@@ -38,8 +37,7 @@ class NavWorld:
     bounds_m: tuple[float, float, float, float]
     ego_radius_m: float = 0.3
     pedestrian_radius_m: float = 0.25
-    max_speed_mps: float = 1.5
-    max_accel_mps2: float = float("inf")
+    robot: RobotSpec = ROBOTS["holonomic"]
     goal_radius_m: float = 0.5
     wall_clearance_m: float = 0.0
     sample_prior: np.ndarray | None = None
@@ -49,9 +47,24 @@ class NavWorld:
         return f"NavWorld({self.scene.name}, ego {self.ego_radius_m} m, {self.max_speed_mps} m/s)"
 
     @property
+    def max_speed_mps(self) -> float:
+        """The robot's speed limit [m/s]."""
+        return self.robot.max_speed_mps
+
+    @property
     def action_space(self) -> gym.spaces.Box:
-        """The env's action space: a (2,) velocity command, each axis within +-``max_speed_mps`` [m/s]."""
-        return gym.spaces.Box(-self.max_speed_mps, self.max_speed_mps, (2,), np.float32)
+        """The env's action space: the robot's (2,) command within its limits (a holonomic robot's velocity [m/s])."""
+        return gym.spaces.Box(self.robot.command_low.astype(np.float32), self.robot.command_high.astype(np.float32),
+                              dtype=np.float32)
+
+    def command_for(self, obs: dict[str, np.ndarray], velocity_mps: np.ndarray) -> np.ndarray:
+        """(2,) the robot's command that drives it toward the (2,) velocity [m/s] a planner wishes
+        (``st_sim.sim.robot.command_toward``, from the heading in ``obs["ego"]``): the velocity itself for a
+        holonomic robot."""
+        if self.robot.kind == "holonomic":
+            return np.asarray(velocity_mps)
+        heading = np.asarray(obs["ego"][6:8], np.float64)
+        return command_toward(self.robot, heading[None], np.asarray(velocity_mps, np.float64)[None])[0]
 
     @property
     def contact_m(self) -> float:
@@ -72,5 +85,5 @@ def world_of(env: gym.Env) -> NavWorld:
     # the pedestrians' size: a simulated crowd's bodies, else the replay collision test's radius
     crowd = getattr(crowd_env, "crowd_cfg", None)
     pedestrian_radius_m = cfg.pedestrian_radius_m if crowd is None else crowd.radius_m
-    return NavWorld(crowd_env.scene, crowd_env.bounds_m, cfg.ego_radius_m, pedestrian_radius_m, cfg.max_speed_mps,
-                    crowd_env.ego_max_accel_mps2, cfg.goal_radius_m, crowd_env.wall_clearance_m, prior)
+    return NavWorld(crowd_env.scene, crowd_env.bounds_m, cfg.ego_radius_m, pedestrian_radius_m, crowd_env.robot,
+                    cfg.goal_radius_m, crowd_env.wall_clearance_m, prior)
