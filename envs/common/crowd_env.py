@@ -453,9 +453,12 @@ class CrowdEnv(gym.Env):
         frame came (``_sense``, ``_predicted_rows``: every agent with T_obs frames by default)."""
         (history, history_mask), rows = self._history, self._rows
         self.anchors = None if anchors is None else (self.observed.row_ids[rows], *anchors)
-        truth = self.true_ids(rows)
-        scored = (truth >= 0) & first_of_each(truth)  # a false track's forecast has no truth to meet
-        self.metrics.update_predictions(self.tracks, truth[scored], predicted[scored])
+        if self.perception is None:
+            self.metrics.update_predictions(self.tracks, self.tracks.row_ids[rows], predicted)
+        else:  # a false track's forecast has no truth to meet; two tracks of one person count once
+            truth = self.true_ids(rows)
+            scored = (truth >= 0) & first_of_each(truth)
+            self.metrics.update_predictions(self.tracks, truth[scored], predicted[scored])
         futures = np.zeros((self.n_max, self.num_samples, T_PRED, 2), np.float32)
         futures[rows] = predicted
         futures_mask = np.zeros(self.n_max, bool)

@@ -9,38 +9,23 @@ average yet is None ("n/a"), never a 0.0 that would read as a perfect score.
 from __future__ import annotations
 
 from collections import deque
-from collections.abc import Iterator, Mapping
 
 import numpy as np
 
 from envs.common.tracks import TrackBuffer
 from replays.constants import MIN_AGENTS_PER_WINDOW, T_PRED
 from replays.scenes import Scene
+from st_sim.frozen_mapping import FrozenMapping
 from st_sim.metrics import ade_fde, off_map
 
 
-class Metrics(Mapping):
+class Metrics(FrozenMapping):
     """Read-only metric values by name; None where nothing has been measured yet ("n/a", JSON null).
 
-    A mapping but not a dict, on purpose: gymnasium's vector envs batch dict entries into typed arrays, and
-    a float from one env and a None from another cannot share one. A ``Metrics`` stays whole, one per env
-    in an object array (``infos["metrics"][i]["ade_m"]``). ``dict(metrics)`` gives a plain, JSON-ready dict.
+    A ``FrozenMapping``: a float from one env and a None from another cannot share one of gymnasium's typed arrays,
+    so a ``Metrics`` stays whole, one per env in an object array (``infos["metrics"][i]["ade_m"]``).
+    ``dict(metrics)`` gives a plain, JSON-ready dict.
     """
-
-    def __init__(self, values: dict[str, float | int | None]):
-        self._values = dict(values)
-
-    def __getitem__(self, name: str) -> float | int | None:
-        return self._values[name]
-
-    def __iter__(self) -> Iterator[str]:
-        return iter(self._values)
-
-    def __len__(self) -> int:
-        return len(self._values)
-
-    def __repr__(self) -> str:
-        return f"Metrics({self._values})"
 
 
 class RunningMetrics:

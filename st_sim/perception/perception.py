@@ -4,36 +4,21 @@ latency between them, and the truth beside them for evaluation (``mot``)."""
 from __future__ import annotations
 
 from collections import deque
-from collections.abc import Iterator, Mapping
 from typing import Any
 
 import numpy as np
 
 from replays.scenes import Scene
+from st_sim.frozen_mapping import FrozenMapping
 from st_sim.perception.mot import MotAccumulator
 from st_sim.perception.sensor import Detections, detect, in_field
 from st_sim.perception.spec import SensingSpec
 from st_sim.perception.tracker import Tracker, Tracks
 
 
-class PerceptionInfo(Mapping):
-    """One step's truth beside the perception (``info["perception"]``), read-only: a mapping, not a dict, so that a
+class PerceptionInfo(FrozenMapping):
+    """One step's truth beside the perception (``info["perception"]``), read-only: a ``FrozenMapping``, so that a
     gymnasium vector env keeps each sub-env's (their arrays differ in length) instead of stacking them."""
-
-    def __init__(self, values: dict[str, Any]):
-        self._values = dict(values)
-
-    def __getitem__(self, key: str) -> Any:
-        return self._values[key]
-
-    def __iter__(self) -> Iterator[str]:
-        return iter(self._values)
-
-    def __len__(self) -> int:
-        return len(self._values)
-
-    def __repr__(self) -> str:
-        return f"PerceptionInfo({', '.join(self._values)})"
 
 
 class Perception:

@@ -1,13 +1,15 @@
 """The people sensor: who the robot detects in one step, where, and who each detection came from.
 
-Every operation is IEEE-exact (``st_sim.sim.exact``; draws from the sensor's own generator), so a detection is the
-same to the last bit on every CPU.
+Every operation is IEEE-exact (``st_sim.sim.exact``; draws from the sensor's own generator), so that a detection is the
+same to the last bit on every CPU (by design: not yet run by the emulated-CPU check, ``tests/test_cpu_dispatch.py``,
+which covers the crowds).
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cache
 
 import numpy as np
 
@@ -37,6 +39,12 @@ class Detections:
     visible_ids: np.ndarray
 
 
+@cache
+def half_view_cos(fov_deg: float) -> float:
+    """Cosine of half the field of view ``fov_deg`` [deg] (exact arithmetic, computed once per angle)."""
+    return float(cos_sin(math.radians(fov_deg / 2))[0])
+
+
 def in_field(spec: SensingSpec, robot_xy: np.ndarray, heading: np.ndarray, xy_m: np.ndarray) -> np.ndarray:
     """(N,) bool: the points ``xy_m`` (N, 2) lie within the sensor's range and field of view of a robot at
     ``robot_xy`` (2,) facing ``heading`` (2,), a unit vector."""
@@ -45,7 +53,7 @@ def in_field(spec: SensingSpec, robot_xy: np.ndarray, heading: np.ndarray, xy_m:
     inside = distance <= spec.range_m
     if spec.fov_deg >= 360.0:
         return inside
-    half_cos = float(cos_sin(math.radians(spec.fov_deg / 2))[0])
+    half_cos = half_view_cos(spec.fov_deg)
     along = dot(offset, np.broadcast_to(heading, offset.shape))
     return inside & ((along >= half_cos * distance) | (distance == 0))
 

@@ -22,6 +22,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from st_sim.sim.checks import named
+
 
 class SensingSpecError(ValueError):
     """A sensing level or setting that cannot be used; the message names the field."""
@@ -86,11 +88,4 @@ SENSING_LEVELS: dict[str, SensingSpec] = {
 def sensing_spec(sensing: str | SensingSpec | None) -> SensingSpec:
     """The spec ``sensing`` names: a ``SensingSpec`` as it is, a level's name (``SENSING_LEVELS``), None for
     ``oracle``; ``SensingSpecError`` naming the choices for anything else."""
-    if sensing is None:
-        return SENSING_LEVELS["oracle"]
-    if isinstance(sensing, SensingSpec):
-        return sensing
-    if isinstance(sensing, str) and sensing in SENSING_LEVELS:
-        return SENSING_LEVELS[sensing]
-    raise SensingSpecError(f"sensing={sensing!r}: expected a SensingSpec or one of "
-                           f"{', '.join(map(repr, SENSING_LEVELS))}")
+    return named(sensing, SENSING_LEVELS, SensingSpec, "oracle", "sensing", SensingSpecError)

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 import numbers
+from collections.abc import Mapping
 from dataclasses import dataclass, field, fields
 from typing import Any, Final
 
@@ -85,6 +86,18 @@ def check_fields(config: Any) -> None:
         if "bounds" in f.metadata:
             check_value(owner, f.name, getattr(config, f.name), f.metadata["bounds"], f.metadata["optional"],
                         f.metadata["length"])
+
+
+def named(value: Any, table: Mapping[str, Any], kind: type, default: str, argument: str, error: type) -> Any:
+    """``value`` if it is a ``kind``, the entry of ``table`` it names, ``table[default]`` for None; else ``error``
+    naming ``argument`` and the choices (a spec given by name or as an object: the robot's, the sensor's)."""
+    if value is None:
+        return table[default]
+    if isinstance(value, kind):
+        return value
+    if isinstance(value, str) and value in table:
+        return table[value]
+    raise error(f"{argument}={value!r}: expected a {kind.__name__} or one of {', '.join(map(repr, table))}")
 
 
 def check_memory(what: str, n_bytes: float) -> None:

@@ -16,8 +16,9 @@ change at the start of each substep and hold within it. Optional, off by default
 the command given ``latency_steps`` steps before) and actuation noise (each command component scaled by 1 + a normal
 draw of ``actuation_noise``), drawn from the robot's own generator so that noise never changes the crowd.
 
-Arithmetic: IEEE-exact operations and ``st_sim.sim.exact``'s functions only, so a robot moves the same to the last bit
-on every CPU.
+Arithmetic: IEEE-exact operations and ``st_sim.sim.exact``'s functions only, so that a robot moves the same to the last
+bit on every CPU (by design: not yet run by the emulated-CPU check, ``tests/test_cpu_dispatch.py``, which covers the
+crowds).
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from replays.constants import STEP_S
+from st_sim.sim.checks import named
 from st_sim.sim.exact import atan2, cap_speed, cos_sin, dot, length
 
 ROBOT_KINDS: tuple[str, ...] = ("holonomic", "diff-drive")
@@ -136,13 +138,7 @@ def robot_spec(robot: str | RobotSpec | None) -> RobotSpec:
     Raises:
         RobotSpecError: anything else, naming the choices.
     """
-    if robot is None:
-        return ROBOTS["holonomic"]
-    if isinstance(robot, RobotSpec):
-        return robot
-    if isinstance(robot, str) and robot in ROBOTS:
-        return ROBOTS[robot]
-    raise RobotSpecError(f"robot={robot!r}: expected a RobotSpec or one of {', '.join(map(repr, ROBOTS))}")
+    return named(robot, ROBOTS, RobotSpec, "holonomic", "robot", RobotSpecError)
 
 
 class Motion(NamedTuple):
