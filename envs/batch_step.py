@@ -9,6 +9,10 @@ sub-envs; ``st_sim.apps.navigation.training_envs.FeatureShards`` one batch of ev
 
 Each sub-env moves exactly as it would stepped alone: worlds never mix, and every sub-env draws from its own
 generator. Only the forecasts depend on the batch, in their last bits (a larger torch batch rounds otherwise).
+
+A step is whole or lost: if anything fails in it (an autoreset, a world, the forecast, an observation), some sub-envs
+have moved and others not, so every sub-env is interrupted and the batch refuses to step (``NeedsResetError``
+saying why) until it is reset. A failed autoreset raises ``AutoresetError`` naming the sub-envs and their seeds.
 """
 
 from __future__ import annotations
@@ -20,8 +24,8 @@ from typing import Any
 import numpy as np
 from gymnasium.vector import AutoresetMode
 
-from envs.common.crowd_env import CrowdEnv, forecast_or_interrupt, is_seed
-from envs.common.errors import EnvInputError
+from envs.common.crowd_env import CrowdEnv, is_seed
+from envs.common.errors import AutoresetError, EnvInputError, NeedsResetError
 from envs.common.predictors import forecast_all
 
 
@@ -85,6 +89,8 @@ class EnvBatch:
         self.elapsed = np.zeros(self.num_envs, np.int64)
         self.autoreset = np.zeros(self.num_envs, bool)
         """sub-envs whose episode ended at the last step (``NEXT_STEP``: this step resets them)"""
+        self._unfinished: str | None = None
+        """why the batch cannot step until it is reset: a step or reset that did not finish (None: it can)"""
 
     def reset_parts(self, seeds: Sequence[int | None], options: dict | None
                     ) -> tuple[list[dict[str, np.ndarray]], list[dict[str, Any]]]:
@@ -96,16 +102,25 @@ class EnvBatch:
                                     "was reset")
         for members in by_class(self.envs).values():
             self.envs[members[0]].check_reset_options(options)
-        begin_resets(self.envs, seeds, options)
-        outputs = [env.end_reset(*prediction) for env, prediction in zip(self.envs, forecast_all(self.envs),
-                                                                          strict=True)]
+        try:
+            begin_resets(self.envs, seeds, options)
+            outputs = [env.end_reset(*prediction) for env, prediction in zip(self.envs, forecast_all(self.envs),
+                                                                              strict=True)]
+        except BaseException as err:
+            self._unfinished = f"the last reset did not finish ({type(err).__name__}: {err})"
+            raise
         self.elapsed[:] = 0
         self.autoreset[:] = False
+        self._unfinished = None
         return [obs for obs, _ in outputs], [info for _, info in outputs]
 
     def check_actions(self, actions: Sequence[Any] | np.ndarray) -> list[np.ndarray | None]:
         """Every sub-env's ego velocity (2,) m/s for ``actions[i]`` (None where it resets at this step or has no
-        ego), after every check ``step`` makes before anything moves (``CrowdEnv.check_step``)."""
+        ego), after every check ``step`` makes before anything moves (``CrowdEnv.check_step``); ``NeedsResetError``
+        after a step or reset that did not finish, until a reset succeeds."""
+        if self._unfinished is not None:
+            raise NeedsResetError(f"{self._unfinished}: some sub-envs had moved and others not; call reset() "
+                                  "before step()")
         if len(actions) != self.num_envs:
             raise EnvInputError(f"{len(actions)} actions for {self.num_envs} sub-envs")
         return [None if self.autoreset[i] else env.check_step(action)
@@ -113,18 +128,24 @@ class EnvBatch:
 
     def step_parts(self, velocities_mps: Sequence[np.ndarray | None]) -> StepParts:
         """One step of every sub-env (ego velocities (2,) m/s, None where it resets or has no ego, from
-        ``check_actions``), or the reset of those whose episode ended at the previous step (``NEXT_STEP``)."""
-        resetting, stepping = np.flatnonzero(self.autoreset), np.flatnonzero(~self.autoreset)
+        ``check_actions``), or the reset of those whose episode ended at the previous step (``NEXT_STEP``). Whatever
+        fails in it leaves every sub-env interrupted and the batch refusing to step until it is reset."""
         try:
-            begin_resets([self.envs[i] for i in resetting], self._next_seeds(resetting), None)
-            advance_worlds([self.envs[i] for i in stepping], [velocities_mps[i] for i in stepping])
-        except Exception as err:  # some worlds may have moved: the step is lost for every sub-env
+            return self._step(velocities_mps)
+        except BaseException as err:  # some sub-envs moved, others not: the step is lost for every sub-env
+            self._unfinished = f"the last step did not finish ({type(err).__name__}: {err})"
             for env in self.envs:
-                env.interrupt(f"a world's step failed: {err}")
+                env.interrupt(f"the batch's step failed ({type(err).__name__}: {err})")
             raise
+
+    def _step(self, velocities_mps: Sequence[np.ndarray | None]) -> StepParts:
+        """``step_parts`` without the clean-up of a failure."""
+        resetting, stepping = np.flatnonzero(self.autoreset), np.flatnonzero(~self.autoreset)
+        self._autoreset(resetting)
+        advance_worlds([self.envs[i] for i in stepping], [velocities_mps[i] for i in stepping])
         parts = StepParts([], np.zeros(self.num_envs), np.zeros(self.num_envs, bool), np.zeros(self.num_envs, bool),
                           [], {})
-        for i, (env, prediction) in enumerate(zip(self.envs, forecast_or_interrupt(self.envs), strict=True)):
+        for i, (env, prediction) in enumerate(zip(self.envs, forecast_all(self.envs), strict=True)):
             if self.autoreset[i]:
                 obs, info = env.end_reset(*prediction)
                 self.elapsed[i] = 0
@@ -138,20 +159,37 @@ class EnvBatch:
         if self.autoreset_mode == AutoresetMode.SAME_STEP:  # reset the ended sub-envs now, one forecast for them
             for i in ended:
                 parts.finals[int(i)] = {"final_obs": parts.observations[i], "final_info": parts.infos[i]}
-            restarted = [self.envs[i] for i in ended]
-            begin_resets(restarted, self._next_seeds(ended), None)
-            for i, prediction in zip(ended, forecast_or_interrupt(restarted, self.envs), strict=True):
+            self._autoreset(ended)
+            for i, prediction in zip(ended, forecast_all([self.envs[i] for i in ended]), strict=True):
                 parts.observations[i], parts.infos[i] = self.envs[i].end_reset(*prediction)
                 self.elapsed[i] = 0
         else:
             self.autoreset = parts.terminated | parts.truncated
         return parts
 
+    def _autoreset(self, which: np.ndarray) -> None:
+        """Start the next episode of the sub-envs ``which`` (each class's together) with the seeds their functions
+        draw; ``AutoresetError`` naming the sub-envs and seeds of a class whose reset failed."""
+        seeds = self._next_seeds(which)
+        for members in by_class([self.envs[i] for i in which]).values():
+            try:
+                begin_resets([self.envs[which[k]] for k in members], [seeds[k] for k in members], None)
+            except Exception as err:
+                named = ", ".join(f"sub-env {which[k]} (seed {seeds[k]})" if seeds[k] is not None else
+                                  f"sub-env {which[k]} (its generator's next episode)" for k in members)
+                raise AutoresetError(f"the autoreset of {named} failed ({type(err).__name__}: {err})") from err
+
     def _next_seeds(self, which: np.ndarray) -> list[int | None]:
         """The seeds the sub-envs ``which`` start their next episode with, drawn in that order (None: their
         generators go on)."""
-        seeds = [None if self._seed_functions[i] is None else self._seed_functions[i]() for i in which]
-        for seed in seeds:
+        seeds = []
+        for i in which:
+            function = self._seed_functions[i]
+            try:
+                seed = None if function is None else function()
+            except Exception as err:
+                raise AutoresetError(f"sub-env {i}: autoreset_seeds raised {type(err).__name__}: {err}") from err
             if not is_seed(seed):
-                raise EnvInputError(f"autoreset_seeds returned {seed!r}: expected an int >= 0")
-        return [None if seed is None else int(seed) for seed in seeds]
+                raise EnvInputError(f"sub-env {i}: autoreset_seeds returned {seed!r}: expected an int >= 0")
+            seeds.append(None if seed is None else int(seed))
+        return seeds

@@ -27,6 +27,7 @@ from st_sim.reactive.footprint import Body
 from st_sim.reactive.reaction import draw_traits, fitted_spread
 from st_sim.reactive.reactive import ReactiveCrowd
 from st_sim.reactive.routes import Routes
+from st_sim.sim.exact import length
 from st_sim.sim.map_depth import MapDepth
 from st_sim.sim.robot import Robot, RobotSpec
 
@@ -284,7 +285,7 @@ class ReplayCrowdEnv(CrowdEnv):
             self.index = int(self.np_random.integers(low, max(low, last - MIN_REPLAY_STEPS) + 1))
         now = self.replay.frame(self.index)
         if self.ego:
-            diagonal_m = float(np.linalg.norm(self.arena_high_m - self.arena_low_m))
+            diagonal_m = float(length(self.arena_high_m - self.arena_low_m))
             self.ego_xy_m, self.goal_m = spawn_start_goal(
                 self.spawn_points, now.xy_m, self.cfg.spawn_clearance_m,
                 self.cfg.goal_min_fraction * diagonal_m, self.np_random)

@@ -16,7 +16,10 @@ vector envs batch them. Autoreset is gymnasium's default, ``AutoresetMode.NEXT_S
 ended resets that sub-env, ignores its action and returns its first observation with reward 0), or
 ``autoreset_mode=AutoresetMode.SAME_STEP`` (the ending step resets the sub-env at once and returns its first
 observation, the last one in ``info["final_obs"]`` and the last info in ``info["final_info"]``; the reset sub-envs
-are forecast in a second batched call), the convention of stable-baselines3 and CleanRL-style loops.
+are forecast in a second batched call), the convention of stable-baselines3 and CleanRL-style loops. A step that fails
+part-way (a sub-env's autoreset, a world, the forecast) is lost for every sub-env: ``step`` raises the error (an
+autoreset's names the sub-env and its seed, ``AutoresetError``) and refuses every later step, saying why, until
+``reset`` (``envs.batch_step``).
 """
 
 from __future__ import annotations

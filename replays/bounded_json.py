@@ -9,6 +9,10 @@ only then is it parsed, strictly (no NaN, no Infinity: the project's writers nev
 
     summary = read_json("results/benchmark/mpc-singular/summary.json.gz", "benchmark summary")
 
+``parse_json`` holds JSON text already in memory (a zip's member, say) to the same caps:
+
+    data = parse_json(archive.read("data"), f"{path}: data", "stable-baselines3 model's data")
+
 The caps are set so that reading any file, parsed values included, takes less than 100 MB more memory than reading
 a committed benchmark summary (1.5 MB of JSON), and a file past a cap is refused in under a second
 (``benchmarks/hostile_results.py`` measures both). Every refusal is a ``DataFormatError`` (``MemoryBudgetError`` for
@@ -56,11 +60,35 @@ def read_json(path: str | os.PathLike, what: str = "JSON file") -> Any:
             (gzip.GzipFile(fileobj=raw) if gzipped else nullcontext(raw)) as stream:
         data = _read_capped(stream, path, what, gzipped)
     check_shape(data, path, what)
+    text = _utf8(data, path)
+    del data  # the parse holds the text and the values only
+    return _strict(text, path)
+
+
+def parse_json(data: bytes | bytearray, path: str | os.PathLike, what: str = "JSON text") -> Any:
+    """The value of the JSON text ``data`` (UTF-8 bytes), held to ``read_json``'s caps (``MAX_JSON_BYTES``,
+    ``MAX_DEPTH``, ``MAX_TOKENS``, strict: no NaN, no Infinity) and refused with the same errors.
+
+    Args:
+        path: where the text comes from, for messages (``"model.zip: data"``).  what: what it should hold.
+    """
+    if len(data) > MAX_JSON_BYTES:
+        raise MemoryBudgetError(f"{path}: {len(data):,} bytes, more than the {MAX_JSON_BYTES:,} bytes of JSON a "
+                                f"{what} may hold (replays.bounded_json.MAX_JSON_BYTES)")
+    check_shape(data, path, what)
+    return _strict(_utf8(data, path), path)
+
+
+def _utf8(data: bytes | bytearray, path: str | os.PathLike) -> str:
+    """``data`` decoded as UTF-8 (``DataFormatError`` naming ``path`` otherwise)."""
     try:
-        text = data.decode()
+        return data.decode()
     except UnicodeDecodeError as err:
         raise DataFormatError(f"{path}: not UTF-8 text ({err})") from None
-    del data  # the parse holds the text and the values only
+
+
+def _strict(text: str, path: str | os.PathLike) -> Any:
+    """``text`` parsed as strict JSON (``DataFormatError`` naming ``path`` otherwise)."""
     try:
         return json.loads(text, parse_constant=_refuse_constant)
     except ValueError as err:  # malformed, NaN or Infinity, an integer of more digits than Python converts

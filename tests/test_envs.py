@@ -191,3 +191,23 @@ def test_forecasts_run_with_one_torch_thread_and_leave_the_setting_as_it_was() -
         assert seen == [1] and torch.get_num_threads() == 2
     finally:
         torch.set_num_threads(before)
+
+
+@pytest.mark.parametrize("env_id", ["STCrowd-Zara1-v0", "STCrowd-SimCrossing-v1"])
+@pytest.mark.parametrize("task", ["stochastic", "momentary"])
+def test_every_pedestrian_with_a_full_history_gets_futures_at_every_step(env_id: str, task: str) -> None:
+    """README.md and docs/index.md: every pedestrian observed for the task's history (8 steps, 3.2 s; 2 for the
+    momentary task) gets predicted futures at every step, and no other one does (the default sensing: everyone)."""
+    env = gym.make(env_id, predictor="cvm", task=task)
+    forecast = 0
+    for seed in range(2):
+        obs, _ = env.reset(seed=seed)
+        for t in range(12):
+            full = obs["history_mask"].all(axis=1)
+            assert np.array_equal(obs["futures_mask"], full), f"[seed {seed} step {t}]"
+            forecast += int(full.sum())
+            obs, _, terminated, truncated, _ = env.step(np.zeros(2))
+            if terminated or truncated:
+                break
+    assert forecast, "nobody was forecast: nothing was checked"
+    env.close()

@@ -114,6 +114,17 @@ def test_replay_spectator_ignores_action_and_gives_no_reward() -> None:
         env.step(np.array([1 + 1j, 0]))
 
 
+def test_a_replay_reports_no_groups() -> None:
+    """docs/environments.md: replays have no groups and no ``info["group_ids"]`` entry (the simulated envs do)."""
+    for pedestrians in ("log", "reactive"):
+        env = gym.make("STCrowd-Hotel-v0", predictor="cvm", pedestrians=pedestrians)
+        _, info = env.reset(seed=0)
+        _, _, _, _, stepped = env.step(np.zeros(2))
+        assert "group_ids" not in info and "group_ids" not in stepped, pedestrians
+    _, info = gym.make("STCrowd-SimCorridor-v1", predictor="cvm").reset(seed=0)
+    assert info["group_ids"].shape == info["agent_ids"].shape
+
+
 def test_replay_collision_terminates_with_penalty() -> None:
     env = gym.make("STCrowd-Zara1-v0")
     _, info = env.reset(seed=0, options={"start_index": 100})

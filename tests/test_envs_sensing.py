@@ -129,6 +129,17 @@ def test_reactive_replays_keep_no_forecasts() -> None:
     assert env.unwrapped.forecasts.hits == env.unwrapped.forecasts.misses == 0
 
 
+def test_simulated_crowds_keep_no_forecasts() -> None:
+    """docs/environments.md, "Kept forecasts": simulated crowds never reuse forecasts, even in an episode that
+    repeats one before it moment for moment."""
+    env = gym.make("STCrowd-SimCrossing-v1", predictor="cvm")
+    for _ in range(2):
+        env.reset(seed=0)
+        for _ in range(5):
+            env.step(np.zeros(2))
+    assert env.unwrapped.forecasts.hits == env.unwrapped.forecasts.misses == 0
+
+
 def test_kept_forecasts_serve_a_recording_env_as_far_as_its_predictor_can() -> None:
     """A recording env needs anchor paths only from a predictor that gives them: without them a kept forecast is a
     miss (and is replaced by one with them), from a predictor without any it is a hit."""

@@ -218,3 +218,27 @@ def test_hostile_reset_and_step_calls_are_refused_before_anything_changes() -> N
         with pytest.raises(EnvInputError, match="seed"):
             env.reset(seed=seed)
     assert env._envs == {}, "nothing was made"
+
+
+@pytest.mark.parametrize("name", ["sim-corridor", "zara1-reactive"])
+def test_the_scenario_and_its_seed_start_the_episode_again(name: str) -> None:
+    """docs/environments.md: ``info["scenario"]`` and ``info["scenario_seed"]`` name the episode: the scenario's env
+    (the benchmark's, behind the view) reset with that seed starts it again, step for step."""
+    from envs.suite import make_scenario_env
+    from envs.view import FixedView
+
+    suite_env = gym.make(envs.SUITE_ID, scenarios=[name], predictor="cvm")
+    obs, info = suite_env.reset(seed=11)
+    (scenario,) = SUITE.select([info["scenario"]])
+    again = FixedView(make_scenario_env(scenario, "cvm"))
+    obs_again, _ = again.reset(seed=info["scenario_seed"])
+    for t in range(8):
+        assert all(np.array_equal(obs[key], obs_again[key]) for key in obs), f"[step {t}] observations differ"
+        action = np.array([1.0, 0.5 * np.sin(t)], np.float32)
+        obs, reward, terminated, truncated, _ = suite_env.step(action)
+        obs_again, reward_again, *_ = again.step(action)
+        assert reward == reward_again, f"[step {t}]"
+        if terminated or truncated:
+            break
+    suite_env.close()
+    again.close()

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import envs  # noqa: F401  (registers the ids)
-from envs.common.crowd_env import REWARD_PARTS, TERMINATIONS
+from envs.common.crowd_env import REWARD_PARTS, TERMINATIONS, WEIGHT_OF
 
 SIM_ID = "STCrowd-SimCrossing-v1"  # ego starts at (10, 2.5) m, the crossing's bottom wall is at y = 0 m
 
@@ -79,3 +79,60 @@ def test_sim_ego_velocity_follows_the_command_within_the_exposed_acceleration_li
         speeds.append(float(np.linalg.norm(obs["ego"][2:4])))
         assert speeds[-1] <= accel_mps2 * 0.4 * (t + 1) + 1e-3, f"[step {t}] speed {speeds[-1]:.3f} m/s"
     assert speeds[1] > speeds[0] > 0.5, "the ego does accelerate"
+
+
+@pytest.mark.parametrize("robot_moves", [False, True], ids=["walked-into", "drove-into"])
+def test_a_collision_outranks_the_goal_and_costs_the_same_whoever_is_at_fault(robot_moves: bool) -> None:
+    """docs/environments.md: a collision outranks the goal (``info["termination"]``), and the reward is the weighted
+    sum of its parts; docs/navigation.md: the training reward does not use the at-fault judgement."""
+    env = gym.make("STCrowd-Zara1-v0", predictor="cvm")
+    env.reset(seed=0, options={"start_index": 100})
+    walker_next = env.unwrapped.replay.frame(101).xy_m[0].copy()  # where a pedestrian will be after the step
+    env.unwrapped.ego_xy_m = walker_next + (np.array([0.5, 0.0]) if robot_moves else 0.0)
+    env.unwrapped.goal_m = env.unwrapped.ego_xy_m.copy()  # the goal is reached on the same step
+    _, reward, terminated, _, info = env.step(np.array([-1.5, 0.0]) if robot_moves else np.zeros(2))
+    parts, weights = info["reward_parts"], env.unwrapped.cfg.reward
+    assert terminated and parts["goal"] == 1.0 and parts["pedestrian_collision"] == 1.0, parts
+    assert info["termination"] == "pedestrian_collision", "the collision outranks the goal"
+    assert info["at_fault"] is robot_moves, "a standing robot was walked into; a moving one drove in"
+    weighted = sum(getattr(weights, WEIGHT_OF.get(name, name)) * value for name, value in parts.items())
+    assert reward == pytest.approx(weighted), "the reward is the weighted sum of its parts, the fault aside"
+
+
+@pytest.mark.parametrize("env_id", ["STCrowd-Zara1-v0", "STCrowd-Eth-v0"])
+def test_a_replay_robot_pressed_against_the_image_border_pays_no_wall_collision(env_id: str) -> None:
+    """docs/environments.md: ``wall_collision`` is always 0 in replays, whose image border only stops the robot."""
+    env = gym.make(env_id, predictor="none", max_episode_steps=1000)
+    for direction in ([1.0, 0.0], [-1.0, 0.0], [0.0, 1.0], [0.0, -1.0]):
+        obs, _ = env.reset(seed=3)
+        stopped = 0
+        for t in range(60):
+            before = obs["ego"][:2].copy()
+            obs, _, terminated, truncated, info = env.step(1.5 * np.array(direction))
+            stopped += bool(np.linalg.norm(obs["ego"][:2] - before) < 1e-3)
+            assert info["reward_parts"]["wall_collision"] == 0.0, f"{direction} [step {t}]"
+            assert info["termination"] != "wall_collision", f"{direction} [step {t}]"
+            if terminated or truncated:
+                break
+        assert stopped, f"{direction}: the robot never reached the image border"
+
+
+def test_a_step_touching_a_wall_and_a_pedestrian_pays_the_collision_weight_once() -> None:
+    """docs/environments.md: the two collision parts exclude each other, so a step pays the weight at most once.
+    The simulator's step that meets the crowd is made to touch a wall too."""
+    env = gym.make(SIM_ID, predictor="cvm")
+    unwrapped = env.unwrapped
+    contacts = unwrapped._ego_contact
+
+    def touching_a_wall_too() -> tuple:
+        hit, wall, nearest_m = contacts()
+        return hit, wall or hit is not None, nearest_m
+
+    unwrapped._ego_contact = touching_a_wall_too
+    _, reward, _, info = run_until_end(env, np.array([0.0, 1.5]), seed=0)  # as in the test of the crowd above
+    parts, weights = info["reward_parts"], unwrapped.cfg.reward
+    assert info["termination"] == "pedestrian_collision"
+    assert (parts["pedestrian_collision"], parts["wall_collision"]) == (1.0, 0.0), parts
+    others = sum(getattr(weights, WEIGHT_OF.get(name, name)) * value for name, value in parts.items()
+                 if not name.endswith("_collision"))
+    assert reward == pytest.approx(others + weights.collision), "one collision weight, not two"

@@ -161,3 +161,29 @@ def test_only_a_views_space_is_taken_for_one() -> None:
     assert view_sizes(gym.spaces.Dict(wrong)) is None
     assert view_sizes(gym.spaces.Dict({k: v for k, v in space.spaces.items() if k != "walls"})) is None
     assert view_sizes(gym.spaces.Box(-1, 1, (4,))) is None
+
+
+@pytest.mark.parametrize("env_id", ["STCrowd-SimBottleneck-v1", "STCrowd-Univ-v0"])
+def test_the_view_reads_the_walls_the_shipped_ppo_planner_reads(env_id: str) -> None:
+    """docs/environments.md and docs/training.md: the view's wall readings are the shipped PPO planner's (its
+    features call the same ``envs.view.wall_readings_m``): the same distances along the same rays."""
+    from st_sim.apps.navigation.features import FeatureConfig, encode
+
+    viewed = FixedView(gym.make(env_id, predictor="cvm"))
+    raw = gym.make(env_id, predictor="cvm")
+    world = world_of(raw)
+    (seen, _), (obs, _) = viewed.reset(seed=5), raw.reset(seed=5)
+    assert seen["walls"].shape == (RAY_COUNT,)
+    walls_in_reach = 0
+    for t in range(6):
+        features = encode(obs, world, FeatureConfig())
+        np.testing.assert_allclose(features[3:3 + RAY_COUNT] * RAY_RANGE_M, seen["walls"], rtol=0, atol=1e-5,
+                                   err_msg=f"[step {t}]")
+        walls_in_reach += bool(seen["walls"].min() < RAY_RANGE_M)
+        frame = frames_along_path(obs["ego"][None], world.terrain, world.wall_clearance_m)[0]
+        action = np.array([1.2, 0.3 * t - 0.6])  # in the robot's frame
+        seen, _, terminated, truncated, _ = viewed.step(action)
+        obs, *_ = raw.step(to_world(action[None], frame[None])[0])
+        if terminated or truncated:
+            break
+    assert walls_in_reach, "no wall was in reach: nothing was compared"

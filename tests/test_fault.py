@@ -15,8 +15,10 @@ from envs.common.fault import (
     STOP_HOLD_STEPS,
     STOP_SPEED_MPS,
     RobotMotion,
+    RobotMotionError,
     motion_before_steps,
     robot_at_fault,
+    robot_to_blame,
 )
 from replays.constants import STEP_S
 from st_sim.apps.navigation.metrics import EpisodeTrace, Outcome, episode_metrics, summarize
@@ -33,6 +35,8 @@ angle = st.floats(-math.pi, math.pi)
 speed = st.floats(0.0, 2.5)
 moving_speed = st.floats(STOP_SPEED_MPS * 1.001, 2.5)  # clear of rounding at the threshold
 motions = st.sampled_from([STOOD, JUST_STOPPED, HELD, DRIVING])
+non_finite = st.sampled_from([math.nan, math.inf, -math.inf])
+component = st.floats(-3.0, 3.0)
 
 
 def unit(radians: float) -> np.ndarray:
@@ -182,6 +186,60 @@ def test_the_motion_memory_keeps_the_fastest_recent_speed_and_the_last_heading(
             assert np.allclose(heading[t], step / np.linalg.norm(step))
         else:
             assert not heading[t].any()
+
+
+# motion that is not known: an error, never a verdict ----------------------------------------------------------------
+
+@settings(max_examples=300, deadline=None)
+@given(name=st.sampled_from(["velocity_mps", "speeds_mps", "heading"]), index=st.integers(0, 1), bad=non_finite,
+       velocity=st.tuples(component, component), speeds=st.tuples(speed, speed), heading=angle, bearing=angle,
+       person=st.tuples(component, component))
+def test_a_robot_velocity_speed_or_heading_that_is_not_finite_is_an_error_naming_it(
+        name: str, index: int, bad: float, velocity: tuple[float, float], speeds: tuple[float, float],
+        heading: float, bearing: float, person: tuple[float, float]) -> None:
+    """Whatever else the contact holds, a NaN or an infinity in the robot's velocity, recent speeds or heading is
+    refused naming the field, where it is and the value; the rule never judges it (not at fault or at fault)."""
+    values = {"velocity_mps": np.array(velocity), "speeds_mps": np.array(speeds), "heading": unit(heading)}
+    values[name][index] = bad
+    with pytest.raises(RobotMotionError, match=rf"^the robot's {name} is not finite at \((0, )?{index},?\): {bad} "):
+        robot_at_fault(contact(bearing, values["velocity_mps"], np.array(person)),
+                       RobotMotion(tuple(values["speeds_mps"]), values["heading"]))
+
+
+@settings(max_examples=200, deadline=None)
+@given(steps=st.lists(st.tuples(st.floats(0.0, 2.0), angle), min_size=1, max_size=12), data=st.data(),
+       bad=non_finite)
+def test_a_robot_path_that_is_not_finite_is_an_error_in_the_motion_memory_and_the_zone_entries(
+        steps: list[tuple[float, float]], data: st.DataObject, bad: float) -> None:
+    path = np.cumsum([np.zeros(2)] + [s * STEP_S * unit(a) for s, a in steps], axis=0)
+    row, column = data.draw(st.integers(0, len(path) - 1)), data.draw(st.integers(0, 1))
+    path[row, column] = bad
+    where = rf"^the robot's positions ego_xy_m is not finite at \({row}, {column}\): {bad} "
+    with pytest.raises(RobotMotionError, match=where):
+        motion_before_steps(path, STEP_S)
+    peds = np.full((len(path), 1, 2), 3.0)
+    with pytest.raises(RobotMotionError, match=where):
+        zone_entries(path, peds, body_gaps_m(path, peds, CONTACT_M), INTIMATE_M, STEP_S)
+    with pytest.raises(RobotMotionError, match=rf"^the robot's displacement_m is not finite at \({column},\)"):
+        RobotMotion().after_step(path[row] - path[row - 1] if row else path[0], STEP_S)
+
+
+@settings(max_examples=200, deadline=None)
+@given(shape=st.tuples(st.integers(1, 4), st.integers(1, 3)), data=st.data(), bad=non_finite,
+       name=st.sampled_from(["velocity_mps", "recent_speed_mps", "heading"]))
+def test_a_batch_of_judgements_with_one_robot_value_not_finite_is_an_error_naming_where(
+        shape: tuple[int, int], data: st.DataObject, bad: float, name: str) -> None:
+    """``robot_to_blame`` over (T, N) zone entries: one non-finite robot value anywhere is refused, naming its index;
+    a person's unknown (NaN) velocity stays allowed."""
+    rng = np.random.default_rng(data.draw(st.integers(0, 2**16)))
+    values = {"velocity_mps": rng.normal(size=(*shape, 2)), "recent_speed_mps": rng.uniform(0, 2, shape),
+              "heading": rng.normal(size=(*shape, 2))}
+    index = tuple(data.draw(st.integers(0, n - 1)) for n in values[name].shape)
+    values[name][index] = bad
+    person = np.where(rng.uniform(size=(*shape, 1)) < 0.5, np.nan, rng.normal(size=(*shape, 2)))
+    with pytest.raises(RobotMotionError, match=rf"^the robot's {name} is not finite at \({', '.join(map(str, index))}"):
+        robot_to_blame(rng.normal(size=(*shape, 2)), values["velocity_mps"], person, values["recent_speed_mps"],
+                       values["heading"])
 
 
 def trace(outcome: Outcome, at_fault: bool | None, states: int = 3) -> EpisodeTrace:

@@ -7,13 +7,16 @@ from __future__ import annotations
 
 import io
 import os
+import re
 import shutil
 import socket
+import subprocess
+import sys
 import tarfile
 import threading
 import zipfile
 from collections.abc import Iterator
-from contextlib import contextmanager
+from contextlib import ExitStack, contextmanager
 from functools import partial
 from http.server import SimpleHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
@@ -296,3 +299,52 @@ def test_verify_cli_prints_ok_or_the_first_bad_file(tmp_path: Path, capsys: pyte
     assert main(["verify", "--root", str(copy)]) == 1
     err = capsys.readouterr().err
     assert err.startswith("error: ") and VICTIM in err and "python -m replays fetch" in err, err
+
+
+@pytest.mark.parametrize("source", ["folder", "archive", "http"])
+def test_no_source_delivers_a_file_over_the_size_cap(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                     source: str) -> None:
+    """docs/data.md: no file over ``MAX_FILE_BYTES`` (64 MiB) is accepted from any source; here the cap is set just
+    under the largest file's size, and every kind of source must refuse that file, naming it."""
+    largest = max(SUMS, key=lambda name: (SHARED / name).stat().st_size)
+    monkeypatch.setattr(fetch_module, "MAX_FILE_BYTES", (SHARED / largest).stat().st_size - 1)
+    dest = tmp_path / "dest"
+    with ExitStack() as stack:
+        if source == "http":
+            spec: str | Path = stack.enter_context(http_server(SHARED))
+        elif source == "archive":
+            spec = tmp_path / "eth_ucy.tar.gz"
+            with tarfile.open(spec, "w:gz", compresslevel=1) as tar:
+                tar.add(SHARED, arcname="eth_ucy")
+        else:
+            spec = SHARED
+        with pytest.raises(FetchError, match=re.escape(largest)):
+            fetch(spec, dest, quiet=True)
+    assert not (dest / largest).exists() and not list(dest.rglob("*.part")), "the refused file was kept"
+
+
+AUDITED_FETCH = """
+import sys
+from replays.fetch import fetch
+source, warm, dest = sys.argv[1:4]
+fetch(source, warm, quiet=True)  # every code path once, so that nothing is imported during the audited fetch
+RUNS = ("exec", "compile", "subprocess.Popen", "os.system", "os.exec", "os.posix_spawn", "os.spawn", "os.fork",
+        "ctypes.dlopen", "pickle.find_class", "marshal.loads", "import")
+seen = []
+sys.addaudithook(lambda event, args: seen.append(event) if event in RUNS else None)
+fetch(source, dest, quiet=True)
+print(sorted(set(seen)))
+"""
+
+
+def test_fetch_runs_nothing_it_downloads(tmp_path: Path) -> None:
+    """docs/data.md: the fetch runs nothing it downloads: an audit hook sees no code compiled, executed, unpickled,
+    imported or spawned while every file is fetched, checked and stored (an archive source: the longest path)."""
+    archive = tmp_path / "eth_ucy.tar.gz"
+    with tarfile.open(archive, "w:gz", compresslevel=1) as tar:
+        tar.add(SHARED, arcname="eth_ucy")
+    done = subprocess.run([sys.executable, "-c", AUDITED_FETCH, str(archive), str(tmp_path / "warm"),
+                           str(tmp_path / "dest")], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.strip() == "[]", f"the fetch ran code: {done.stdout.strip()}"
+    verify_data_root(tmp_path / "dest")

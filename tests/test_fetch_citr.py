@@ -82,3 +82,22 @@ def test_an_extra_recording_in_a_citr_folder_counts_as_a_change(tmp_path: Path) 
     assert modified_files(root, dataset=CITR) == {}
     shutil.copyfile(root / VICTIM, root / "vci_front" / "extra_traj_ped_filtered.csv")
     assert list(modified_files(root, dataset=CITR)) == ["vci_front/extra_traj_ped_filtered.csv"]
+
+
+def test_citr_keeps_the_resume_modified_and_archive_rules_of_eth_ucy(tmp_path: Path) -> None:
+    """docs/data.md, "CITR": the same resume, ``.modified`` and archive rules as ETH/UCY's."""
+    import tarfile
+
+    archive = tmp_path / "citr.tar.gz"
+    with tarfile.open(archive, "w:gz", compresslevel=1) as tar:
+        tar.add(SHARED_CITR, arcname="citr")  # a top folder, as a downloaded archive has
+    dest = tmp_path / "dest"
+    report = fetch(archive, dest, quiet=True, dataset=CITR)
+    assert (report.fetched, report.skipped) == (len(SUMS), 0)
+    (dest / VICTIM).write_text("edited\n")
+    (dest / VICTIM).with_name(Path(VICTIM).name + ".modified").write_text("edited before\n")
+    report = fetch(SHARED_CITR, dest, quiet=True, dataset=CITR)
+    assert (report.fetched, report.skipped) == (1, len(SUMS) - 1), "checked files are skipped, the edited one again"
+    assert (dest / (VICTIM + ".modified")).read_text() == "edited before\n"
+    assert (dest / (VICTIM + ".modified.1")).read_text() == "edited\n", "the edit is kept beside the original"
+    verify_data_root(dest, CITR)

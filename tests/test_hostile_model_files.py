@@ -5,7 +5,10 @@ with its values, and a network wider, deeper or bigger than the caps is refused 
 
 Classes of attack: random strides, offsets and storage sizes over any tensor of the network (expanded views, slices
 of a bigger storage, overlapping views), other dtypes, two tensors on one storage, tensors without data (meta,
-sparse), compressed records, and oversized ``net_arch`` beside weights that are held or only expanded.
+sparse), compressed records, and oversized ``net_arch`` beside weights that are held or only expanded. An SB3 zip's
+``data`` member is held to the caps of every results file (``replays.bounded_json``): past its size, nesting depth or
+token count, holding NaN or Infinity anywhere, not UTF-8, or not a JSON object, it is refused in one line naming the
+zip and the member.
 """
 
 from __future__ import annotations
@@ -24,6 +27,7 @@ from hypothesis import strategies as st
 from sb3_files import ACTIONS, data_of, make_env, outcome, rewrite
 from stable_baselines3.common.policies import ActorCriticPolicy
 
+from replays.bounded_json import MAX_DEPTH, MAX_TOKENS
 from st_sim.apps.navigation.features import FeatureConfig
 from st_sim.apps.navigation.held_weights import MAX_PARAMETERS, network_state
 from st_sim.apps.navigation.ppo import (
@@ -36,7 +40,7 @@ from st_sim.apps.navigation.ppo import (
     policy_spaces,
     save_policy,
 )
-from st_sim.apps.navigation.sb3_zip import load_sb3_zip
+from st_sim.apps.navigation.sb3_zip import MAX_DATA_BYTES, load_sb3_zip
 
 HOSTILE = settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 NET_ARCH = [16, 16]  # the honest files' layers [-]
@@ -288,3 +292,59 @@ def test_compressed_records_are_refused_in_both_file_kinds(padding: bool, proble
     assert problem in ppo_outcome(ppo)
     pth = deflated(torch_bytes(compressed(policy_pth(sb3_zip), padding)))
     assert problem in outcome(rewrite(sb3_zip, tmp_path / "deflated.zip", {"policy.pth": pth}))
+
+
+DATA_ATTACKS = ("nested", "tokens", "non-finite", "not an object", "not UTF-8", "declares too much")
+"""how a hostile ``data`` member breaks the bounds of ``replays.bounded_json`` (or SB3's own shape)"""
+MARK = "HOSTILE-VALUE"
+
+
+def with_raw(honest: dict[str, Any], key: str, raw: str) -> bytes:
+    """``honest`` as JSON with the text ``raw`` as the value of ``key``."""
+    return json.dumps({**honest, key: MARK}).replace(f'"{MARK}"', raw).encode()
+
+
+@st.composite
+def hostile_data(draw: st.DrawFn, honest: dict[str, Any]) -> tuple[bytes, str]:
+    """A ``data`` member built from the ``honest`` one, and the words its refusal must hold."""
+    attack = draw(st.sampled_from(DATA_ATTACKS))
+    key = draw(st.sampled_from(sorted(honest)) | st.just("extra"))  # a field the loader reads, or one it never does
+    if attack == "nested":  # past the cap, however deep; the object itself is one level
+        pairs = draw(st.lists(st.sampled_from([("[", "]"), ('{"k":', "}")]), min_size=MAX_DEPTH,
+                              max_size=20 * MAX_DEPTH))
+        raw = "".join(opening for opening, _ in pairs) + "0" + "".join(closing for _, closing in reversed(pairs))
+        return with_raw(honest, key, raw), f"JSON nested more than {MAX_DEPTH} levels deep"
+    if attack == "tokens":  # a flat list of more values than the cap (a comma is a token, a number is not)
+        raw = "[" + "0," * (MAX_TOKENS + draw(st.integers(0, 1000))) + "0]"
+        return with_raw(honest, key, raw), f"more than {MAX_TOKENS:,} JSON tokens"
+    if attack == "non-finite":  # Python's json writes them; no strict reader reads them
+        constant = draw(st.sampled_from(["NaN", "Infinity", "-Infinity"]))
+        where = draw(st.sampled_from(["{}", "[{}]", '{"a": [1, {}]}']))
+        return with_raw(honest, key, where.replace("{}", constant)), "not strict JSON"
+    if attack == "not an object":
+        value = draw(st.sampled_from([[honest], list(honest), 1, 2.5, "data", True, None]))
+        return json.dumps(value).encode(), f"data is a JSON {type(value).__name__}, not an object"
+    if attack == "not UTF-8":  # a byte sequence no UTF-8 text holds, inside a string or as the value itself
+        bad = draw(st.sampled_from([b"\xff", b"\xc3\x28", b"\xed\xa0\x80", b"\xf8\x88\x80\x80\x80", b"\x80"]))
+        raw = draw(st.sampled_from([b'"va' + bad + b'lue"', bad]))
+        return with_raw(honest, key, "BAD").replace(b"BAD", raw), "not UTF-8 text"
+    return b" " * (MAX_DATA_BYTES + draw(st.integers(1, 4096))), "data declares"
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(data=st.data())
+def test_a_data_member_past_the_bounds_of_every_results_file_is_refused_naming_the_zip_and_the_member(
+        sb3_zip: Path, tmp_path: Path, data: st.DataObject) -> None:
+    member, problem = data.draw(hostile_data(data_of(sb3_zip)))
+    path = tmp_path / "crafted.zip"
+    with zipfile.ZipFile(sb3_zip) as original, zipfile.ZipFile(path, "w") as copy:  # stored: the sizes as they are
+        for info in original.infolist():
+            copy.writestr(info.filename, member if info.filename == "data" else original.read(info.filename))
+    message = outcome(path)
+    assert message.startswith(f"{path}: data") and problem in message, message
+
+
+def test_a_data_member_within_the_bounds_loads(sb3_zip: Path, tmp_path: Path) -> None:
+    """The deepest nesting the caps allow, in a field the loader never reads: the honest file still loads."""
+    deepest = with_raw(data_of(sb3_zip), "extra", "[" * (MAX_DEPTH - 1) + "0" + "]" * (MAX_DEPTH - 1))
+    assert outcome(rewrite(sb3_zip, tmp_path / "deep.zip", {"data": deepest})) == "loaded"

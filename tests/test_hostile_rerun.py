@@ -222,6 +222,19 @@ def test_navigate_names_the_recording_it_cannot_write(tmp_path: Path) -> None:
     assert sorted(p.name for p in folder.iterdir()) == [], "a recording (or its lock) was left behind"
 
 
+def test_the_demo_names_the_recording_it_cannot_write(tmp_path: Path) -> None:
+    """docs/rerun.md: ``demo``, like ``navigate``, prints a failed write as one ``error:`` line and exits with 1."""
+    target = tmp_path / "demo.rrd"
+    proc = subprocess.run([sys.executable, "-m", "st_sim", "demo", "--steps", "3", "--rerun", str(target)],
+                          capture_output=True, text=True, timeout=600, preexec_fn=limit_file_size,
+                          env={**os.environ, "PYTHONDONTWRITEBYTECODE": "1"})
+    assert proc.returncode == 1, proc.stderr[-2000:]
+    errors = [line for line in proc.stderr.splitlines() if line.startswith("error:")]
+    assert len(errors) == 1, proc.stderr[-2000:]
+    assert errors[0].startswith(f"error: {target}: writing the Rerun recording failed: File too large"), errors
+    assert "Traceback" not in proc.stderr and not target.exists(), "a traceback or a recording was left"
+
+
 def test_a_forked_child_holding_the_pipe_does_not_hold_up_close(tmp_path: Path, toy_scene) -> None:
     log = RerunLogger(tmp_path / "forked.rrd", toy_scene)
     log.log_step(0, np.zeros((1, 2)), [0])

@@ -5,10 +5,12 @@ reaches markdown or a chart raw, and ``--paired`` says which scenarios or versio
 
 from __future__ import annotations
 
+import argparse
 import copy
 import gzip
 import os
 import re
+import shlex
 import tempfile
 import time
 from collections.abc import Iterator
@@ -20,8 +22,10 @@ import pytest
 from hypothesis import HealthCheck, assume, example, given, settings
 from hypothesis import strategies as st
 
+from envs.suite import load_suite
 from replays.bounded_json import BLOCK_BYTES, MAX_DEPTH, MAX_JSON_BYTES, MAX_TOKENS
 from st_sim.apps.cli import main
+from st_sim.apps.navigation import benchmark_cli
 from st_sim.apps.navigation.benchmark import BENCHMARK_VERSION, RESULT_FORMAT, json_value, summary_of, summary_text
 from st_sim.apps.navigation.leaderboard import (
     LeaderboardError,
@@ -32,10 +36,15 @@ from st_sim.apps.navigation.leaderboard import (
     label,
     load_result,
     markdown,
+    ran_on_table,
+    same_settings_command,
 )
 from st_sim.apps.navigation.leaderboard_page import scenario_chart, worst_table
 from st_sim.apps.navigation.metrics import MEANS, METRICS, Outcome
 from st_sim.apps.navigation.paired import paired_text
+from st_sim.apps.navigation.result_cache import cached, entry_key
+from st_sim.perception import SENSING_LEVELS
+from st_sim.sim.robot import ROBOTS
 
 HOSTILE = settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 SPECS = ["pkg.module:Policy", "sb3:/srv/model.zip", "os:system", "payload:X-v0"]
@@ -46,6 +55,8 @@ hostile_text = st.sampled_from(SPECS + PATHS + MARKUP) | st.text(min_size=1, max
 SAFE_SHOWN = re.compile(r"(?:[A-Za-z0-9 _.:/+=@-]|&#[0-9]+;)*")
 """what ``shown`` may give: the safe characters and numeric character references"""
 OUTCOMES = [outcome.value for outcome in Outcome]
+SUITE_NAMES = [scenario.name for scenario in load_suite().scenarios]
+SHIPPED_SHA256 = load_suite().content_sha256
 
 
 def episode_line(index: int, seed: int, outcome: Outcome, robot: bool, means: dict[str, Any]) -> dict[str, Any]:
@@ -471,3 +482,65 @@ def test_the_command_refuses_a_crafted_folder_in_one_line(tmp_path: Path, capsys
     error = capsys.readouterr().err
     assert error == (f'error: {tmp_path / "summary.json"}: scenarios[0].episodes[1].success: expected true/false, '
                      'got "yes"\n')
+
+
+RECORD_VALUES = st.none() | st.booleans() | st.text(max_size=20) | st.dictionaries(st.text(max_size=5),
+                                                                                    st.text(max_size=20), max_size=3)
+WRONG_RECORDS = (hostile_text | st.none() | numbers | objects |  # not a list
+                 st.lists(hostile_text | numbers | lists, min_size=1, max_size=2) |  # not records
+                 st.lists(st.dictionaries(st.text(max_size=5), numbers | lists | st.just("x" * 301) |
+                                          st.dictionaries(st.text(max_size=3), numbers | st.none(), min_size=1),
+                                          min_size=1, max_size=2), min_size=1, max_size=2))  # wrong values
+"""``ran_on`` values a summary must never hold: machine records are lists of objects of short strings, flags and
+objects of short strings"""
+
+
+@HOSTILE
+@given(summary=summaries(), ran_on=WRONG_RECORDS)
+def test_machine_records_of_the_wrong_kind_are_refused_naming_the_field(summary: dict[str, Any], ran_on: Any) -> None:
+    with folder_of({**summary, "ran_on": ran_on}) as folder:
+        message = refused(folder)
+    assert re.match(r"\S+summary\.json: ran_on(\[\d+\](\.\S+)?)?: expected ", message), message
+
+
+@HOSTILE
+@given(summary=summaries(), records=st.lists(st.dictionaries(
+    st.sampled_from(["commit", "tree_clean", "versions", "cpu", "simd"]) | st.text(max_size=8), RECORD_VALUES,
+    max_size=5), max_size=3))
+def test_machine_records_of_the_right_kind_are_read_and_tabled(summary: dict[str, Any], records: list) -> None:
+    with folder_of({**summary, "ran_on": records}) as folder:
+        result = load_result(folder)
+    assert result["ran_on"] == records
+    assert ran_on_table([result]).count("\n") >= 3
+
+
+@HOSTILE
+@given(summary=summaries(), data=st.data())
+def test_a_checked_summary_is_cached_by_its_bytes_and_a_changed_one_is_checked_again(summary: dict[str, Any],
+                                                                                     data: st.DataObject) -> None:
+    with folder_of(summary, gzipped=True) as folder:
+        first, again = load_result(folder), load_result(folder)
+        assert again == first, "the cached result is the checked one"
+        assert cached(entry_key(file_of(folder).read_bytes())) is not None
+        name = data.draw(st.sampled_from(sorted(METRICS)))
+        crafted = replaced(summary, ("summary", name, "value"), 1234.5)
+        file_of(folder).write_bytes(gzip.compress(summary_text(crafted).encode()))
+        assert f"summary.{name}" in refused(folder), "other bytes are never read from the cache"
+
+
+@HOSTILE
+@given(split=st.sampled_from(["val", "test"]), episodes=st.integers(1, 100),
+       robot=st.sampled_from(list(ROBOTS)), sensing=st.sampled_from(list(SENSING_LEVELS)),
+       scenarios=st.lists(st.sampled_from(SUITE_NAMES), min_size=1, max_size=4, unique=True))
+def test_the_suggested_command_runs_a_shipped_planner_on_the_runs_episodes(split: str, episodes: int, robot: str,
+                                                                           sensing: str, scenarios: list) -> None:
+    like = {"split": split, "episodes_per_scenario": episodes, "robot": robot, "sensing": sensing,
+            "scenario_set": scenarios, "suite_scenarios": len(SUITE_NAMES), "suite_sha256": SHIPPED_SHA256}
+    words = shlex.split(same_settings_command(like))
+    assert words[:4] == ["python", "-m", "st_sim", "benchmark"]
+    parser = argparse.ArgumentParser()
+    benchmark_cli.add_parsers(parser.add_subparsers(dest="command"))
+    args = parser.parse_args([word.replace("DIR", "out") for word in words[3:]])
+    assert (args.split, args.episodes, args.robot, args.sensing) == (split, episodes, robot, sensing)
+    assert args.scenarios == (scenarios if len(scenarios) < len(SUITE_NAMES) else None)
+    assert args.suite_file is None and args.policy == "mpc"

@@ -310,3 +310,23 @@ def test_the_committed_baselines_load_and_join_a_run_of_the_same_episodes() -> N
     table = markdown(committed)
     labels = ("straight + none", "orca + none", "mpc + singular", "ppo + singular")
     assert all(f"| {name} |" in table for name in labels)
+
+
+BAD_ACTIONS = st.sampled_from(["np.zeros(3)", "np.full(2, np.nan)", "np.array([np.inf, 0.0])", "None",
+                               "np.zeros((2, 2))", "'ahead'", "np.array([1e300, -1e300]) * 10"])
+
+
+@settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(action=BAD_ACTIONS)
+def test_a_policy_that_fails_in_the_first_episode_is_named_with_scenario_episode_and_seed(
+        tmp_path_factory: pytest.TempPathFactory, monkeypatch: pytest.MonkeyPatch, action: str) -> None:
+    folder = tmp_path_factory.mktemp("bad")
+    monkeypatch.syspath_prepend(str(folder))
+    name = f"bad_first_{abs(hash(action))}"
+    (folder / f"{name}.py").write_text(f"import numpy as np\nclass Policy:\n    def act(self, obs):\n"
+                                       f"        return {action}\n")
+    seed = load_suite().seeds["val"][0]
+    run = BenchmarkRun(f"{name}:Policy", str(folder / "out"), predictor="none", split="val", episodes=2,
+                       scenarios=("sim-corridor",))
+    with pytest.raises(PolicyError, match=rf"scenario 'sim-corridor', episode 0, seed {seed}\)$"):
+        run_benchmark(run, workers=1, progress=False)

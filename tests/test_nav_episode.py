@@ -8,7 +8,7 @@ import json
 from pathlib import Path
 
 import pytest
-from hypothesis import given
+from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from rrd_files import logged_steps, read_rrd
 
@@ -158,3 +158,26 @@ def test_record_choices_are_checked() -> None:
     assert not chosen("failures", {"success": True}) and not chosen("none", {"success": False})
     with pytest.raises(ValueError, match="record='some'"):
         chosen("some", {"success": False})
+
+
+@settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(patterns=st.lists(st.from_regex(r"zz[a-z*?-]{0,8}", fullmatch=True), min_size=1, max_size=3))
+def test_verify_fails_when_its_patterns_match_no_scenario(runs: dict[str, tuple[Path, dict]], patterns: list[str],
+                                                          capsys) -> None:
+    folder, _ = runs["straight"]
+    assert main(["verify", str(folder), "--scenarios", *patterns, "--quiet"]) == 1
+    err = capsys.readouterr().err
+    assert "matches none of the run's scenarios" in err and "reproduce" not in err, err
+
+
+def test_verify_checks_a_run_of_the_users_own_policy_given_on_the_command_line(runs: dict[str, tuple[Path, dict]],
+                                                                              capsys) -> None:
+    folder, _ = runs["keep-clear"]
+    assert main(["verify", str(folder), "--quiet"]) == 1
+    assert "give it yourself with --policy SPEC" in capsys.readouterr().err
+    assert main(["verify", str(folder), "--policy", "straight", "--quiet"]) == 1
+    assert f"--policy straight: the run's is '{KEEP_CLEAR}'" in capsys.readouterr().err
+    assert main(["verify", str(folder), "--policy", KEEP_CLEAR, "--quiet"]) == 0
+    captured = capsys.readouterr()
+    assert f"every episode re-run equals its line ({len(SCENARIOS)} episodes)" in captured.out
+    assert "scenario/s" not in captured.err and "%" not in captured.err, "no progress bar with --quiet"

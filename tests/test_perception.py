@@ -12,7 +12,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-import envs  # noqa: F401  (registers the ids)
+import envs  # registers the ids
 from replays.scenes import Scene
 from st_sim.perception import SENSING_LEVELS, MotAccumulator, SensingSpec, SensingSpecError, Tracker, detect
 from st_sim.perception.sensor import poisson
@@ -248,3 +248,64 @@ def test_vector_envs_sense_as_single_envs_do(mode: str) -> None:
             break
     vector.close()
     single.close()
+
+
+def judged(env_id: str, level: str, seed: int, **kwargs) -> list[tuple]:
+    """What the env judged at each step of a goal-seeking episode at sensing ``level``: the reward, the end, the
+    fault, the impact's time and the ego's metrics."""
+    env = gym.make(env_id, predictor="cvm", sensing=level, **kwargs)
+    obs, _ = env.reset(seed=seed)
+    steps = []
+    for _ in range(60):
+        obs, reward, terminated, truncated, info = env.step(goal_seeking(obs))
+        metrics = info["metrics"]
+        steps.append((reward, info["termination"], info["at_fault"], info["contact_time_s"],
+                      metrics["ego_collisions"], metrics["min_ego_ped_distance_m"]))
+        if terminated or truncated:
+            break
+    env.close()
+    return steps
+
+
+@pytest.mark.parametrize(("env_id", "kwargs"), [("STCrowd-SimCrossing-v1", {"pedestrians_see_ego": False}),
+                                               ("STCrowd-Zara1-v0", {})], ids=["sim", "replay"])
+def test_collisions_and_fault_are_judged_on_the_truth_at_every_level(env_id: str, kwargs: dict) -> None:
+    """docs/sensing.md: collisions and fault are always judged on the truth, and every figure but the tracking and
+    forecast ones is measured on it, whatever the robot saw: a goal-seeking robot that runs into someone is judged
+    alike at every sensing level, step for step."""
+    for seed in range(1, 12):  # the first episode that ends in a collision, so that there is one to judge
+        reference = judged(env_id, "oracle", seed, **kwargs)
+        if reference[-1][1] == "pedestrian_collision":
+            break
+    else:
+        pytest.fail("no goal-seeking episode ran into anybody: nothing was judged")
+    for level in SENSING_LEVELS:
+        assert judged(env_id, level, seed, **kwargs) == reference, f"{level}: judged otherwise than the truth"
+
+
+@pytest.mark.parametrize("task", ["stochastic", "momentary"])
+def test_a_track_gets_a_forecast_only_once_it_is_as_long_as_the_task_observes(task: str) -> None:
+    """docs/sensing.md: the forecast needs T_obs consecutive steps of a track (8, or 2 for the momentary task), so a
+    younger track gets no forecast, and every track that old gets one."""
+    env = gym.make("STCrowd-Univ-v0", predictor="cvm", sensing="realistic", task=task)
+    young = checked = 0
+    for seed in range(3):
+        obs, _ = env.reset(seed=seed)
+        for t in range(15):
+            full = obs["history_mask"].all(axis=1)
+            assert np.array_equal(obs["futures_mask"], full), f"[seed {seed} step {t}] {obs['futures_mask']}"
+            young += int((obs["history_mask"][:, -1] & ~full).sum())
+            checked += int(full.sum())
+            obs, _, terminated, truncated, _ = env.step(np.zeros(2))
+            if terminated or truncated:
+                break
+    assert young and checked, f"{young} young and {checked} full tracks: nothing was checked"
+
+
+def test_the_suite_env_senses_as_the_crowd_envs_do() -> None:
+    """docs/sensing.md: every env id, the vector envs and the suite env take ``sensing=``."""
+    env = gym.make(envs.SUITE_ID, scenarios=["sim-corridor"], predictor="cvm", sensing="realistic")
+    _, info = env.reset(seed=1)
+    _, _, _, _, info = env.step(np.array([1.0, 0.0], np.float32))
+    assert {"true_ids", "detected_xy_m", "track_ids", "mot"} <= set(info["perception"])
+    env.close()

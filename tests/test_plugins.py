@@ -305,3 +305,36 @@ def test_navigate_prints_one_error_line_naming_the_spec(plugin_dir: Path, capsys
                  "--episodes", "1", "--quiet"]) == 1
     err = capsys.readouterr().err
     assert err.startswith(f"error: predictor {spec!r}") and err.count("\n") == 1, err
+
+
+COUNTER = """
+import os
+
+class Still:
+    def predict(self, obs, group, scene, num_samples):
+        return np.repeat(obs[:, None, -1:], num_samples, axis=1).repeat(12, axis=2).astype(np.float32)
+
+def make(**kwargs):
+    with open(os.environ["STCROWD_TEST_BUILDS"], "a") as out:
+        out.write("built\\n")
+    return Still()
+"""
+
+
+def test_a_plugins_cells_are_evaluated_afresh_on_every_run(plugin_dir: Path, tmp_path: Path,
+                                                           monkeypatch: pytest.MonkeyPatch) -> None:
+    """docs/plugins.md: STCrowd cannot tell whether the code or weights behind a spec changed, so a plug-in's cells
+    are evaluated again by every run into the same ``--runs`` folder (a shipped predictor's are kept)."""
+    builds = tmp_path / "builds.txt"
+    monkeypatch.setenv("STCROWD_TEST_BUILDS", str(builds))
+    spec = write_plugin(plugin_dir, COUNTER)
+    command = ["evaluate", "--task", LIGHT[0], "--scenes", LIGHT[1], "--no-stream", "--quiet", "--workers", "1",
+               "--runs", str(tmp_path / "runs")]
+    for run in (1, 2):
+        assert main([*command, "--predictor", spec]) == 0
+        assert builds.read_text().count("built") == run, f"run {run}: the plug-in's cell was not evaluated again"
+    assert main([*command, "--predictor", "cvm"]) == 0
+    cells = sorted((tmp_path / "runs" / "evaluations").rglob("cvm-*.json"))
+    stamps = [cell.stat().st_mtime_ns for cell in cells]
+    assert cells and main([*command, "--predictor", "cvm"]) == 0
+    assert [cell.stat().st_mtime_ns for cell in cells] == stamps, "a shipped predictor's cell is kept"

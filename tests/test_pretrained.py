@@ -24,6 +24,26 @@ def test_manifest_lists_every_shipped_checkpoint_with_its_numbers():
         assert all(len(digest) == 64 for digest in entry["data_checksums"].values()), name
 
 
+def test_a_scenes_leave_one_out_models_never_saw_its_test_recordings():
+    """docs/environments.md: a replay gets its scene's leave-one-out model, trained and selected without that scene's
+    test recordings (by content, and under no name of theirs: ``biwi_eth.txt`` rules out ``biwi_eth_train.txt``)."""
+    from pathlib import Path
+
+    from replays.data_root import expected_sums
+
+    sums = expected_sums()
+    for name, entry in pretrained_manifest()["checkpoints"].items():
+        scene = name.rpartition("/")[2]
+        if scene not in SCENES:
+            continue  # the universal models saw every scene's train and val portions
+        seen = entry["data_checksums"]
+        assert seen and all(path.startswith(f"{scene}/") for path in seen), f"{name}: not its scene's folder"
+        for test_file in (path for path in sums if path.startswith(f"{scene}/test/")):
+            stem = Path(test_file).stem
+            assert sums[test_file] not in seen.values(), f"{name} was trained on {test_file}"
+            assert not [p for p in seen if Path(p).stem in (stem, f"{stem}_train", f"{stem}_val")], name
+
+
 @pytest.mark.parametrize("name", NAMES, ids=NAMES)
 def test_pretrained_loads_by_name_and_beats_its_manifest_bound(name):
     model = predictor.load_pretrained(name)

@@ -150,6 +150,22 @@ def test_another_reaction_fit_is_validated_and_a_bad_one_is_one_error_line(tmp_p
     assert err.startswith("error: --reaction") and "bad.json" in err and "params.fov_deg" in err, err
 
 
+def test_the_folders_a_fit_was_not_fitted_on_are_marked_held_out(tmp_path: Path) -> None:
+    """docs/environments.md: with ``--reaction FIT``, the folders the file names as ``fitted_on`` are the fitted
+    ones and every other folder is marked held out (``settings.held_out``)."""
+    data = tmp_path / "data"
+    for folder, seed in (("seen", 1), ("unseen", 2), ("also_unseen", 3)):
+        write_experiment(data / folder, "run", crossing(seed, 2), np.c_[np.linspace(-8.0, 8.0, 150), np.zeros(150)],
+                         0.0, 4.0)
+    fit = json.loads((Path(__file__).parents[1] / "st_sim/reactive/reaction_fit.json").read_text())
+    fit["fitted_on"] = ["seen"]
+    (tmp_path / "fit.json").write_text(json.dumps(fit))
+    out = tmp_path / "v.json"
+    assert main(["reactive-validate", "--data", str(data), "--fps", "10", "--reaction", str(tmp_path / "fit.json"),
+                 "--json", str(out), "--quiet"]) == 0
+    assert sorted(json.loads(out.read_text())["settings"]["held_out"]) == ["also_unseen", "unseen"]
+
+
 @DRAWS
 @given(seed=st.integers(0, 2**31), walkers=st.integers(1, 5), rollout_seed=st.integers(0, 2**31))
 def test_rollouts_walk_the_same_paces_for_every_model_seeded_and_the_deterministic_walk_without_variety(

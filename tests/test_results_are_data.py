@@ -73,14 +73,20 @@ def test_a_results_folder_that_names_code_or_a_path_is_refused_and_nothing_it_na
     assert "payload" not in sys.modules and "folder.payload" not in sys.modules
 
 
-def test_a_run_whose_policy_is_not_shipped_replays_when_the_user_names_it(run_folder: Path, tmp_path: Path,
-                                                                        capsys: pytest.CaptureFixture) -> None:
+def test_a_run_whose_policy_is_not_shipped_replays_when_the_user_names_it_and_only_as_identified(
+        run_folder: Path, tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     spec = "st_sim.apps.navigation.straight:StraightPlanner"
-    folder = hostile_copy(run_folder, tmp_path, lambda summary: summary.update(policy=spec))
+    folder = tmp_path / "own"
+    run_benchmark(BenchmarkRun(spec, str(folder), predictor="none", split="val", episodes=1, scenarios=(SCENARIO,)),
+                  workers=1, progress=False)
     assert main(["episode", str(folder), SCENARIO, "0"]) == 1
     assert "give it yourself with --policy SPEC" in capsys.readouterr().err
     assert main(["episode", str(folder), SCENARIO, "0", "--policy", spec]) == 0
     assert "every figure equals the run's line" in capsys.readouterr().out
+    forged = hostile_copy(folder, tmp_path, lambda summary: summary.update(fingerprint={"source x.py": "0" * 64}))
+    assert main(["episode", str(forged), SCENARIO, "0", "--policy", spec]) == 1
+    err = capsys.readouterr().err
+    assert "not the one the run identified: " in err and "source x.py is gone" in err, err
 
 
 forbidden_keys = st.sampled_from(["rerun", "root", "recording", "predictor", "config", "crowd", "render_mode",

@@ -290,3 +290,23 @@ def test_every_planner_drives_a_differential_drive_within_its_commands(policy: s
     trace, _ = run_episode(env, checked, world, seed=3)
     assert trace.outcome.value in ("goal", "pedestrian collision"), trace.outcome
     env.close()
+
+
+@pytest.mark.parametrize("kind", list(ROBOTS))
+@pytest.mark.parametrize("env_id", ["STCrowd-SimCrossing-v1", "STCrowd-SimDoorway-v1", "STCrowd-Eth-v0"])
+def test_every_episode_starts_at_rest_facing_the_goal(env_id: str, kind: str) -> None:
+    """docs/robot.md: both kinds start every episode at rest, facing their goal (``obs["ego"]``: velocity, heading,
+    turn rate), in a simulated crowd, an encounter and a replay, whatever the episode before did."""
+    env = gym.make(env_id, predictor="none", robot=kind)
+    for seed in range(3):
+        obs, _ = env.reset(seed=seed)
+        ego = obs["ego"].astype(np.float64)
+        toward = (ego[4:6] - ego[:2]) / np.linalg.norm(ego[4:6] - ego[:2])
+        assert not ego[2:4].any() and ego[8] == 0.0, f"seed {seed}: not at rest: {ego}"
+        np.testing.assert_allclose(ego[6:8], toward, atol=1e-6, err_msg=f"seed {seed}: not facing the goal")
+        for _ in range(4):  # leave it moving and turning for the next reset
+            obs, _, terminated, truncated, _ = env.step(env.action_space.high)
+            if terminated or truncated:
+                break
+        assert obs["ego"][2:4].any(), f"seed {seed}: the robot never moved, so the next reset proves little"
+    env.close()

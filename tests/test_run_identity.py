@@ -7,15 +7,21 @@ from __future__ import annotations
 import importlib
 import json
 import os
+import re
+import subprocess
+import sys
 from dataclasses import replace
 from pathlib import Path
 
+import hypothesis
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
-from st_sim.apps.navigation import benchmark
+from st_sim.apps.navigation import benchmark, fingerprint
 from st_sim.apps.navigation.benchmark import BenchmarkError, BenchmarkRun, run_benchmark
-from st_sim.apps.navigation.fingerprint import ReadAudit, source_parts
+from st_sim.apps.navigation.fingerprint import ChunkInputs, InputsError, ReadAudit, source_parts
 
 MODULE_NUMBERS = iter(range(10**6))  # every throwaway package gets a new name (imports are cached per name)
 HEAD_FOR_GOAL = ("    def act(self, obs):\n        ego = obs['ego']\n        way = ego[4:6] - ego[:2]\n"
@@ -105,7 +111,7 @@ def test_the_shipped_predictors_checkpoints_and_stcrowds_own_code_are_part_of_th
 
     summary = bench(tmp_path / "run", "straight", predictor="singular")
     assert set(summary["predictor_fingerprint"]) == {"checkpoints"}
-    assert set(summary["stcrowd"]) == {"version", "source_sha256"}
+    assert {"version", "source_sha256", "version numpy"} <= set(summary["stcrowd"])
     manifest = predictor.checkpoint.pretrained_manifest()
     swapped = json.loads(json.dumps(manifest))
     first = next(iter(swapped["checkpoints"].values()))
@@ -167,3 +173,103 @@ def test_a_run_records_where_it_ran_and_the_leaderboard_shows_it(tmp_path: Path,
     assert main(["leaderboard", str(tmp_path / "run"), "--no-baselines", "--ran-on"]) == 0
     table = capsys.readouterr().out.split("### Where they ran")[1]
     assert f"| straight + none | {str(record['commit'])[:12]} |" in table and record["versions"]["numpy"] in table
+
+
+def late_reader(on_path: Path, weights: Path, read_from_episode: int) -> str:
+    """A throwaway policy that reads ``weights`` (np.load) on the reset of episode ``read_from_episode`` (1 = the
+    first) and heads for the goal at the speed it holds; returns its spec."""
+    name = fresh_name("late")
+    (on_path / f"{name}.py").write_text(
+        "import numpy as np\n\nclass Policy:\n    def __init__(self):\n        self.episodes, self.speed = 0, 1.0\n"
+        "    def reset(self):\n        self.episodes += 1\n"
+        f"        if self.episodes >= {read_from_episode}:\n"
+        f"            self.speed = float(np.load({str(weights)!r})['speed'])\n"
+        + HEAD_FOR_GOAL.replace("SPEED", "self.speed"))
+    return f"{name}:Policy"
+
+
+def test_weights_under_the_home_cache_are_part_of_the_identity(on_path: Path, tmp_path: Path,
+                                                               monkeypatch: pytest.MonkeyPatch) -> None:
+    home = tmp_path / "home"
+    monkeypatch.setenv("HOME", str(home))
+    weights = home / ".cache" / "hub" / "weights.npz"
+    weights.parent.mkdir(parents=True)
+    np.savez(weights, speed=np.array(1.0))
+    spec = late_reader(on_path, weights, 1)
+    held = bench(tmp_path / "run", spec)["fingerprint"]
+    assert f"read {weights.resolve()}" in held, held
+    np.savez(weights, speed=np.array(0.5))
+    refused(tmp_path / "run", spec, r"weights\.npz changed")
+
+
+def test_a_file_first_read_in_a_later_episode_is_an_input_and_a_resume_after_it_changed_is_refused(
+        on_path: Path, tmp_path: Path) -> None:
+    weights = tmp_path / "late.npz"
+    np.savez(weights, speed=np.array(1.0))
+    spec = late_reader(on_path, weights, 2)
+    run = BenchmarkRun(spec, str(tmp_path / "run"), predictor="none", split="val", episodes=2,
+                       scenarios=("frontal-approach",))
+    summary = run_benchmark(run, workers=1, progress=False)
+    assert f"read {weights.resolve()}" not in summary["fingerprint"], "the first episode does not read it"
+    assert f"read {weights.resolve()}" in summary["inputs"], summary["inputs"]
+    run_benchmark(run, workers=1, progress=False)  # unchanged: resumes
+    np.savez(weights, speed=np.array(0.5))
+    with pytest.raises(BenchmarkError, match=r"inputs changed since they ran .*late\.npz changed"):
+        run_benchmark(run, workers=1, progress=False)
+
+
+def test_a_run_records_the_versions_of_the_packages_it_loaded_and_the_data_override(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    summary = bench(tmp_path / "run", "straight")
+    assert summary["stcrowd"]["version numpy"] == np.__version__
+    assert summary["inputs"]["version python"] and summary["modified_data_allowed"] is False
+    monkeypatch.setenv("STCROWD_ALLOW_MODIFIED_DATA", "1")
+    refused(tmp_path / "run", "straight", "modified_data_allowed False there, True now")
+
+
+def test_an_input_that_changes_while_a_chunk_runs_is_an_error(tmp_path: Path) -> None:
+    data = tmp_path / "w.bin"
+    data.write_bytes(b"1")
+    inputs = ChunkInputs(tmp_path / "chunk.inputs.json")
+    with ReadAudit() as audit:
+        data.read_bytes()
+        inputs.keep(audit)
+        assert ChunkInputs(tmp_path / "chunk.inputs.json").parts == inputs.parts, "kept on disk"
+        subprocess.run([sys.executable, "-c", f"open({str(data)!r}, 'wb').write(b'22')"], check=True)  # not ours
+        with pytest.raises(InputsError, match=r"w\.bin changed while the run read it"):
+            inputs.keep(audit)
+
+
+@settings(max_examples=40, deadline=None)
+@given(root=st.sampled_from(["/usr/src/app", "/usr/local/share", "/etc", "/opt/models", "~/.cache/hub",
+                             "~/.config/x", sys.prefix]),
+       name=st.from_regex(r"[a-z][a-z0-9_]{0,12}\.(npz|pt|bin|onnx|json)", fullmatch=True))
+def test_no_folder_is_skipped_for_where_it_lies(root: str, name: str) -> None:
+    path = Path(root).expanduser() / name
+    assert not fingerprint._own(path.resolve()), f"{path} would not be recorded"
+
+
+def test_only_stcrowd_the_standard_library_and_pseudo_files_are_skipped_and_packages_go_by_version() -> None:
+    for skipped in (os.__file__, fingerprint.__file__, "/proc/self/status"):
+        assert fingerprint._own(Path(skipped).resolve()), skipped
+    assert not fingerprint._own(Path(np.__file__).resolve()), "an installed package is not skipped"
+    assert fingerprint._part("module numpy", Path(np.__file__).resolve()) == {}, "STCrowd's: in its identity"
+    assert fingerprint._part("module hypothesis", Path(hypothesis.__file__).resolve()) == {
+        "version hypothesis": hypothesis.__version__}, "any other distribution: the policy's, by version"
+
+
+def test_verify_refuses_a_run_whose_policy_read_a_file_that_changed_since(on_path: Path, tmp_path: Path,
+                                                                          capsys: pytest.CaptureFixture) -> None:
+    from st_sim.apps.cli import main
+
+    weights = tmp_path / "late.npz"
+    np.savez(weights, speed=np.array(1.0))
+    spec = late_reader(on_path, weights, 2)
+    run_benchmark(BenchmarkRun(spec, str(tmp_path / "run"), predictor="none", split="val", episodes=2,
+                               scenarios=("frontal-approach",)), workers=1, progress=False)
+    assert main(["verify", str(tmp_path / "run"), "--policy", spec, "--per-scenario", "2", "--quiet"]) == 0
+    capsys.readouterr()
+    np.savez(weights, speed=np.array(0.5))
+    assert main(["verify", str(tmp_path / "run"), "--policy", spec, "--quiet"]) == 1
+    assert re.search(r"files the run's episodes read are not the same here: read \S*late\.npz changed",
+                     capsys.readouterr().err)

@@ -1,8 +1,11 @@
-"""The crowd's CPU-independent arithmetic (``st_sim.sim.exact``): within 1 ulp of libm, the special values right."""
+"""The crowd's CPU-independent arithmetic (``st_sim.sim.exact``): within 1 ulp of libm, the special values right;
+lengths and sums against exact rational arithmetic, Poisson draws against numpy's sampler."""
 
 from __future__ import annotations
 
 import math
+from decimal import Decimal, localcontext
+from fractions import Fraction
 
 import numpy as np
 import pytest
@@ -42,7 +45,56 @@ def test_cos_sin_refuse_angles_they_cannot_reduce(angle):
         exact.cos_sin(np.array([0.0, angle]))
 
 
-def test_sums_and_lengths_are_written_out():
-    v = np.random.default_rng(3).normal(size=(50, 7, 2))
-    assert np.array_equal(exact.length(v), np.sqrt(v[..., 0] * v[..., 0] + v[..., 1] * v[..., 1]))
-    assert np.array_equal(exact.total(v, axis=1), sum((v[:, k] for k in range(1, 7)), v[:, 0]))
+def _true_length(x: float, y: float) -> float:
+    """The Euclidean length of (x, y): the exact square sum (fractions), its root to 60 digits, rounded to a float."""
+    square = Fraction(x) ** 2 + Fraction(y) ** 2
+    with localcontext() as context:
+        context.prec = 60
+        return float((Decimal(square.numerator) / Decimal(square.denominator)).sqrt())
+
+
+def test_lengths_are_within_one_ulp_of_the_true_length_and_round_as_numpys_norm():
+    rng = np.random.default_rng(3)
+    v = rng.normal(size=(5_000, 2)) * 10.0 ** rng.integers(-6, 6, (5_000, 1))
+    reference = np.array([_true_length(x, y) for x, y in v.tolist()])
+    assert _ulps(exact.length(v), reference).max() <= 1.0
+    assert np.array_equal(exact.length(v), np.linalg.norm(v, axis=-1))  # as its docstring says
+    assert exact.length(np.zeros(2)) == 0.0
+
+
+def _added_in_order(values: list[float]) -> float:
+    """The sum of ``values`` rounded after each addition, first to last (exact fractions, each sum rounded once)."""
+    out = 0.0
+    for value in values:
+        out = float(Fraction(out) + Fraction(value))
+    return out
+
+
+def test_sums_add_in_index_order():
+    v = np.random.default_rng(3).normal(size=(20, 9, 3)) * 10.0 ** np.arange(-4, 5)[:, None]
+    sums = exact.total(v, axis=1)
+    for i in range(20):
+        for j in range(3):
+            assert sums[i, j] == _added_in_order(v[i, :, j].tolist()), f"[{i}, {j}]"
+    tiny = [1.0] + [2.0 ** -53] * 8  # in index order each tiny term rounds away; the exact sum keeps them
+    assert exact.total(np.array(tiny), axis=0) == 1.0 != math.fsum(tiny)
+    assert exact.total(np.array(tiny[::-1]), axis=0) == math.fsum(tiny)
+
+
+@pytest.mark.parametrize("mean", [0.02, 0.2, 1.0, 4.0, 9.5])
+def test_poisson_draws_are_numpys_below_a_mean_of_ten(mean):
+    for seed in range(40):
+        ours, numpys = np.random.default_rng(seed), np.random.default_rng(seed)
+        assert np.array_equal(exact.poisson_draws(ours, mean, 6), numpys.poisson(mean, 6)), f"[seed {seed}]"
+        assert ours.random() == numpys.random(), f"[seed {seed}] another number of uniform draws"
+
+
+def test_poisson_draws_beyond_ten_have_their_mean_and_variance():
+    draws = exact.poisson_draws(np.random.default_rng(4), 15.0, 20_000)
+    assert abs(draws.mean() - 15.0) < 0.15 and abs(draws.var() - 15.0) < 0.6
+
+
+def test_poisson_draws_of_a_zero_mean_draw_nothing():
+    rng = np.random.default_rng(5)
+    assert np.array_equal(exact.poisson_draws(rng, 0.0, 3), [0, 0, 0])
+    assert rng.random() == np.random.default_rng(5).random()

@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 import predictor
 from predictor.baselines import ConstantVelocity, ConstantVelocitySampler
-from st_sim.apps.evaluate import evaluate_scene
+from st_sim.apps.evaluate import StreamMismatchError, evaluate_scene
 from st_sim.apps.stream_eval import evaluate_stream
 
 CASES = {
@@ -40,3 +41,20 @@ def test_benchmark_windows_mode_is_spectator_only():
 
     with pytest.raises(ValueError, match="ego=False"):
         gym.make("STCrowd-Eth-v0", benchmark_windows=True)
+
+
+class BatchDependent:
+    """Constant velocity moved by 1 mm per agent in the call: an agent's futures depend on who else is asked."""
+
+    def predict(self, obs, group, scene, num_samples):
+        futures = ConstantVelocity().predict(obs, group, scene, num_samples)
+        return futures + np.float32(1e-3 * len(obs))
+
+
+def test_a_predictor_whose_futures_depend_on_the_batch_is_refused():
+    """docs/prediction-tasks.md: every row is scored offline and through the spectator env, and the two must agree;
+    docs/plugins.md: an agent must get the same futures whether ``predict`` sees all windows or one scene moment."""
+    with pytest.raises(StreamMismatchError, match=r"eth.*same futures"):
+        evaluate_scene(BatchDependent(), "deterministic", "eth", stream=True)
+    result = evaluate_scene(ConstantVelocity(), "deterministic", "eth", stream=True)
+    assert result.stream_samples == result.samples == 181, "an agreeing predictor passes the same check"

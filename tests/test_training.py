@@ -322,3 +322,21 @@ def test_epochs_default_to_16_with_several_samples_and_6_with_one(task):
     cfg = TrainConfig(task=task, scene="A2B" if task.startswith("domain") else "zara1")
     assert cfg.epochs is None and with_task_defaults(cfg).epochs == (6 if TASKS[task]["num_samples"] == 1 else 16)
     assert with_task_defaults(replace(cfg, epochs=3)).epochs == 3
+
+
+@pytest.mark.parametrize(("tolerance_m", "chosen"), [(None, 2), (0.0, 1)], ids=["default-2mm", "none"])
+def test_a_later_epoch_wins_a_near_tie_on_validation_fde(tmp_path, monkeypatch, tolerance_m, chosen):
+    """docs/training.md: the checkpoint is chosen on validation FDE, and a later epoch wins a near-tie (within
+    ``select_tolerance_m``, 2 mm), so float differences between machines do not flip the choice. The validation
+    FDEs are scripted: 0.500, 0.5015 (1.5 mm worse: a near-tie), 0.510 m."""
+    from predictor import train
+
+    scripted = iter([0.500, 0.5015, 0.510])
+    monkeypatch.setattr(train, "validate", lambda *args, **kwargs: (0.25, next(scripted)))
+    settings = {**SMALL, "epochs": 3} | ({} if tolerance_m is None else {"select_tolerance_m": tolerance_m})
+    cfg = TrainConfig(task="stochastic", scene="zara1", out=str(tmp_path / "run"), **settings)
+    assert cfg.select_tolerance_m == (0.002 if tolerance_m is None else tolerance_m)
+    main(cfg)
+    summary = json.loads((tmp_path / "run" / "train.json").read_text())
+    assert summary["best"]["epoch"] == chosen, summary["best"]
+    assert read_checkpoint(tmp_path / "run" / "best.pt")["best"]["epoch"] == chosen

@@ -124,3 +124,37 @@ def test_last_observed_keeps_samples_and_truncates_history():
 def test_load_windows_rejects_bad_arguments(kwargs, message):
     with pytest.raises((ValueError, KeyError), match=message):
         load_windows(**kwargs)
+
+
+def test_the_cache_holds_derived_files_only(tmp_path, monkeypatch):
+    """docs/data.md, "Derived files": the cache can be deleted at any time and is rebuilt on demand, a damaged entry
+    is cut again, and an unwritable cache only costs speed (the windows and the data root's check are the same)."""
+    from replays import windows
+    from replays.data_root import modified_files
+
+    root = data_root()
+    path = root / "eth" / "test" / "biwi_eth.txt"
+    expected = cut_windows(read_recording(path), 8)
+
+    def cut_through(cache):
+        monkeypatch.setenv("STCROWD_CACHE", str(cache))
+        monkeypatch.setattr(windows, "_MEMORY", {})  # this process's copy: read the disk cache again
+        got = windows.file_windows(path, 8)
+        for name, value in expected.items():
+            np.testing.assert_array_equal(got[name], value, err_msg=f"{cache}: {name}")
+
+    cache = tmp_path / "cache"
+    cut_through(cache)
+    (entry,) = cache.glob("biwi_eth-8-*.npz")
+    entry.write_bytes(b"not an npz")  # damaged: cut again and written anew
+    cut_through(cache)
+    assert entry.read_bytes()[:2] == b"PK", "the damaged entry was not replaced"
+    for file in cache.iterdir():
+        file.unlink()
+    cache.rmdir()  # deleted: rebuilt on demand
+    cut_through(cache)
+    assert list(cache.glob("biwi_eth-8-*.npz"))
+    blocker = tmp_path / "a-file"
+    blocker.write_text("not a folder")
+    cut_through(blocker / "cache")  # cannot be written
+    assert modified_files(root) == {}, "the data root's check works without a writable cache"

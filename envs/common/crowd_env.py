@@ -573,13 +573,13 @@ class CrowdEnv(gym.Env):
                                                                                           self._episode)))
 
 
-def forecast_or_interrupt(envs: Sequence[CrowdEnv], batch: Sequence[CrowdEnv] | None = None) -> list[Forecast]:
-    """``forecast_all`` of envs within a step; if the predictor fails, every env of ``batch`` (default: ``envs``),
-    whose worlds have moved, refuses to step until it is reset (``CrowdEnv.interrupt``)."""
+def forecast_or_interrupt(envs: Sequence[CrowdEnv]) -> list[Forecast]:
+    """``forecast_all`` of envs within a step; if the predictor fails, every env, whose world has moved, refuses to
+    step until it is reset (``CrowdEnv.interrupt``)."""
     try:
         return forecast_all(envs)
     except Exception as err:
-        for env in envs if batch is None else batch:
+        for env in envs:
             env.interrupt(f"the predictor failed: {err}")
         raise
 

@@ -10,6 +10,7 @@ from scipy.spatial import cKDTree
 
 from envs.common.errors import ActionError, EgoPlacementError
 from replays.scenes import Scene
+from st_sim.sim.exact import length
 
 CANDIDATE_STRIDE_PX = 4  # spawn candidates: every 4th walkable pixel in each direction
 # A pixel on the image's border, mapped to metres and back, lands up to ~1e-13 px outside it, and by a different
@@ -185,7 +186,7 @@ def spawn_start_goal(points: SpawnPoints, peds_xy_m: np.ndarray, clearance_m: fl
         raise EgoPlacementError("no walkable point to spawn the ego on (empty walkability map inside the arena)")
     free = np.flatnonzero(points.free(peds_xy_m, clearance_m))
     start = candidates_m[rng.choice(free)] if len(free) else candidates_m[np.argmax(points.room_m(peds_xy_m))]
-    distance = np.linalg.norm(candidates_m - start, axis=1)
+    distance = length(candidates_m - start)
     far = np.flatnonzero(distance >= min_goal_distance_m)
     goal = candidates_m[rng.choice(far)] if len(far) else candidates_m[np.argmax(distance)]
     return start.copy(), goal.copy()

@@ -35,3 +35,8 @@ class EgoPlacementError(EnvInputError):
 
 class NeedsResetError(ResetNeeded):
     """``step`` before the first ``reset``, or after the episode ended (terminated, or the recording ended)."""
+
+
+class AutoresetError(RuntimeError):
+    """A sub-env of a batch could not start its next episode inside ``step`` (its reset or its seed function
+    failed); the message names the sub-envs and their seeds. The batch refuses to step until it is reset."""

@@ -19,6 +19,10 @@ walker at 1.3 m/s covers 1 m in it, the least it needs to respond to what the ro
 3. A pedestrian whose velocity is unknown (a replay's pedestrian who appears inside the contact distance) is never
    the robot's: it was not there to be seen.
 
+The rule judges known motion only: a robot velocity, speed or heading that is NaN or infinite is a bug upstream
+(the physics or the bookkeeping failed), never "not at fault", so it raises ``RobotMotionError`` naming what was
+not finite.
+
 nuPlan's at-fault collisions (``no_ego_at_fault_collisions``) judge the same way: a stopped ego is never at fault,
 nor is one hit from behind; HuNavSim blames the robot whose heading points at the person even when it is slower.
 The same rule, on each step's displacements / step (mean velocities), splits the proxemic-zone entries
@@ -40,6 +44,21 @@ STOP_HOLD_STEPS: Final[int] = 2
 """whole 0.4 s steps before the impact's step over which the rule reads the robot's motion (0.8 s)"""
 
 
+class RobotMotionError(ValueError):
+    """The robot's motion given to the at-fault rule is NaN or infinite (a bug upstream); the message names the
+    value, where it is and what it holds."""
+
+
+def require_finite(value: np.ndarray | float, name: str) -> None:
+    """Raise ``RobotMotionError`` naming ``name`` (and the first index) if ``value`` holds a NaN or an infinity."""
+    array = np.asarray(value, np.float64)
+    bad = np.argwhere(~np.isfinite(array))
+    if len(bad):
+        where = f" at {tuple(int(i) for i in bad[0])}" if array.ndim else ""
+        raise RobotMotionError(f"the robot's {name} is not finite{where}: {float(array[tuple(bad[0])])} (the at-fault "
+                               "rule judges known motion only: a bug upstream)")
+
+
 @dataclass(frozen=True, eq=False)
 class RobotMotion:
     """What the rule needs of the robot's past before a step.
@@ -53,6 +72,10 @@ class RobotMotion:
     speeds_mps: tuple[float, ...] = (0.0,) * STOP_HOLD_STEPS
     heading: np.ndarray = field(default_factory=lambda: np.zeros(2))
 
+    def __post_init__(self) -> None:
+        require_finite(self.speeds_mps, "speeds_mps")
+        require_finite(self.heading, "heading")
+
     @property
     def recent_speed_mps(self) -> float:
         """The fastest of ``speeds_mps`` [m/s]."""
@@ -61,6 +84,7 @@ class RobotMotion:
     def after_step(self, displacement_m: np.ndarray, step_s: float) -> RobotMotion:
         """The motion before the next step, after one that moved the robot by ``displacement_m`` (2,) [m] in
         ``step_s`` [s]."""
+        require_finite(displacement_m, "displacement_m")
         moved_m = float(np.hypot(*displacement_m))
         speeds = (*self.speeds_mps[1:], moved_m / step_s)
         if moved_m < STOP_SPEED_MPS * step_s:
@@ -77,6 +101,7 @@ def motion_before_steps(ego_xy_m: np.ndarray, step_s: float) -> tuple[np.ndarray
     Returns:
         recent_speed_mps: (T,) [m/s].  heading: (T, 2) unit vectors (zeros: not moved yet).
     """
+    require_finite(ego_xy_m, "positions ego_xy_m")
     steps = np.diff(np.asarray(ego_xy_m, np.float64), axis=0)
     motion, recent, heading = RobotMotion(), np.zeros(len(steps)), np.zeros((len(steps), 2))
     for t, displacement in enumerate(steps):
@@ -96,7 +121,13 @@ def robot_to_blame(offset_m: np.ndarray, robot_velocity_mps: np.ndarray, person_
 
     Returns:
         (...) bool.
+
+    Raises:
+        RobotMotionError: the robot's velocity, recent speed or heading holds a NaN or an infinity.
     """
+    for value, name in ((robot_velocity_mps, "velocity_mps"), (recent_speed_mps, "recent_speed_mps"),
+                        (heading, "heading")):
+        require_finite(value, name)
     offset = np.asarray(offset_m, np.float64)
     robot = np.asarray(robot_velocity_mps, np.float64)
     person = np.asarray(person_velocity_mps, np.float64)

@@ -8,6 +8,7 @@ rather than as the crow flies.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from typing import Final
 
@@ -15,8 +16,15 @@ import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
 
+from st_sim.reactive.footprint import length_m
+
 CELL_M: Final[float] = 0.1  # side of a grid cell [m]
 NEIGHBOURS: Final[tuple[tuple[int, int], ...]] = ((0, 1), (1, 0), (1, 1), (1, -1))  # with their mirrors: 8 of them
+
+
+def edge_m(d_row: int, d_col: int) -> float:
+    """Length [m] of the edge between two neighbouring cells ``d_row`` rows and ``d_col`` columns apart."""
+    return CELL_M * math.sqrt(d_row * d_row + d_col * d_col)
 
 
 def grid_cells(low_m: np.ndarray, high_m: np.ndarray) -> np.ndarray:
@@ -65,7 +73,7 @@ def walking_distances_m(cells_m: Sequence[np.ndarray], free: Sequence[np.ndarray
                 both = open_[here] & open_[there]
                 starts.append(node[here][both])
                 ends.append(node[there][both])
-                lengths.append(np.full(len(starts[-1]), CELL_M * np.hypot(d_row, d_col)))
+                lengths.append(np.full(len(starts[-1]), edge_m(d_row, d_col)))
         graph = csr_matrix((np.concatenate(lengths), (np.concatenate(starts), np.concatenate(ends))),
                            shape=(base[-1], base[-1]))
         distance = dijkstra(graph, directed=False, indices=sources, min_only=True)
@@ -95,7 +103,7 @@ def nearest_free_m(cells_m: np.ndarray, free: np.ndarray, point_m: np.ndarray) -
     if (0 <= row[0] < free.shape[0] and 0 <= col[0] < free.shape[1] and free[row[0], col[0]]) or not free.any():
         return np.asarray(point_m, np.float64)
     centres = cells_m[free]
-    return centres[np.argmin(np.linalg.norm(centres - point_m, axis=-1))]
+    return centres[np.argmin(length_m(centres - point_m))]
 
 
 def _cell(origin_m: np.ndarray, xy_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -7,7 +7,8 @@ from one centre to another with its heading held (``Robot``: as the pedestrians 
 too, so the pedestrian moves in a straight line in the body's frame: the least gap between them is the distance from
 a segment to a rectangle, less the radius. That distance is zero where the segment meets the rectangle and is
 otherwise reached at an end of the segment or at a corner of the rectangle (two convex shapes apart), which is what
-``segment_box_distance`` computes, exactly.
+``segment_box_distance`` computes, exactly. Headings turn into cosines and sines, and moves into headings, through
+``st_sim.sim.exact`` (the same bits on every CPU).
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ from typing import Final
 import numpy as np
 
 from replays.constants import STEP_S
+from st_sim.sim.exact import atan2, cos_sin
 
 BODY_RADIUS_M: Final[float] = 0.2  # radius of a reactive pedestrian's body [m]
 ROBOT_MARGIN_M: Final[float] = 0.05  # reactive pedestrians keep this much beyond touching the robot's body [m]
@@ -42,9 +44,14 @@ class Body:
         """(2,) half length and half width [m]."""
         return np.array([self.length_m, self.width_m]) / 2
 
+    @property
+    def half_diagonal_m(self) -> float:
+        """Half the rectangle's diagonal [m]."""
+        return float(length_m(self.half_m))
+
     def to_body_frame(self, offset_m: np.ndarray, heading_rad: float) -> np.ndarray:
         """(..., 2) world offsets from the robot's centre [m] turned into its frame (heading along +x)."""
-        cos, sin = np.cos(heading_rad), np.sin(heading_rad)
+        cos, sin = cos_sin(heading_rad)
         return np.stack([offset_m[..., 0] * cos + offset_m[..., 1] * sin,
                          -offset_m[..., 0] * sin + offset_m[..., 1] * cos], axis=-1)
 
@@ -67,7 +74,7 @@ class Body:
         same wherever only a gap below ``within_m`` counts, computed for fewer points."""
         a, b = np.broadcast_arrays(np.asarray(offset_from_m, np.float64), np.asarray(offset_to_m, np.float64))
         shape = a.shape[:-1]
-        bound = (length_m(b - a) / 2 + float(np.hypot(*self.half_m)) + self.radius_m + within_m + GAP_SLACK_M)
+        bound = (length_m(b - a) / 2 + self.half_diagonal_m + self.radius_m + within_m + GAP_SLACK_M)
         close = ~(length_m((a + b) / 2) > bound)  # (NaN points: close)
         gap = np.full(shape, np.inf)
         gap[close] = self.swept_gap_m(a[close], b[close], np.broadcast_to(heading_rad, shape)[close])
@@ -96,8 +103,8 @@ class Robot:
 
     @property
     def heading(self) -> np.ndarray:
-        """(N, 2) unit headings."""
-        return np.stack([np.cos(self.heading_rad), np.sin(self.heading_rad)], axis=-1)
+        """(N, 2) unit headings: the cosine and sine of ``heading_rad``."""
+        return np.stack(cos_sin(self.heading_rad), axis=-1)
 
     def after(self) -> Robot:
         """The same robots over the next step, holding their velocities."""
@@ -158,4 +165,4 @@ def heading_of(from_m: np.ndarray, to_m: np.ndarray, heading_rad: float | None =
     if heading_rad is not None:
         return float(heading_rad)
     move = np.asarray(to_m, np.float64) - np.asarray(from_m, np.float64)
-    return float(np.arctan2(move[1], move[0])) if np.hypot(*move) > 1e-9 else 0.0
+    return float(atan2(move[1], move[0])) if length_m(move) > 1e-9 else 0.0

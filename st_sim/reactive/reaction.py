@@ -38,6 +38,7 @@ import numpy as np
 
 from replays.constants import STEP_S
 from st_sim.errors import ConfigError
+from st_sim.sim.exact import dot, exp, length
 
 FIT_PATH: Final[Path] = Path(__file__).with_name("reaction_fit.json")
 SPREAD_PATH: Final[Path] = Path(__file__).with_name("spread_fit.json")
@@ -92,10 +93,10 @@ class Reaction:
             robot_velocity_mps: (2,) the robot's expected velocity [m/s].  robot_heading: (2,) its unit heading.
             walking: (A, 2) unit walking directions.  coming: (A,) bool, the robot comes toward the pedestrian.
         """
-        cosine = walking @ robot_heading  # -1 head-on, +1 from behind, 0 crossing
+        cosine = dot(walking, robot_heading)  # -1 head-on, +1 from behind, 0 crossing
         per_mps = (self.head_on_s * np.maximum(-cosine, 0.0) + self.behind_s * np.maximum(cosine, 0.0)
                    + self.crossing_s * (1.0 - np.abs(cosine)))
-        return self.clearance_m + np.where(coming, np.linalg.norm(robot_velocity_mps) * per_mps, 0.0)
+        return self.clearance_m + np.where(coming, length(robot_velocity_mps) * per_mps, 0.0)
 
 
 def read_reaction(path: Path) -> Reaction:
@@ -192,12 +193,12 @@ class Spread:
 
 
 def draw_traits(rng: np.random.Generator, agents: int, spread: Spread) -> np.ndarray:
-    """(agents, 4) traits drawn from ``rng``: each factor exp(N(0, sigma)), kept within ``TRAIT_RANGE``; a spread
-    of zeros draws nothing and gives ``typical``."""
+    """(agents, 4) traits drawn from ``rng``: each factor exp(N(0, sigma)) (``st_sim.sim.exact.exp``: the same bits on
+    every CPU), kept within ``TRAIT_RANGE``; a spread of zeros draws nothing and gives ``typical``."""
     sigmas = spread.sigmas()
     if not sigmas.any():
         return typical(agents)
-    return np.clip(np.exp(rng.normal(0.0, 1.0, (agents, len(TRAITS))) * sigmas), *TRAIT_RANGE)
+    return np.clip(exp(rng.normal(0.0, 1.0, (agents, len(TRAITS))) * sigmas), *TRAIT_RANGE)
 
 
 def read_spread(path: Path) -> Spread:

@@ -62,6 +62,7 @@ from st_sim.reactive.reaction import (
     typical,
 )
 from st_sim.reactive.routes import Depth, Routes
+from st_sim.sim.exact import atan2, cos_sin, dot
 
 PAIR_LOOK_AHEAD_STEPS: Final[int] = 3  # a pedestrian looks this many 0.4 s steps along its log for others off theirs
 PAIR_CLEARANCE_M: Final[float] = 0.2  # ... and leaves its log if that path passes closer than this to a body [m]
@@ -171,7 +172,7 @@ class ReactiveCrowd:
         cols = np.flatnonzero(self.state.present)
         ended = self.routes.run_last[np.floor(self.state.tau[cols]).astype(int), cols]
         frames = np.where(self.routes.present[index, cols], index, ended)
-        return np.linalg.norm(self.state.xy_m[cols] - self.routes.log_xy_m[frames, cols], axis=1)
+        return length_m(self.state.xy_m[cols] - self.routes.log_xy_m[frames, cols])
 
     def step(self, index: int, robot_from_m: np.ndarray | None, robot_to_m: np.ndarray | None,
              robot_heading_rad: float | None = None) -> np.ndarray:
@@ -292,7 +293,7 @@ def advance_compiled(routes: Routes, old: ReactiveState, index: np.ndarray, robo
     tables, reaction, rows = routes.tables(), routes.reaction, robot_rows(robot)
     walking, noticed, unseen, weight = attention(
         tables, old.present, old.xy_m, old.velocity_mps, old.tau, old.noticed_s, old.unseen_s, rows,
-        np.c_[np.cos(-robot.heading_rad), np.sin(-robot.heading_rad)], float(np.radians(reaction.fov_deg)),
+        np.stack(cos_sin(-robot.heading_rad), axis=-1), float(np.radians(reaction.fov_deg)),
         reaction.hearing_m * old.traits[..., NOTICING], reaction.reaction_s * old.traits[..., REACTION_TIME])
     room = _room(routes, old, robot, walking)
     lingering, present, off_log, start, tau, farthest, recent, detour, offset, xy, clear = leave(
@@ -315,9 +316,9 @@ def advance_compiled(routes: Routes, old: ReactiveState, index: np.ndarray, robo
 
 def _room(routes: Routes, state: ReactiveState, robot: Robot, walking: np.ndarray) -> np.ndarray:
     """(N, A) the room each pedestrian keeps from its crowd's robot this step [m] (``Reaction.room_m`` times its
-    room trait; numpy's matrix products, crowd by crowd, in both paths)."""
+    room trait; crowd by crowd, in both paths)."""
     return np.stack([routes.reaction.room_m(robot.velocity_mps[n], robot.heading[n], walking[n],
-                                            np.nan_to_num((state.xy_m[n] - robot.from_m[n]) @ robot.velocity_mps[n])
+                                            np.nan_to_num(dot(state.xy_m[n] - robot.from_m[n], robot.velocity_mps[n]))
                                             > 0) for n in range(len(robot.heading_rad))]) * state.traits[..., ROOM]
 
 
@@ -341,8 +342,7 @@ def _notices(routes: Routes, state: ReactiveState, robot: Robot, walking: np.nda
     offset = state.xy_m - robot.from_m[:, None]
     heading = robot.heading_rad[:, None]
     toward = robot.from_m[:, None] + routes.body.nearest_point_m(offset, heading) - state.xy_m
-    bearing = np.arctan2(walking[..., 0] * toward[..., 1] - walking[..., 1] * toward[..., 0],
-                         (walking * toward).sum(-1))
+    bearing = atan2(walking[..., 0] * toward[..., 1] - walking[..., 1] * toward[..., 0], (walking * toward).sum(-1))
     gap = np.nan_to_num(routes.body.gap_m(offset, heading), nan=np.inf)
     return state.present & notices(routes.reaction, gap, np.nan_to_num(bearing, nan=np.pi), state.traits)
 
@@ -412,7 +412,7 @@ def _place_newcomers(routes: Routes, step: Step, appearing: np.ndarray, clear: n
         for agent in np.flatnonzero(appearing[row]):  # in order: each sees those placed before it
             taken = step.start[row][step.off_log[row] & step.present[row]]
             log_now = routes.log_xy_m[step.index[row], agent]
-            if clear[row, agent] and not (np.linalg.norm(taken - log_now, axis=1) < PAIR_BODY_M).any():
+            if clear[row, agent] and not (length_m(taken - log_now) < PAIR_BODY_M).any():
                 continue
             others = step.present[row] & (np.arange(len(step.present[row])) != agent)
             offset[row, agent] = _clear_offset(routes, agent, int(step.index[row]), step.robot, row,
@@ -427,7 +427,7 @@ def _clear_offset(routes: Routes, agent: int, index: int, robot: Robot, row: int
     expected) and the pedestrians at ``others_m`` (K, 2), and stays as walkable as the log (0 if none does)."""
     offsets = OFFSETS_M[np.argsort(np.abs(OFFSETS_M), kind="stable")]
     places = routes.place(np.full(len(offsets), agent), np.full(len(offsets), float(index)), offsets, index)
-    apart = np.linalg.norm(places[:, None] - others_m[None], axis=-1).min(axis=1, initial=np.inf)
+    apart = length_m(places[:, None] - others_m[None]).min(axis=1, initial=np.inf)
     fine = (routes.clear_of_robot(places, robot.from_m[row], robot.to_m[row], robot.heading_rad[row])
             & (apart >= PAIR_BODY_M) & (routes.too_deep_m(agent, index, places, index) == 0))
     return float(offsets[np.argmax(fine)]) if fine.any() else 0.0

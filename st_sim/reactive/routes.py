@@ -74,7 +74,7 @@ class Routes:
         agents = present.shape[1]
         step = np.diff(np.nan_to_num(log_xy_m), axis=0)  # (F - 1, A, 2)
         moving = present[:-1] & present[1:]
-        length = np.where(moving, np.linalg.norm(step, axis=-1), 0.0)
+        length = np.where(moving, length_m(step), 0.0)
         self.log_speed_mps = np.r_[length, np.zeros((1, agents))] / STEP_S  # (F, A), 0 at the end of a run
         self.run_first, self.run_last = run_bounds(present)
         arc = np.cumsum(np.r_[np.zeros((1, agents)), length], axis=0)  # (F, A) metres walked since the first frame
@@ -286,7 +286,7 @@ def smoothed(tangent: np.ndarray, run_first: np.ndarray, run_last: np.ndarray) -
         other = np.clip(frames + shift, 0, len(tangent) - 1)
         same_run = (run_first <= frames + shift) & (frames + shift <= run_last)
         total += np.where(same_run[..., None], np.take_along_axis(tangent, other[..., None].repeat(2, -1), 0), 0.0)
-    norm = np.linalg.norm(total, axis=-1, keepdims=True)
+    norm = length_m(total)[..., None]
     return np.where(norm > 1e-6, total / np.maximum(norm, 1e-12), tangent)
 
 
@@ -297,7 +297,7 @@ def route_tangents(step: np.ndarray, usable: np.ndarray, present: np.ndarray) ->
     frames, agents = present.shape
     unit = np.zeros((frames, agents, 2))
     known = np.zeros((frames, agents), bool)
-    unit[:-1][usable] = step[usable] / np.linalg.norm(step[usable], axis=-1, keepdims=True)
+    unit[:-1][usable] = step[usable] / length_m(step[usable])[..., None]
     known[:-1] = usable
     forward, backward = unit.copy(), unit.copy()
     have_f, have_b = known.copy(), known.copy()

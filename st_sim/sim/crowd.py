@@ -34,7 +34,7 @@ from st_sim.sim.config import (
     SpeedModelConfig,
 )
 from st_sim.sim.contacts import contact_reach_m, keep_apart, pair_reach_m
-from st_sim.sim.exact import cap_speed
+from st_sim.sim.exact import cap_speed, poisson_draws
 from st_sim.sim.groups import PACE_RANGE, cohesion
 from st_sim.sim.layout import Layout, Region
 from st_sim.sim.navigation import NavigationField
@@ -413,7 +413,7 @@ class CrowdSim:
         stay = self._remove_arrived(at_exit)
         if not stay.all():
             self._xy_m, self._reordered = xy_m[stay], True
-        counts = self.rng.poisson(self.cfg.spawn_rate_hz * STEP_S, len(self.layout.entries))
+        counts = poisson_draws(self.rng, self.cfg.spawn_rate_hz * STEP_S, len(self.layout.entries))
         room = self.max_pedestrians - int(np.count_nonzero(self._roster.ped_id >= 0))
         if room <= 0 or not counts.any():
             return None

@@ -7,7 +7,8 @@ OpenBLAS's products (``@``, ``np.dot``, ``linalg.norm`` of one vector). A crowd 
 another crowd. Here every result comes from ``+``, ``-``, ``*``, ``/``, ``sqrt``, ``rint`` and ``ldexp`` (each correctly
 rounded everywhere), one numpy operation after another (nothing to fuse), in a fixed order: ``exp``, ``sin`` and ``cos``
 are FreeBSD's (fdlibm's) algorithms, within 1 ulp of the true value; sums of the two coordinates of a vector, and along
-an axis, are written out.
+an axis, are written out. Poisson draws (``poisson_draws``) multiply uniform draws down to ``exp``'s threshold, as
+numpy's own sampler does down to libm's.
 """
 
 from __future__ import annotations
@@ -71,6 +72,24 @@ def exp(x: np.ndarray | float) -> np.ndarray:
     y = 1.0 - ((lo - (r * c) / (2.0 - c)) - hi)
     with np.errstate(over="ignore"):
         return np.ldexp(y, np.where(np.isnan(k), 0.0, k).astype(np.int64))
+
+
+def poisson_draws(rng: np.random.Generator, mean: float, n: int) -> np.ndarray:
+    """(n,) int64 Poisson counts of ``mean`` [-], one after another from ``rng``: each multiplies uniform draws until
+    their product falls to e ** -mean (``exp``) or below, and counts the draws before that one. Below a mean of 10
+    this is numpy's ``Generator.poisson``, uniform for uniform, with the threshold from ``exp`` instead of libm's;
+    beyond it, where numpy switches to a rejection method that calls libm's ``log``, the same multiplication (as
+    many draws as the count, fine for the crowd's means)."""
+    counts = np.zeros(n, np.int64)
+    if mean <= 0:
+        return counts  # numpy draws nothing for a mean of 0
+    threshold = float(exp(-mean))
+    for i in range(n):
+        product = rng.random()
+        while product > threshold:
+            counts[i] += 1
+            product *= rng.random()
+    return counts
 
 
 def cos_sin(angle_rad: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:

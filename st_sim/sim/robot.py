@@ -17,8 +17,8 @@ the command given ``latency_steps`` steps before) and actuation noise (each comm
 draw of ``actuation_noise``), drawn from the robot's own generator so that noise never changes the crowd.
 
 Arithmetic: IEEE-exact operations and ``st_sim.sim.exact``'s functions only, so that a robot moves the same to the last
-bit on every CPU (by design: not yet run by the emulated-CPU check, ``tests/test_cpu_dispatch.py``, which covers the
-crowds).
+bit on every CPU (``tests/test_cpu_dispatch.py`` drives both kinds under emulated CPUs, commands beyond the limits
+included).
 """
 
 from __future__ import annotations

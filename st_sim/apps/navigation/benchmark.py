@@ -10,16 +10,20 @@ so a run that is killed keeps every finished episode, and the same command resum
 
 Layout of the output folder:
     run.json                            the run's identity (``RUN_IDENTITY``): what was asked, the suite's content
-                                        hash, the benchmark version, STCrowd's version and source hash, and what the
+                                        hash, the benchmark version, STCrowd's version and source hash, whether the
+                                        data's sums were waived (``STCROWD_ALLOW_MODIFIED_DATA``), and what the
                                         policy and the predictor are (``fingerprint``: their code, every file they
                                         read while loading and during the first episode); a resume whose identity
                                         differs in any part is refused, naming it. Beside it ``ran_on``, a record of
                                         each machine that ran part of the run (``provenance``), not compared
     parts/<scenario>/<first>.jsonl      one chunk's episodes, appended as they finish
+    parts/<scenario>/<first>.inputs.json what the chunk's episodes read, in every process that ran them
+                                        (``fingerprint.ChunkInputs``), grown before each episode's line is written;
+                                        a resume is refused when any of it changed since, naming it
     parts/<scenario>/<first>.json       the chunk's timing, written when it is complete
     recordings/<scenario>/<episode>.rrd a Rerun recording of each episode ``--record`` chose (``episode_recording``)
     episodes.jsonl                      every episode, one JSON line each, in suite order
-    summary.json                        the identity, the scenario set; per
+    summary.json                        the identity, the inputs of every episode (``inputs``), the scenario set; per
                                         scenario its env, keywords, episodes, summary and timing; the pooled summary
                                         and timing (``RESULT_FORMAT``); one line per top-level key
 
@@ -45,15 +49,21 @@ from gymnasium import spaces
 from envs.suite import Scenario, Suite, env_kwargs_of, load_suite, make_scenario_env
 from replays import strict_json
 from replays.atomic import write_text_atomic
+from replays.bounded_json import read_json
+from replays.data_root import ALLOW_MODIFIED_ENV_VAR
 from replays.data_root import data_root as resolve_data_root
+from replays.errors import DataFormatError
 from st_sim.apps.grid import Job, run_jobs
 from st_sim.apps.navigation.episode_recording import BenchmarkRecorder
 from st_sim.apps.navigation.episodes import run_episode
 from st_sim.apps.navigation.fingerprint import (
+    ChunkInputs,
     ReadAudit,
     fingerprint_changes,
+    inputs_changes,
     policy_fingerprint,
     predictor_fingerprint,
+    read_inputs,
     stcrowd_identity,
 )
 from st_sim.apps.navigation.metrics import episode_metrics, summarize
@@ -72,11 +82,14 @@ BENCHMARK_VERSION = "4"
 acceleration limit, a differential-drive track beside the holonomic one). Bumped
 whenever a metric changes meaning; results of different versions are never tabled or paired together"""
 RUN_IDENTITY = ("policy", "fingerprint", "predictor", "predictor_fingerprint", "trust_policy_file", "robot", "sensing",
-                "suite",
+                "modified_data_allowed", "suite",
                 "suite_version", "suite_sha256", "benchmark_version", "stcrowd", "split", "scenarios", "episodes")
 """what must match for a rerun to resume the runs already in an output folder"""
 RAN_ON = "ran_on"
 """the key of ``run.json`` and ``summary.json`` listing the machines that ran the run (``provenance``)"""
+SCENARIO_IDENTITY = "scenario_identity"
+"""the key of ``summary.json`` mapping each scenario re-run by ``replace_rows`` to the code identity and machines it
+ran on (the others ran on the summary's own)"""
 FINGERPRINTS = ("fingerprint", "predictor_fingerprint", "stcrowd")
 """identity parts that are dicts of named parts, compared part by part"""
 
@@ -150,29 +163,34 @@ def run_chunk(suite_file: str | None, scenario: str, split: str, first: int, cou
     lines_path.parent.mkdir(parents=True, exist_ok=True)
     done = _finished_lines(lines_path, {first + i: seed for i, seed in enumerate(seeds)})
     start, policy_s, steps = time.perf_counter(), 0.0, 0
-    env = make_scenario_env(entry, predictor, data_root, robot=robot, sensing=sensing)
-    try:
-        world = world_of(env)
-        checked = load_policy(policy, world, predictor, trust_file=trust_policy_file)
-        checked.check_fits(env.observation_space, scenario)
-        recorder = BenchmarkRecorder(env, record, lines_path.parents[2] / "recordings" / scenario, policy, predictor)
-        with lines_path.open("a") as lines:
-            for i, seed in enumerate(seeds, start=first):
-                if i in done:
-                    continue
-                try:
-                    trace, thinking_s = run_episode(recorder.env, checked, world, seed)
-                except PolicyError as err:
-                    raise PolicyError(f"{err} (scenario {scenario!r}, episode {i}, seed {seed})") from err
-                policy_s += thinking_s
-                steps += len(trace.ego_xy_m) - 1
-                line = episode_record(scenario, i, seed, episode_metrics(trace))
-                recorder.keep(line)
-                lines.write(strict_json.dumps(line) + "\n")
-                lines.flush()
-                os.fsync(lines.fileno())
-    finally:
-        env.close()
+    inputs = ChunkInputs(lines_path.with_suffix(".inputs.json"))
+    with ReadAudit([lines_path.parents[2], resolve_data_root(data_root, check=False)]) as audit:
+        env = make_scenario_env(entry, predictor, data_root, robot=robot, sensing=sensing)
+        try:
+            world = world_of(env)
+            checked = load_policy(policy, world, predictor, trust_file=trust_policy_file)
+            checked.check_fits(env.observation_space, scenario)
+            recorder = BenchmarkRecorder(env, record, lines_path.parents[2] / "recordings" / scenario, policy,
+                                         predictor)
+            with lines_path.open("a") as lines:
+                for i, seed in enumerate(seeds, start=first):
+                    if i in done:
+                        continue
+                    try:
+                        trace, thinking_s = run_episode(recorder.env, checked, world, seed)
+                    except PolicyError as err:
+                        raise PolicyError(f"{err} (scenario {scenario!r}, episode {i}, seed {seed})") from err
+                    policy_s += thinking_s
+                    steps += len(trace.ego_xy_m) - 1
+                    inputs.keep(audit)  # before the line: a line on disk never lacks the inputs it read
+                    line = episode_record(scenario, i, seed, episode_metrics(trace))
+                    recorder.keep(line)
+                    lines.write(strict_json.dumps(line) + "\n")
+                    lines.flush()
+                    os.fsync(lines.fileno())
+        finally:
+            env.close()
+    inputs.keep(audit)
     timing = {"episodes": count - len(done), "steps": steps, "worker_s": time.perf_counter() - start,
               "policy_s": policy_s}
     write_text_atomic(lines_path.with_suffix(".json"), strict_json.dumps(timing))
@@ -242,7 +260,10 @@ def check_run(run: BenchmarkRun, suite: Suite) -> dict[str, Any]:
         with ReadAudit(outside) as policy_audit:
             policy = load_policy(run.policy, world, run.predictor, trust_file=run.trust_policy_file)
             if policy.observation_space is None or observation_fits(policy.observation_space, env.observation_space):
-                run_episode(env, policy, world, seeds[0])
+                try:
+                    run_episode(env, policy, world, seeds[0])
+                except PolicyError as err:
+                    raise PolicyError(f"{err} (scenario {scenarios[0].name!r}, episode 0, seed {seeds[0]})") from err
     finally:
         env.close()
     if policy.observation_space is not None:
@@ -251,7 +272,7 @@ def check_run(run: BenchmarkRun, suite: Suite) -> dict[str, Any]:
                          predictor_fingerprint(run.predictor, predictor_audit))
     marker = Path(run.out) / "run.json"
     if marker.is_file():
-        held = {key: value for key, value in json.loads(marker.read_text()).items() if key != RAN_ON}
+        held = {key: value for key, value in _held_run(marker).items() if key != RAN_ON}
         if held != identity:
             raise BenchmarkError(f"{run.out} holds another run ({'; '.join(_differences(held, identity))}): give "
                                  "another --out, or delete the folder to score this one there")
@@ -279,6 +300,20 @@ def _check_fits(spec: str, own: spaces.Space, scenarios: tuple[Scenario, ...], s
         f"env gives {env_spaces[misfits[0]]}. {where}; or {FIXED_VIEW_HINT}")
 
 
+def _held_run(marker: Path) -> dict[str, Any]:
+    """An output folder's ``run.json``: its identity and ``ran_on`` records (``BenchmarkError`` naming the file if it
+    is not what a run writes)."""
+    try:
+        held = read_json(marker, "run identity")
+    except DataFormatError as err:
+        raise BenchmarkError(f"{err}: delete the folder, or give another --out") from None
+    if not isinstance(held, dict) or not isinstance(held.get(RAN_ON, []), list) or \
+            not all(isinstance(record, dict) for record in held.get(RAN_ON, [])):
+        raise BenchmarkError(f"{marker}: not a run's identity with a list of machine records ({RAN_ON}): delete the "
+                             "folder, or give another --out")
+    return held
+
+
 def _differences(held: dict[str, Any], identity: dict[str, Any]) -> list[str]:
     """What differs between a folder's ``run.json`` and this run's identity, in words."""
     missing = [key for key in RUN_IDENTITY if key not in held]
@@ -299,7 +334,7 @@ def _identity(run: BenchmarkRun, suite: Suite, fingerprint: dict[str, str],
               predictor_parts: dict[str, str]) -> dict[str, Any]:
     return {"policy": run.policy, "fingerprint": fingerprint, "predictor": run.predictor,
             "predictor_fingerprint": predictor_parts, "trust_policy_file": run.trust_policy_file, "robot": run.robot,
-            "sensing": run.sensing,
+            "sensing": run.sensing, "modified_data_allowed": os.environ.get(ALLOW_MODIFIED_ENV_VAR) == "1",
             "suite": suite.name, "suite_version": suite.version, "suite_sha256": suite.content_sha256,
             "benchmark_version": BENCHMARK_VERSION, "stcrowd": stcrowd_identity(), "split": run.split,
             "scenarios": [scenario.name for scenario in suite.select(run.scenarios)],
@@ -317,8 +352,14 @@ def run_benchmark(run: BenchmarkRun, executor: str = "local", workers: int | Non
     suite = load_suite(run.suite_file)
     identity = check_run(run, suite)
     out = Path(run.out)
+    for record in sorted(out.glob("parts/*/*.inputs.json")):
+        changes = inputs_changes(read_inputs(record))
+        if changes:
+            raise BenchmarkError(f"{out} holds episodes whose inputs changed since they ran "
+                                 f"({record.relative_to(out)}: {'; '.join(changes)}): give another --out, or delete "
+                                 "the folder to score this run there")
     marker = out / "run.json"
-    ran_on = json.loads(marker.read_text()).get(RAN_ON, []) if marker.is_file() else []
+    ran_on = _held_run(marker).get(RAN_ON, []) if marker.is_file() else []
     ran_on += [machine_record()] if machine_record() not in ran_on else []
     write_text_atomic(marker, strict_json.dumps({**identity, RAN_ON: ran_on}, indent=1))
     jobs = plan(run, suite)
@@ -344,9 +385,15 @@ def collect(run: BenchmarkRun, suite: Suite, jobs: list[Job], identity: dict[str
     ``identity`` is the run's (``check_run``) with its ``ran_on`` records, ``wall_s`` the run's wall-clock time [s]."""
     by_scenario: dict[str, list[dict]] = {}
     timing: dict[str, dict[str, float]] = {}
+    inputs: dict[str, str] = {}
     for job in jobs:
         name = job.kwargs["scenario"]
         part = Path(job.kwargs["part"])
+        read = read_inputs(part.with_suffix(".inputs.json"))
+        differ = sorted(key for key, value in read.items() if inputs.setdefault(key, value) != value)
+        if differ:
+            raise BenchmarkError(f"{', '.join(differ)}: one value in some chunks, another in {part}: an input changed "
+                                 "during the run; delete the folder and run again")
         by_scenario.setdefault(name, []).extend(json.loads(line) for line in part.read_text().splitlines())
         spent = json.loads(part.with_suffix(".json").read_text())
         cell = timing.setdefault(name, {"worker_s": 0.0, "policy_s": 0.0, "steps": 0})
@@ -361,6 +408,7 @@ def collect(run: BenchmarkRun, suite: Suite, jobs: list[Job], identity: dict[str
                           "episodes": [{k: v for k, v in e.items() if k != "scenario"} for e in episodes],
                           "summary": summary_of(episodes), "timing": timing[scenario.name]})
     summary = {"format": RESULT_FORMAT, **{k: v for k, v in identity.items() if k not in ("episodes", "scenarios")},
+               "inputs": dict(sorted(inputs.items())),
                "episodes_per_scenario": identity["episodes"], "scenario_set": identity["scenarios"],
                "suite_scenarios": len(suite.scenarios),
                "scenarios": scenarios, "summary": summary_of(every),

@@ -29,8 +29,9 @@ from typing import Any
 
 from envs.suite import SuiteError, check_scenario
 from replays import strict_json
+from replays.data_root import data_root as resolve_data_root
 from st_sim.apps.grid import one_thread
-from st_sim.apps.navigation.policies import TRUST_HELP
+from st_sim.apps.navigation.policies import SB3_PREFIX, TRUST_HELP
 from st_sim.apps.navigation.predictors import predictor_argument
 from st_sim.command_line import CliError
 
@@ -47,12 +48,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
     replay.add_argument("episode", metavar="EPISODE", type=int, help="the episode's index in its scenario (0, 1, ...)")
     replay.add_argument("--rerun", default=None, metavar="OUT.rrd", help="write a Rerun recording of the episode here")
     replay.add_argument("--spawn", action="store_true", help="show the episode in a Rerun viewer started now")
-    replay.add_argument("--policy", default=None, metavar="SPEC",
-                        help="the policy to run, when the run's is not a shipped planner by name (a results folder "
-                             "never names code to run: give package.module:name or sb3:PATH.zip yourself)")
-    replay.add_argument("--predictor", type=predictor_argument, default=None, metavar="SPEC",
-                        help="the predictor, when the run's is a plug-in package.module:name (given yourself)")
-    replay.add_argument("--trust-policy-file", action="store_true", help=TRUST_HELP)
+    _add_specs(replay)
     replay.add_argument("--data-root", default=None, help="ETH/UCY folder (default: $STCROWD_DATA or the cache)")
     return replay
 
@@ -67,17 +63,34 @@ def add_verify_parser(subparsers: argparse._SubParsersAction) -> argparse.Argume
                         help="episodes re-run per scenario, the first K (default: 1)")
     verify.add_argument("--scenarios", nargs="+", default=["*"], metavar="PATTERN",
                         help="only the scenarios matching these glob patterns (default: all)")
+    _add_specs(verify)
     verify.add_argument("--data-root", default=None, help="ETH/UCY folder (default: $STCROWD_DATA or the cache)")
+    verify.add_argument("--quiet", action="store_true", help="no progress bar (for logs)")
     return verify
+
+
+def _add_specs(parser: argparse.ArgumentParser) -> None:
+    """The options naming the code a run used, which a results folder never names itself."""
+    parser.add_argument("--policy", default=None, metavar="SPEC",
+                        help="the policy to run, when the run's is not a shipped planner by name (a results folder "
+                             "never names code to run: give package.module:name or sb3:PATH.zip yourself)")
+    parser.add_argument("--predictor", type=predictor_argument, default=None, metavar="SPEC",
+                        help="the predictor, when the run's is a plug-in package.module:name (given yourself)")
+    parser.add_argument("--trust-policy-file", action="store_true", help=TRUST_HELP)
 
 
 def chosen_specs(summary: dict[str, Any], folder: str | os.PathLike, policy: str | None,
                  predictor: str | None) -> tuple[str, str]:
-    """(policy, predictor) to replay a run with: each the user's if given, else the run's if it is shipped by name
-    (``planners.NAMED``, ``predictors.NAMES``); ``CliError`` naming the run's spec and the flag to give otherwise."""
+    """(policy, predictor) to replay a run with: each the user's if given (the run's spec; an ``sb3:`` model's path
+    may differ), else the run's if it is shipped by name (``planners.NAMED``, ``predictors.NAMES``); ``CliError``
+    naming the run's spec and the flag to give otherwise."""
     from st_sim.apps.navigation.planners import NAMED
     from st_sim.apps.navigation.predictors import NAMES
 
+    for flag, given, ran in (("--policy", policy, summary["policy"]), ("--predictor", predictor, summary["predictor"])):
+        if given is not None and given != ran and not (given.startswith(SB3_PREFIX) and ran.startswith(SB3_PREFIX)):
+            raise CliError(f"{folder}: {flag} {given}: the run's is {ran!r} (an sb3: model may lie elsewhere, its "
+                           "bytes are checked)")
     if policy is None:
         policy = summary["policy"]
         if policy not in NAMED:
@@ -133,8 +146,8 @@ def read_run(folder: str | os.PathLike) -> dict[str, Any]:
 
 def replay_episode(folder: str | os.PathLike, scenario: str, episode: int, rerun: str | None = None,
                    data_root: str | None = None, policy: str | None = None, predictor: str | None = None,
-                   trust_policy_file: bool = False, summary: dict[str, Any] | None = None
-                   ) -> tuple[dict[str, Any], dict[str, Any], Path | None]:
+                   trust_policy_file: bool = False, summary: dict[str, Any] | None = None,
+                   check_identity: bool = True) -> tuple[dict[str, Any], dict[str, Any], Path | None]:
     """Run episode ``episode`` of ``scenario`` of the benchmark run in ``folder`` again.
 
     Args:
@@ -142,6 +155,9 @@ def replay_episode(folder: str | os.PathLike, scenario: str, episode: int, rerun
         summary: the run's summary, already read (``read_run``; None: read it from ``folder``).
         policy, predictor: specs given by the user (None: the run's, if shipped by name; ``chosen_specs``).
         trust_policy_file: load an ``sb3:`` policy with stable-baselines3's own loader.
+        check_identity: a policy or predictor given by the user must be what the run identified (``fingerprint``:
+            its code, the files it read, its packages' versions, what it declares), else ``CliError`` naming what
+            changed; the shipped ones are STCrowd's code, which the figures themselves check.
 
     Returns:
         (the episode's line in the run, the line measured now, as ``episodes.jsonl`` writes them; the recording's
@@ -156,9 +172,18 @@ def replay_episode(folder: str | os.PathLike, scenario: str, episode: int, rerun
     from st_sim.apps.navigation.benchmark import episode_record
     from st_sim.apps.navigation.episode_recording import EpisodeTape
     from st_sim.apps.navigation.episodes import run_episode
+    from st_sim.apps.navigation.fingerprint import (
+        ReadAudit,
+        fingerprint_changes,
+        policy_fingerprint,
+        predictor_fingerprint,
+    )
     from st_sim.apps.navigation.leaderboard import label
     from st_sim.apps.navigation.metrics import episode_metrics
+    from st_sim.apps.navigation.planners import NAMED
     from st_sim.apps.navigation.policies import load_policy
+    from st_sim.apps.navigation.predictors import NAMES
+    from st_sim.apps.navigation.result_folder import identity_of
     from st_sim.apps.navigation.world import world_of
     from st_sim.perception import SENSING_LEVELS
     from st_sim.sim.robot import ROBOTS
@@ -180,51 +205,87 @@ def replay_episode(folder: str | os.PathLike, scenario: str, episode: int, rerun
                        f"of {', '.join(SENSING_LEVELS)}")
     kwargs |= ({"predictor": predictor, "robot": robot, "sensing": sensing}
                | ({} if data_root is None else {"root": data_root}))
-    env = gym.make(entry["env"], **kwargs)
+    outside = [folder, resolve_data_root(data_root, check=False)]
+    with ReadAudit(outside) as predictor_audit:
+        env = gym.make(entry["env"], **kwargs)
     try:
         world = world_of(env)
-        checked = load_policy(policy, world, predictor, trust_file=trust_policy_file)
-        tape = None if rerun is None else EpisodeTape(env, forecasts=predictor != "none")
-        trace, _ = run_episode(tape or env, checked, world, expected["seed"])
+        with ReadAudit(outside) as policy_audit:
+            checked = load_policy(policy, world, predictor, trust_file=trust_policy_file)
+            tape = None if rerun is None else EpisodeTape(env, forecasts=predictor != "none")
+            trace, _ = run_episode(tape or env, checked, world, expected["seed"])
         measured = episode_record(scenario, episode, expected["seed"], episode_metrics(trace))
         path = None if tape is None else tape.write(rerun, measured, label(summary))
     finally:
         env.close()
+    if check_identity:
+        changed, identity = [], identity_of(summary, scenario)  # a scenario re-run by replace_rows: its run's
+        if policy not in NAMED:
+            changed += fingerprint_changes(identity["fingerprint"],
+                                           policy_fingerprint(policy, checked.policy, policy_audit))
+        if predictor not in NAMES:
+            changed += fingerprint_changes(identity["predictor_fingerprint"],
+                                           predictor_fingerprint(predictor, predictor_audit))
+        if changed:
+            raise CliError(f"{folder}: the policy or predictor given is not the one the run identified: "
+                           f"{'; '.join(changed)}")
     return expected, measured, path
 
 
 def run_verify(args: argparse.Namespace) -> int:
     """Replay the first ``--per-scenario`` episodes of every matching scenario of each folder (one thread), print one
-    line per scenario; exit code 0 if every figure of every episode equals the run's, else 1 (the lines name them)."""
+    line per scenario; exit code 0 if every figure of every episode equals the run's, else 1 (the lines name them).
+    A run of the user's own policy or predictor (``--policy``, ``--predictor``) must be what the run identified: the
+    first replay of each folder is audited as the benchmark audits its run (``fingerprint``), and any part that
+    differs is an error naming it; so is a file or module that the run's episodes read (its ``inputs``) and that is
+    not the same here (other package versions are named, not refused: the figures say whether they matter).
+    Patterns that match no scenario of a folder are an error, not a pass."""
     import fnmatch
 
     from tqdm import tqdm
 
+    from st_sim.apps.navigation.fingerprint import inputs_changes
+    from st_sim.apps.navigation.result_folder import identity_of
+
     if args.per_scenario < 1:
         raise CliError(f"--per-scenario {args.per_scenario}: give 1 or more")
     one_thread()
-    differing = 0
+    differing = replayed = 0
     for folder in args.folders:
         summary = read_run(folder)  # read and checked once, not once per episode
         names = [entry["name"] for entry in summary["scenarios"]
                  if any(fnmatch.fnmatch(entry["name"], pattern) for pattern in args.scenarios)]
-        for name in tqdm(names, desc=str(folder), unit="scenario", leave=False):
+        if not names:
+            raise CliError(f"{folder}: --scenarios {' '.join(args.scenarios)} matches none of the run's scenarios "
+                           f"({', '.join(entry['name'] for entry in summary['scenarios'])})")
+        read = {part: value for name in names for part, value in identity_of(summary, name).get("inputs", {}).items()}
+        changed = inputs_changes(read)
+        files = [change for change in changed if not change.startswith("version ")]
+        if files:
+            raise CliError(f"{folder}: files the run's episodes read are not the same here: {'; '.join(files)}")
+        if changed:
+            tqdm.write(f"{folder}: other versions here than where it ran ({'; '.join(changed)}); the episodes tell "
+                       "whether they matter")
+        for index, name in enumerate(tqdm(names, desc=str(folder), unit="scenario", leave=False,
+                                          disable=args.quiet)):
             episodes = [line["episode"] for line in find_episode(summary, folder, name, 0)[0]["episodes"]]
             wrong = {}
             for episode in episodes[:args.per_scenario]:
-                expected, measured, _ = replay_episode(folder, name, episode, data_root=args.data_root,
-                                                       summary=summary)
+                expected, measured, _ = replay_episode(
+                    folder, name, episode, data_root=args.data_root, policy=args.policy, predictor=args.predictor,
+                    trust_policy_file=args.trust_policy_file, summary=summary, check_identity=index == 0)
+                replayed += 1
                 found = differences(expected, measured)
                 if found:
                     wrong[episode] = found
             differing += len(wrong)
             shown = "; ".join(f"episode {episode}: {', '.join(found)}" for episode, found in wrong.items())
             tqdm.write(f"{folder} {name}: {min(args.per_scenario, len(episodes)) - len(wrong)} of "
-                  f"{min(args.per_scenario, len(episodes))} episodes reproduce" + (f" ({shown})" if wrong else ""))
+                       f"{min(args.per_scenario, len(episodes))} episodes reproduce" + (f" ({shown})" if wrong else ""))
     if differing:
-        raise CliError(f"{differing} episodes do not reproduce: this machine's STCrowd, its packages or the data "
-                       "differ from the run's (compare its ran_on records: docs, Reproducing a result)")
-    print("every episode re-run equals its line")
+        raise CliError(f"{differing} of {replayed} episodes do not reproduce: this machine's STCrowd, its packages or "
+                       "the data differ from the run's (compare its ran_on records: docs, Reproducing a result)")
+    print(f"every episode re-run equals its line ({replayed} episodes)")
     return 0
 
 

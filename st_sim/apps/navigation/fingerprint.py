@@ -5,17 +5,25 @@ changed file or another STCrowd behind the same command is a different run.
         policy = load_policy(spec, world, predictor); run_episode(env, policy, world, seed)
     parts = policy_fingerprint(spec, policy.policy, audit)   # {"source policy.py": "<sha256>", "read w.npz": ...}
     changes = fingerprint_changes(held_parts, parts)         # what differs, in words
+    inputs_changes(ChunkInputs(path).parts)                  # what a chunk's episodes read and is not the same now
 
 The parts of a policy's fingerprint:
 - ``sb3:PATH.zip``: the SHA-256 of the zip (``file <name>``);
 - ``package.module:name``: the SHA-256 of every ``.py`` file of the package the module lies in (the module's own
   file if it is not in a package; a namespace package's folder alike), named ``source <path in the package>``, and
   the installed distribution's version where the package belongs to one (``version <distribution>``);
-- every module outside STCrowd and the installed packages that is loaded once the policy is built and has run its
-  first episode (``module <name>``): whatever the policy imports, directly or not, is among them;
-- every file it opened for reading meanwhile, outside STCrowd, the installed packages, the system and the folders
-  ``outside`` names (``read <path>``: relative to the working folder where it lies inside it);
+- every module loaded once the policy is built and has run its first episode (``module <name>``): whatever the
+  policy imports, directly or not, but STCrowd's, the standard library's and the installed distributions';
+- every file it opened for reading meanwhile, wherever it lies (``read <path>``: relative to the working folder
+  where it lies inside it), but STCrowd's, the standard library's, the kernel's pseudo-files and the folders
+  ``outside`` names;
+- a module or file that an installed distribution's ``RECORD`` lists: ``version <distribution>`` (nothing for the
+  distributions STCrowd needs, whose versions are ``stcrowd_identity``'s), and ``version python``;
 - whatever the built policy declares: an optional ``fingerprint()`` method returning a string, as ``declared``.
+
+Every chunk of a run's episodes records the same parts of what its episodes read (``ChunkInputs``), in whichever
+process runs it; ``inputs_changes`` says which of them are not the same now. Files read by native code without
+Python's ``open`` (OpenCV's ``imread``) are beyond the audit: a policy declares those.
 
 A shipped planner's code is STCrowd's own, identified by ``stcrowd_identity`` (its version and a hash of its
 source and package data); a shipped predictor by the hashes of its checkpoints (``predictor_fingerprint``).
@@ -27,6 +35,8 @@ import hashlib
 import importlib.metadata
 import importlib.util
 import os
+import platform
+import re
 import site
 import sys
 import sysconfig
@@ -35,6 +45,9 @@ from pathlib import Path
 from typing import Any, ClassVar
 
 from replays import strict_json
+from replays.atomic import write_text_atomic
+from replays.bounded_json import read_json
+from replays.errors import DataFormatError
 from st_sim.apps.navigation.planners import NAMED
 from st_sim.apps.navigation.policies import SB3_PREFIX
 
@@ -44,8 +57,8 @@ STCROWD_PACKAGES = ("st_sim", "predictor", "envs", "replays")
 """STCrowd's own packages: their code and data are ``stcrowd_identity``'s"""
 SOURCE_SUFFIXES = (".py", ".json", ".pt", ".sha256")
 """files of STCrowd's packages that decide what it does: code, settings, checkpoints, data sums"""
-SYSTEM_ROOTS = ("/proc", "/sys", "/dev", "/usr", "/etc", "/lib", "/lib64", "/bin", "/sbin")
-"""folders whose files are the system's, never a policy's data"""
+PSEUDO_ROOTS = ("/proc", "/sys", "/dev")
+"""the kernel's pseudo-files: interfaces, never a policy's data"""
 
 
 def file_sha256(path: Path) -> str:
@@ -60,8 +73,9 @@ def file_sha256(path: Path) -> str:
 @cache
 def stcrowd_identity() -> dict[str, str]:
     """``{"version": the installed version, "source_sha256": hex SHA-256 over the path and bytes of every file of
-    STCrowd's packages with a suffix of SOURCE_SUFFIXES}``: a change of STCrowd's code, settings or checkpoints
-    changes the hash (computed once per process)."""
+    STCrowd's packages with a suffix of SOURCE_SUFFIXES, "version <distribution>": the version of each distribution
+    STCrowd needs (``_dependencies``)}``: a change of STCrowd's code, settings or checkpoints changes the hash, an
+    upgrade under it a version (computed once per process)."""
     digest = hashlib.sha256()
     for root in _stcrowd_roots():
         for path in sorted(root.rglob("*")):
@@ -71,7 +85,37 @@ def stcrowd_identity() -> dict[str, str]:
         version = importlib.metadata.version("stcrowd")
     except importlib.metadata.PackageNotFoundError:
         version = "unknown"
-    return {"version": version, "source_sha256": digest.hexdigest()}
+    return {"version": version, "source_sha256": digest.hexdigest(),
+            **{f"version {name}": value for name, value in sorted(_dependencies().items())}}
+
+
+@cache
+def _dependencies() -> dict[str, str]:
+    """The installed versions of the distributions STCrowd needs, directly or not (its requirements without an
+    extra, followed through theirs), by normalised name; empty where STCrowd is not installed as a distribution."""
+    found: dict[str, str] = {}
+    todo = ["stcrowd"]
+    while todo:
+        try:
+            requires = importlib.metadata.requires(todo.pop()) or []
+        except importlib.metadata.PackageNotFoundError:
+            continue
+        for requirement in requires:
+            match = re.match(r"\s*([A-Za-z0-9][A-Za-z0-9._-]*)", requirement)
+            name = _normalised(match.group(1)) if match else ""
+            if not name or "extra" in requirement.partition(";")[2] or name in found:
+                continue
+            try:
+                found[name] = importlib.metadata.version(name)
+            except importlib.metadata.PackageNotFoundError:
+                continue
+            todo.append(name)
+    return found
+
+
+def _normalised(name: str) -> str:
+    """A distribution's name as PEP 503 compares it (``Stable_Baselines3`` -> ``stable-baselines3``)."""
+    return re.sub(r"[-_.]+", "-", name).lower()
 
 
 def _stcrowd_roots() -> list[Path]:
@@ -80,20 +124,23 @@ def _stcrowd_roots() -> list[Path]:
 
 class ReadAudit:
     """A context that records what the code run inside it reads: the files it opens for reading (Python's audit
-    event ``open``), and on leaving, every module loaded by then from outside STCrowd, the installed packages and the
-    system (a module imported before the context counts too, so a second run in one process sees what the first
-    did). Files under STCrowd, the installed packages, the system and the folders ``outside`` are not recorded.
+    event ``open``: ``open``, ``np.load``, ``torch.load``, ``os.open``, ...), and every module loaded by the time
+    ``loaded_modules`` is called or the context left (a module imported before the context counts too, so a second
+    run in one process sees what the first did). Nothing is skipped for where it lies (the home folder's caches,
+    ``/usr``, the interpreter's prefix are read like any folder) but STCrowd's own packages, Python's standard
+    library, the kernel's pseudo-files and the folders ``outside``; a file or module that an installed
+    distribution's ``RECORD`` lists is identified by that distribution's version (``audit_parts``).
 
     Attributes:
-        files: resolved paths of the regular files opened for reading.  modules: names of the user modules loaded.
+        files: resolved paths of the regular files opened for reading.  modules: names of the modules loaded from
+            outside the skipped folders (set on leaving).
     """
 
     _active: ClassVar[list[ReadAudit]] = []  # the audits recording now (the hook is installed once, for good)
     _installed: ClassVar[bool] = False
 
     def __init__(self, outside: list[str | os.PathLike | None] = ()):
-        self.skip = tuple(str(Path(root).expanduser().resolve()) for root in [*_installed_roots(), *outside]
-                          if root is not None)
+        self.skip = tuple(str(Path(root).expanduser().resolve()) for root in outside if root is not None)
         self.files: set[Path] = set()
         self.modules: set[str] = set()
         self.written: set[Path] = set()
@@ -107,10 +154,19 @@ class ReadAudit:
 
     def __exit__(self, *exc: Any) -> None:
         ReadAudit._active.remove(self)
-        self.modules = {name for name, module in list(sys.modules.items()) if _local_file(module) is not None}
+        self.modules = self.loaded_modules()
+
+    def snapshot(self) -> ReadAudit:
+        """``modules`` set to what is loaded now, inside the context (returns the audit)."""
+        self.modules = self.loaded_modules()
+        return self
+
+    def loaded_modules(self) -> set[str]:
+        """Names of the modules loaded now from outside the skipped folders."""
+        return {name for name, module in list(sys.modules.items()) if _module_file(module) is not None}
 
     def opened(self, path: Any, mode: Any) -> None:
-        """Record ``path`` if it is a regular file outside the skipped roots, opened for reading; a file the audited
+        """Record ``path`` if it is a regular file outside the skipped folders, opened for reading; a file the audited
         code writes is its output (a cache), never its input, and is dropped."""
         if isinstance(path, int):
             return
@@ -122,9 +178,8 @@ class ReadAudit:
             self.written.add(resolved)
             self.files.discard(resolved)
             return
-        text = str(resolved)
-        if resolved in self.written or resolved.suffix in (".pyc", ".py") or \
-                any(text == root or text.startswith(root + os.sep) for root in self.skip):
+        if resolved in self.written or resolved.suffix in (".pyc", ".py") or _own(resolved) or \
+                _under(resolved, self.skip):
             return  # modules are hashed as modules
         if resolved.is_file():
             self.files.add(resolved)
@@ -136,25 +191,66 @@ def _on_event(event: str, args: tuple) -> None:
             audit.opened(args[0], args[1] if len(args) > 1 else None)
 
 
-@cache
-def _installed_roots() -> tuple[str, ...]:
-    """Folders whose files are not a policy's own: the interpreter's, the installed packages', the user's caches and
-    settings, the system's, STCrowd's packages."""
-    paths = {sys.prefix, sys.base_prefix, sys.exec_prefix, sys.base_exec_prefix, *site.getsitepackages(),
-             site.getusersitepackages(), *SYSTEM_ROOTS, "~/.cache", "~/.config",
-             *(sysconfig.get_paths()[key] for key in ("stdlib", "platstdlib", "purelib", "platlib"))}
-    return tuple(sorted({str(Path(p).expanduser().resolve()) for p in paths} | {str(r) for r in _stcrowd_roots()}))
-
-
-def _local_file(module: Any) -> Path | None:
-    """The source file of ``module`` if it lies outside the interpreter, the installed packages and STCrowd (a
-    module of the user's project), else None."""
-    origin = getattr(module, "__file__", None)
-    if not isinstance(origin, str):
-        return None
-    path = Path(origin).resolve()
+def _under(path: Path, roots: tuple[str, ...]) -> bool:
     text = str(path)
-    if any(text.startswith(root + os.sep) for root in _installed_roots()):
+    return any(text == root or text.startswith(root.rstrip(os.sep) + os.sep) for root in roots)
+
+
+def _own(path: Path) -> bool:
+    """Whether ``path`` is one whose files never identify a policy: in STCrowd's packages (``stcrowd_identity``),
+    Python's standard library (its version is ``version python``; the installed packages' folders inside it are not
+    part of it), the kernel's pseudo-files, or an installed distribution's metadata (``*.dist-info``,
+    ``*.egg-info``: what the distribution's version says)."""
+    if path.parent.suffix in (".dist-info", ".egg-info"):
+        return True
+    roots, packages = _own_roots()
+    return _under(path, roots) and not _under(path, packages)
+
+
+@cache
+def _own_roots() -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """(STCrowd's packages, the interpreter's standard library and the pseudo-files; the folders of installed packages,
+    which may lie inside the standard library's)."""
+    base = {"base": sys.base_prefix, "platbase": sys.base_exec_prefix, "installed_base": sys.base_prefix,
+            "installed_platbase": sys.base_exec_prefix}
+    stdlib = {sysconfig.get_paths(vars=base)[key] for key in ("stdlib", "platstdlib")}
+    packages = {*site.getsitepackages(), site.getusersitepackages(),
+                *(sysconfig.get_paths(vars=base)[key] for key in ("purelib", "platlib"))}
+    return (tuple(sorted({str(Path(p).resolve()) for p in (*stdlib, *PSEUDO_ROOTS)} |
+                         {str(r) for r in _stcrowd_roots()})),
+            tuple(sorted(str(Path(p).resolve()) for p in packages)))
+
+
+@cache
+def _recorded_files() -> dict[str, tuple[str, str]]:
+    """Every file the installed distributions' ``RECORD`` files list, as an absolute path -> (distribution,
+    version); read from the ``*.dist-info`` folders on ``sys.path`` once per process."""
+    owners: dict[str, tuple[str, str]] = {}
+    for folder in dict.fromkeys(Path(entry or ".").resolve() for entry in sys.path):
+        for record in sorted(folder.glob("*.dist-info/RECORD")) if folder.is_dir() else ():
+            name, _, version = record.parent.name.removesuffix(".dist-info").rpartition("-")
+            try:
+                lines = record.read_text(errors="replace").splitlines()
+            except OSError:
+                continue
+            for line in lines:
+                listed = line.rpartition(",")[0].rpartition(",")[0]  # path,hash,size: the path may hold commas
+                if listed:
+                    owners[os.path.normpath(folder / listed)] = (name, version)
+    return owners
+
+
+def _module_file(module: Any) -> Path | None:
+    """The file ``module`` was loaded from if it lies outside STCrowd, the standard library and the pseudo-files, else
+    None (a builtin, a namespace package, one of STCrowd's)."""
+    origin = getattr(module, "__file__", None)
+    return _outside_file(origin) if isinstance(origin, str) else None
+
+
+@cache
+def _outside_file(origin: str) -> Path | None:
+    path = Path(origin).resolve()
+    if _own(path):
         return None
     return path if path.is_file() else None
 
@@ -194,18 +290,39 @@ def predictor_fingerprint(predictor: str, audit: ReadAudit | None = None) -> dic
 
 
 def audit_parts(audit: ReadAudit, modules: bool = True) -> dict[str, str]:
-    """``module <name>``: SHA-256 of each user module ``audit`` saw loaded (unless not ``modules``); ``read
-    <path>``: SHA-256 of each file it saw read (the path relative to the working folder where it lies inside it)."""
-    parts = {}
+    """What ``audit`` saw, as named parts: ``module <name>``: the SHA-256 of each module it saw loaded (unless not
+    ``modules``) and ``read <path>``: of each file it saw read (the path relative to the working folder where it lies
+    inside it); a module or file that an installed distribution's ``RECORD`` lists is ``version <distribution>``
+    instead (pip checks those files against the record's hashes), and ``version python`` is the interpreter's."""
+    parts = {"version python": platform.python_version()}
     for name in sorted(audit.modules if modules else ()):
-        path = _local_file(sys.modules.get(name))
+        path = _module_file(sys.modules.get(name))
         if path is not None:
-            parts[f"module {name}"] = file_sha256(path)
+            parts.update(_part(f"module {name}", path))
     cwd = Path.cwd().resolve()
     for path in sorted(path for path in audit.files if path.is_file()):  # a temporary file may be gone
         shown = path.relative_to(cwd).as_posix() if path.is_relative_to(cwd) else path.as_posix()
-        parts[f"read {shown}"] = file_sha256(path)
-    return parts
+        parts.update(_part(f"read {shown}", path))
+    return dict(sorted(parts.items()))
+
+
+def _part(name: str, path: Path) -> dict[str, str]:
+    """``{name: SHA-256 of path}``, or ``{"version <distribution>": version}`` if a distribution lists the file."""
+    owner = _recorded_files().get(str(path))
+    if owner is not None:  # a distribution STCrowd needs is STCrowd's (``stcrowd_identity``), any other the policy's
+        return {} if _normalised(owner[0]) in _dependencies() else {f"version {_normalised(owner[0])}": owner[1]}
+    return {name: _cached_sha256(path, *_stamp(path))}
+
+
+def _stamp(path: Path) -> tuple[int, int]:
+    stat = path.stat()
+    return stat.st_mtime_ns, stat.st_size
+
+
+@cache
+def _cached_sha256(path: Path, mtime_ns: int, size: int) -> str:
+    """``file_sha256``, once per file version in a process (a run hashes what it read after every episode)."""
+    return file_sha256(path)
 
 
 def source_parts(module: str) -> dict[str, str]:
@@ -236,6 +353,73 @@ def _inside(path: Path, roots: list[Path]) -> str:
         if path.is_relative_to(root):
             return path.relative_to(root).as_posix()
     return path.name
+
+
+def current_part(part: str) -> str | None:
+    """What an ``audit_parts`` part (``read``, ``module``, ``version``) is on this machine now: the file's or the
+    module's SHA-256, the distribution's version; None if it is gone."""
+    kind, _, name = part.partition(" ")
+    try:
+        if kind == "read":
+            path = Path(name)
+            return file_sha256(path) if path.is_file() else None
+        if kind == "module":
+            module = sys.modules.get(name)
+            origin = getattr(module, "__file__", None) if module is not None else importlib.util.find_spec(name).origin
+            return file_sha256(Path(origin)) if origin and Path(origin).is_file() else None
+        if kind == "version":
+            return platform.python_version() if name == "python" else importlib.metadata.version(name)
+    except (ImportError, ValueError, AttributeError, OSError, importlib.metadata.PackageNotFoundError):
+        return None
+    return None
+
+
+def inputs_changes(held: dict[str, str]) -> list[str]:
+    """The parts of ``held`` (``audit_parts`` of finished episodes) that are not the same on this machine now, one
+    phrase each: changed, or gone."""
+    changes = []
+    for part, value in sorted(held.items()):
+        now = current_part(part)
+        if now != value:
+            what = "is gone" if now is None else f"{value!r} then, {now!r} now" if part.startswith("version") else \
+                "changed"
+            changes.append(f"{part} {what}")
+    return changes
+
+
+class ChunkInputs:
+    """What the episodes of one chunk of a benchmark run read (``audit_parts``), kept in a JSON file beside their lines
+    and grown after every episode, so that a resume or ``verify`` can check every input of every finished episode
+    (``inputs_changes``). A part whose value changes while the chunk runs is an error (``InputsError``)."""
+
+    def __init__(self, path: Path):
+        self.path = path
+        self.parts = read_inputs(path) if path.is_file() else {}
+
+    def keep(self, audit: ReadAudit) -> None:
+        """Add what ``audit`` has seen so far (inside its context) and write the file if anything is new."""
+        now = audit_parts(audit.snapshot())
+        changed = sorted(part for part, value in now.items() if self.parts.get(part, value) != value)
+        if changed:
+            raise InputsError(f"{self.path}: {', '.join(changed)} changed while the run read it")
+        if now.keys() - self.parts.keys():
+            self.parts |= now
+            write_text_atomic(self.path, strict_json.dumps(self.parts, sort_keys=True, indent=0))
+
+
+class InputsError(RuntimeError):
+    """An input of a run's episodes changed during the run, or since episodes of a folder read it."""
+
+
+def read_inputs(path: Path) -> dict[str, str]:
+    """The parts a ``ChunkInputs`` file holds; ``InputsError`` naming the file if it is not an object of strings."""
+    try:
+        parts = read_json(path, "inputs record")
+    except DataFormatError as err:
+        raise InputsError(str(err)) from None
+    if not isinstance(parts, dict) or not all(isinstance(value, str) for value in parts.values()):
+        raise InputsError(f"{path}: not an object of strings (an inputs record of a benchmark chunk)")
+    return parts
 
 
 def fingerprint_changes(held: dict[str, str], now: dict[str, str]) -> list[str]:

@@ -20,6 +20,7 @@ import os
 from pathlib import Path
 from typing import Any
 
+from envs.suite import load_suite
 from st_sim.apps.navigation.benchmark import summary_of
 from st_sim.apps.navigation.metrics import GROUPS, METRICS, Outcome
 from st_sim.apps.navigation.report import metric_label
@@ -66,9 +67,8 @@ def baseline_results(like: dict[str, Any], folder: Path = BASELINES_DIR,
             if found[0][key] != like[key]) + ")"
         return [], (f"the shipped planners are left out: no committed result was measured on the episodes of this "
                     f"run{measured}. To see them beside it, run the benchmark on their settings (`--suite test`, "
-                    "default episodes, the shipped suite), or run a shipped planner on this run's settings (`python "
-                    f"-m st_sim benchmark --policy mpc --suite {shell_words(like['split'])} --episodes "
-                    f"{like['episodes_per_scenario']} --out DIR`) and list its folder")
+                    "default episodes, the shipped suite), or run a shipped planner on this run's settings "
+                    f"(`{same_settings_command(like)}`) and list its folder")
     if common_scenarios:
         return same, None
     fitting = [result for result in same if result["scenario_set"] == like["scenario_set"]]
@@ -76,6 +76,18 @@ def baseline_results(like: dict[str, Any], folder: Path = BASELINES_DIR,
         return fitting, None
     return [], (f"the shipped planners are left out: they ran {len(same[0]['scenario_set'])} scenarios, this run "
                 f"{len(like['scenario_set'])}; add --common-scenarios to pool them all over the scenarios they share")
+
+
+def same_settings_command(like: dict[str, Any], policy: str = "mpc") -> str:
+    """The benchmark command that runs ``policy`` on the episodes of the result ``like``: its split, episodes per
+    scenario, robot, sensing and (when it ran fewer than the suite's) scenarios; its own suite file, if it had one,
+    is the user's to give."""
+    words = ["python", "-m", "st_sim", "benchmark", "--policy", policy, "--suite", like["split"], "--episodes",
+             str(like["episodes_per_scenario"]), "--robot", like["robot"], "--sensing", like["sensing"]]
+    if len(like["scenario_set"]) < like["suite_scenarios"]:
+        words += ["--scenarios", *like["scenario_set"]]
+    suite_file = "" if like["suite_sha256"] == load_suite(None).content_sha256 else " --suite-file YOUR_SUITE_FILE"
+    return shell_words(*words) + suite_file + " --out DIR"
 
 
 def label(result: dict[str, Any]) -> str:
@@ -192,9 +204,11 @@ def ran_on_table(results: list[dict[str, Any]]) -> str:
             lines.append(f"| {label(result)} | not recorded (written before runs recorded it) |" + " |" * 6)
             continue
         for record in records:
+            versions, simd = (value if isinstance(value := record.get(key), dict) else {}
+                              for key in ("versions", "simd"))
             cells = [str(record.get("commit", "?"))[:12], str(record.get("tree_clean", "?")),
-                     *(str(record.get("versions", {}).get(name, "?")) for name in ("numpy", "torch", "numba")),
-                     str(record.get("cpu", "?")), " / ".join(str(record.get("simd", {}).get(name, "?"))
+                     *(str(versions.get(name, "?")) for name in ("numpy", "torch", "numba")),
+                     str(record.get("cpu", "?")), " / ".join(str(simd.get(name, "?"))
                                                              for name in ("numpy", "torch", "numba"))]
             lines.append(f"| {label(result)} | " + " | ".join(shown(cell) for cell in cells) + " |")
     return "\n".join([*lines, ""])

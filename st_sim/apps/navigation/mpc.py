@@ -30,7 +30,7 @@ import numpy as np
 from st_sim.apps.navigation.modes import SampleBelief
 from st_sim.apps.navigation.pedestrians import Pedestrians, pedestrians_of
 from st_sim.apps.navigation.world import NavWorld
-from st_sim.sim.exact import length
+from st_sim.sim.exact import dot, length
 from st_sim.sim.robot import Motion, limited_command, substep
 
 INFEASIBLE = 1e6  # cost of a candidate that goes into a wall [-]
@@ -164,7 +164,7 @@ class MpcPlanner:
         belief with ``obs``."""
         ego_xy, ego_v, goal, heading = (obs["ego"][i:i + 2].astype(np.float64) for i in (0, 2, 4, 6))
         robot = self.world.robot
-        speed = float(length(ego_v)) if robot.kind == "holonomic" else float(ego_v @ heading)
+        speed = float(length(ego_v)) if robot.kind == "holonomic" else float(dot(ego_v, heading))
         motion = Motion(ego_v[None], heading[None] / length(heading), np.array([speed]),
                         np.array([float(obs["ego"][8])]))
         peds = pedestrians_of(obs, self.cfg.horizon_steps, self.use_predictions)

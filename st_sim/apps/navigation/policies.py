@@ -166,8 +166,9 @@ class CheckedPolicy:
         if velocity.shape != (2,):
             raise PolicyError(f"policy {self.spec!r}: act returned shape {velocity.shape}; expected a (2,) velocity "
                               "(vx, vy) [m/s]")
-        if not np.isfinite(velocity).all():
-            raise PolicyError(f"policy {self.spec!r}: act returned {velocity.tolist()}; expected finite numbers")
+        if not (np.abs(velocity) <= np.finfo(np.float32).max).all():  # NaN, inf, or past float32's range
+            raise PolicyError(f"policy {self.spec!r}: act returned {velocity.tolist()}; expected finite numbers "
+                              "within float32's range")
         if self.world is not None and getattr(self.policy, "drives_robot", False) is not True:
             velocity = self.world.command_for(obs, velocity)
         return np.asarray(velocity, np.float32)

@@ -26,11 +26,17 @@ from pathlib import Path
 from typing import Any
 
 from replays import strict_json
-from replays.bounded_json import read_json
+from replays.bounded_json import MAX_FILE_BYTES, read_json
 from replays.errors import DataFormatError
-from st_sim.apps.navigation.benchmark import RESULT_FORMAT, summary_of
+from st_sim.apps.navigation.benchmark import FINGERPRINTS, RESULT_FORMAT, SCENARIO_IDENTITY, summary_of
 from st_sim.apps.navigation.metrics import FORMER_NAMES, METRICS, RATES, Outcome
+from st_sim.apps.navigation.result_cache import cached, entry_key, store
 
+CODE_IDENTITY = (*FINGERPRINTS, "trust_policy_file")
+"""the code a run's episodes came from: the policy's, the predictor's and STCrowd's (a re-run scenario's own in
+``scenario_identity``, with the ``inputs`` its episodes read where its run recorded them)"""
+INPUTS = "inputs"
+"""the key of what a run's episodes read (``fingerprint.ChunkInputs``; runs before 2026-12-02 lack it)"""
 RECORDED_SINCE = ("suite_sha256", "benchmark_version")
 """the fields that summaries written before runs recorded them lack (``MIGRATE`` adds them)"""
 MIGRATE = "python -m st_sim.apps.navigation.migrate_results"
@@ -49,6 +55,10 @@ class LeaderboardError(ValueError):
     """A folder holds no benchmark result, a malformed or inconsistent one, or results measured on other episodes."""
 
 
+def _short_text(value: Any) -> bool:
+    return isinstance(value, str) and len(value) <= LONGEST_NAME
+
+
 def _number(value: Any) -> bool:
     return type(value) in (int, float) and abs(value) <= LARGEST_FIGURE  # not a bool; NaN fails the comparison
 
@@ -60,6 +70,11 @@ WHOLE: Kind = ("a whole number", lambda value: type(value) is int)
 FLAG: Kind = ("true/false", lambda value: isinstance(value, bool))
 FIGURE: Kind = ("a number or null", lambda value: value is None or _number(value))
 OBJECT: Kind = ("an object", lambda value: isinstance(value, dict))
+INPUT_PART: Kind = (f"a string of up to {LONGEST_NAME} characters", lambda value: _short_text(value))
+RECORD_LIST: Kind = ("a list of machine records", lambda value: isinstance(value, list))
+RECORD_VALUE: Kind = (f"a string of up to {LONGEST_NAME} characters, true/false/null, or an object of such strings",
+                      lambda value: value is None or isinstance(value, bool) or _short_text(value) or
+                      (isinstance(value, dict) and all(map(_short_text, value.values()))))
 NAME_LIST: Kind = ("a list of strings",
                    lambda value: isinstance(value, list) and all(isinstance(item, str) for item in value))
 SCENARIOS: Kind = ("a list of at least one scenario", lambda value: isinstance(value, list) and len(value) > 0)
@@ -92,30 +107,51 @@ def load_result(folder: str | os.PathLike, only: dict[str, Any] | None = None) -
     the committed results are kept) read within ``replays.bounded_json``'s caps, every field a reader uses checked
     (``check_summary``), its figures computed again from its episodes (``check_figures``). ``LeaderboardError``
     names the file and what is wrong. With ``only`` (field -> value), a summary whose fields differ is not checked
-    further: None."""
+    further: None. What was checked is cached (``result_cache``: keyed by the file's bytes and STCrowd's code), so
+    a file is checked once on a machine."""
     path = Path(folder) / "summary.json"
     if not path.exists() and path.with_suffix(".json.gz").exists():
         path = path.with_suffix(".json.gz")
     if not path.exists():
         raise LeaderboardError(f"{folder}: no summary.json (run `python -m st_sim benchmark --out {folder}` "
                                "first; an interrupted run writes it when resumed to the end)")
-    try:
-        result = read_json(path, "benchmark summary")
-    except DataFormatError as err:
-        raise LeaderboardError(str(err)) from err
-    check_summary(result, path)
-    result.setdefault("robot", "holonomic")  # written before the robot was recorded (benchmark version 3 and older)
-    result.setdefault("sensing", "oracle")  # written before sensing existed
+    name = entry_key(path.read_bytes()) if path.is_file() and path.stat().st_size <= MAX_FILE_BYTES else None
+    entry = None if name is None else cached(name)
+    if entry is None:
+        try:
+            result = read_json(path, "benchmark summary")
+        except DataFormatError as err:
+            raise LeaderboardError(str(err)) from err
+        check_summary(result, path)
+        result.setdefault("robot", "holonomic")  # written before the robot was recorded (benchmark version 3 and older)
+        result.setdefault("sensing", "oracle")  # written before sensing existed
+        entry = {"figures_checked": False, "result": result}
+    result = entry["result"]
     if only is not None and any(result.get(key) != value for key, value in only.items()):
+        if name is not None:
+            store(name, result, figures_checked=entry["figures_checked"])
         return None
-    check_figures(result, path)
+    if not entry["figures_checked"]:
+        check_figures(result, path)
+        if name is not None:
+            store(name, result, figures_checked=True)
     return result
+
+
+def identity_of(summary: dict[str, Any], scenario: str) -> dict[str, Any]:
+    """The code identity (``CODE_IDENTITY``) that the episodes of ``scenario`` in ``summary`` ran on, and what they
+    read (``inputs``): its entry in ``scenario_identity`` if ``replace_rows`` re-ran it, else the summary's own
+    (fields it does not record left out)."""
+    record = summary.get(SCENARIO_IDENTITY, {}).get(scenario, summary)
+    return {key: record[key] for key in (*CODE_IDENTITY, INPUTS) if key in record}
 
 
 def check_summary(result: Any, path: Path) -> None:
     """Refuse (``LeaderboardError`` naming ``path`` and the field's path) a benchmark summary whose fields are not of
-    the types its readers take: the names, the suite's identity, the scenario set, and per scenario its name, env,
-    keywords and exactly ``episodes_per_scenario`` episodes, in order (``check_episode``)."""
+    the types its readers take: the names, the suite's identity, the scenario set, per scenario its name, env,
+    keywords and exactly ``episodes_per_scenario`` episodes, in order (``check_episode``), the machine records
+    (``ran_on``: objects of short strings, flags and objects of short strings), and ``scenario_identity`` if present
+    (per scenario of the summary, its ``FINGERPRINTS`` objects and ``trust_policy_file``)."""
     if not isinstance(result, dict) or result.get("format") != RESULT_FORMAT:
         raise LeaderboardError(f"{path}: not a benchmark summary (expected format {RESULT_FORMAT})")
     missing = [key for key in RECORDED_SINCE if key not in result]
@@ -141,6 +177,32 @@ def check_summary(result: Any, path: Path) -> None:
     if field(path, result, "suite_scenarios", COUNT) < len(names):
         raise LeaderboardError(f"{path}: suite_scenarios: {result['suite_scenarios']}, fewer than the "
                                f"{len(names)} scenarios the summary holds")
+    identities = field(path, result, SCENARIO_IDENTITY, OBJECT) if SCENARIO_IDENTITY in result else {}
+    for name, identity in identities.items():
+        if name not in names:
+            raise LeaderboardError(f"{path}: {SCENARIO_IDENTITY}: {_quoted(name)} is not a scenario the summary holds")
+        where = f"{SCENARIO_IDENTITY}[{_quoted(name)}]"
+        check(path, where, identity, OBJECT)
+        for key in FINGERPRINTS:
+            field(path, identity, key, OBJECT, where)
+        field(path, identity, "trust_policy_file", FLAG, where)
+        _check_inputs(path, identity, where)
+    _check_inputs(path, result)
+    if "modified_data_allowed" in result:
+        field(path, result, "modified_data_allowed", FLAG)
+    if "ran_on" in result:
+        for i, record in enumerate(field(path, result, "ran_on", RECORD_LIST)):
+            for key, value in check(path, f"ran_on[{i}]", record, OBJECT).items():
+                check(path, f"ran_on[{i}].{key}", value, RECORD_VALUE)
+
+
+def _check_inputs(path: Path, owner: dict[str, Any], where: str = "") -> None:
+    """``owner["inputs"]``, if there (what a run's episodes read: part -> SHA-256 or version), checked to be an
+    object of short strings."""
+    if "inputs" in owner:
+        for part, value in field(path, owner, "inputs", OBJECT, where).items():
+            check(path, f"{where}.inputs[{_quoted(part)}]" if where else f"inputs[{_quoted(part)}]", value,
+                  INPUT_PART)
 
 
 def _check_scenario(path: Path, scenario: Any, where: str, count: int) -> str:

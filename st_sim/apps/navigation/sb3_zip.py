@@ -16,7 +16,9 @@ weights), beside the optimizers' files. SB3 writes a plain-text form beside each
 - the weights with ``torch.load(weights_only=True)``: exactly the tensors of the policy built from the above, each
   owning the bytes it holds (``held_weights``).
 
-Nothing else in the zip is read. A member that declares more bytes than a model file holds (``MAX_DATA_BYTES``,
+``data`` is parsed within the caps every results file is read within (``replays.bounded_json.parse_json``: its
+size, nesting depth and token count bounded before it is parsed, UTF-8, strict JSON: no NaN, no Infinity). Nothing
+else in the zip is read. A member that declares more bytes than a model file holds (``MAX_DATA_BYTES``,
 ``held_weights.MAX_WEIGHTS_BYTES``), or that would expand more than ``held_weights.MAX_RATIO`` times, is refused
 before it is decompressed (a zip bomb), in the zip and in the zip that ``policy.pth`` itself is. Weights are counted
 from the bytes ``policy.pth`` holds (an expanded view, a slice or a shared storage is refused), and a policy whose
@@ -31,7 +33,6 @@ meta device, which holds no memory).
 from __future__ import annotations
 
 import inspect
-import json
 import math
 import re
 import zipfile
@@ -44,6 +45,8 @@ import torch
 from gymnasium import spaces
 
 from predictor.plugins import describe_error
+from replays.bounded_json import parse_json
+from replays.errors import DataFormatError
 from st_sim.apps.navigation.held_weights import (
     MAX_HIDDEN_LAYERS,
     MAX_WEIGHTS_BYTES,
@@ -125,9 +128,9 @@ def _read(path: Path) -> tuple[dict[str, Any], dict[str, torch.Tensor], int]:
     except (OSError, EOFError, RuntimeError, NotImplementedError, zipfile.BadZipFile, zlib.error) as err:
         raise Sb3ZipError(f"not a stable-baselines3 model file: not a readable zip ({describe_error(err)})") from None
     try:
-        data = json.loads(data_bytes)
-    except (ValueError, RecursionError) as err:
-        raise Sb3ZipError(f"data is not JSON ({describe_error(err)})") from None
+        data = parse_json(data_bytes, "data", "stable-baselines3 model's data member")
+    except DataFormatError as err:  # past a cap of replays.bounded_json, not UTF-8 or not strict JSON
+        raise Sb3ZipError(str(err)) from None
     if not isinstance(data, dict):
         raise Sb3ZipError(f"data is a JSON {type(data).__name__}, not an object")
     weights = read_torch(weights_bytes, "policy.pth")

@@ -6,7 +6,7 @@ its log scores hundreds of candidate places, one chooser after another, on array
 path spends its time calling numpy, not computing. Here the same arithmetic runs in loops compiled by numba:
 
 - ``exact``: numpy's rounding in loops (its pairwise sums, ``maximum``/``minimum``/``clip`` on ties and NaN,
-  ``arange``'s values), so that every number equals the plain path's;
+  ``arange``'s values) and ``st_sim.sim.exact``'s arctangent, so that every number equals the plain path's;
 - ``geometry``: the robot's body gaps and the scene's depth at a point (``footprint``, ``MapDepth.at``);
 - ``tables``: a replay's route tables as one tuple, and the places along the routes (``routes.Routes``);
 - ``way_round``: the way round the robot, a shortest walk on a grid (``candidates._way_round_m``, ``detour``);
@@ -45,7 +45,7 @@ ROOT = PACKAGE.parents[2]
 SOURCES = (*sorted(path.relative_to(ROOT).as_posix() for path in PACKAGE.glob("*.py")),
            "st_sim/reactive/candidates.py", "st_sim/reactive/choosing.py", "st_sim/reactive/detour.py",
            "st_sim/reactive/footprint.py", "st_sim/reactive/reaction.py", "st_sim/reactive/routes.py",
-           "replays/constants.py")
+           "st_sim/sim/exact.py", "st_sim/sim/map_depth.py", "replays/constants.py")
 """the files whose code or constants the kernels compile in (``tests/test_reactive_compiled.py`` checks that every
 module the kernels import from is here)"""
 

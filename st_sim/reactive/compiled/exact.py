@@ -4,13 +4,18 @@ walks are the same to the last bit.
 numpy's ``maximum``/``minimum`` return the second operand on a tie (``maximum(-0.0, 0.0)`` is ``0.0``) and propagate
 NaN; ``clip`` keeps the value on a tie with a bound; a sum along an axis starts from 0 and adds pairwise (eight
 accumulators over blocks of up to 128 values, halves beyond); ``arange`` fills ``start + i * delta`` with ``delta``
-the rounded difference of its first two values.
+the rounded difference of its first two values. The bearing's arctangent is ``st_sim.sim.exact.atan2``'s, one point
+at a time (numba's ``np.arctan2`` calls libm, which rounds by the CPU).
 """
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit
+
+from st_sim.sim.exact import ATAN_HI, ATAN_LO, ATAN_T, PI_HI, PI_LO
 
 PAIRWISE_BLOCK = 128  # numpy sums blocks of up to this many values with eight accumulators [-]
 
@@ -62,6 +67,44 @@ def first_of_least(value: float, best: float, have: bool) -> bool:
 def length(x: float, y: float) -> float:
     """``footprint.length_m`` of the vector (x, y) [m]."""
     return np.sqrt(x * x + y * y)
+
+
+@njit(cache=True, inline="always")
+def atan(x: float) -> float:
+    """``st_sim.sim.exact.atan(x)`` [rad]: the same operations on the one range ``|x|`` falls in."""
+    a = abs(x)
+    if a < 0.4375:
+        reduced, part = a, -1
+    elif a < 0.6875:
+        reduced, part = (2.0 * a - 1.0) / (2.0 + a), 0
+    elif a < 1.1875:
+        reduced, part = (a - 1.0) / (a + 1.0), 1
+    elif a < 2.4375:
+        reduced, part = (a - 1.5) / (1.0 + 1.5 * a), 2
+    else:  # and NaN
+        reduced, part = -1.0 / a, 3
+    z = reduced * reduced
+    w = z * z
+    t = ATAN_T
+    s1 = z * (t[0] + w * (t[2] + w * (t[4] + w * (t[6] + w * (t[8] + w * t[10])))))
+    s2 = w * (t[1] + w * (t[3] + w * (t[5] + w * (t[7] + w * t[9]))))
+    if part < 0:
+        return math.copysign(reduced - reduced * (s1 + s2), x)
+    return math.copysign(ATAN_HI[part] - ((reduced * (s1 + s2) - ATAN_LO[part]) - reduced), x)
+
+
+@njit(cache=True, inline="always")
+def atan2(y: float, x: float) -> float:
+    """``st_sim.sim.exact.atan2(y, x)``: the angle of the point (x, y) [rad], the same bits."""
+    ay, ax = abs(y), abs(x)
+    steep = ay > ax
+    ratio = ax / ay if steep else ay / (ax if ax > 0 else 1.0)
+    angle = atan(ratio)
+    if steep:
+        angle = (ATAN_HI[3] - angle) + ATAN_LO[3]
+    if math.copysign(1.0, x) < 0.0:  # -0.0 too
+        angle = (PI_HI - angle) + PI_LO
+    return math.copysign(angle, y)
 
 
 @njit(cache=True)

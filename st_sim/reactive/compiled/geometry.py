@@ -2,9 +2,9 @@
 ``MapDepth.at`` with the same rounding (``exact``).
 
 The body is given by its half length and width ``half_m`` (2,), its radius and its distinct corners (``corners``,
-(C, 2)); its heading by its cosine and sine, computed by numpy once per robot, so that no transcendental function is
-evaluated here. The functions are inlined where they are called (``inline="always"``): a call that passes arrays
-costs their reference counts, more than the arithmetic.
+(C, 2)); its heading by its cosine and sine, computed once per robot (``st_sim.sim.exact.cos_sin``), so that no
+transcendental function is evaluated here. The functions are inlined where they are called (``inline="always"``): a
+call that passes arrays costs their reference counts, more than the arithmetic.
 """
 
 from __future__ import annotations
@@ -18,8 +18,8 @@ from st_sim.reactive.footprint import GAP_SLACK_M, Robot
 
 def robot_rows(robot: Robot) -> np.ndarray:
     """(N, 8) the robots as the kernels read them, one row per crowd: from x, y, to x, y, the cosine and sine of
-    the heading, velocity x, y (numpy's ``np.cos``, ``np.sin`` and ``Robot.velocity_mps``)."""
-    return np.c_[robot.from_m, robot.to_m, np.cos(robot.heading_rad), np.sin(robot.heading_rad), robot.velocity_mps]
+    the heading, velocity x, y (``Robot.heading`` and ``Robot.velocity_mps``)."""
+    return np.c_[robot.from_m, robot.to_m, robot.heading, robot.velocity_mps]
 
 
 @njit(cache=True, inline="always")

@@ -1,6 +1,6 @@
 """The rest of the reactive step compiled: ``reactive.advance``'s bookkeeping round the choice, for every agent of
-every crowd, with the same numbers. Three passes, with what numpy must compute between them (the room each keeps,
-from numpy's matrix products; the newcomers, a rare case) and the choice (``choose``):
+every crowd, with the same numbers. Three passes, with what numpy computes between them (the room each keeps, the
+same code in both paths; the newcomers, a rare case) and the choice (``choose``):
 
 - ``attention``: walking directions, who notices the robot, how long each has had it in mind, how far it reacts;
 - ``leave``: who is present, who leaves its log (``in_the_way``), where each starts and what it carries over;
@@ -14,7 +14,7 @@ from numba import njit
 
 from replays.constants import STEP_S
 from st_sim.reactive.candidates import HEADWAY_M
-from st_sim.reactive.compiled.exact import clip, length, maximum
+from st_sim.reactive.compiled.exact import atan2, clip, length, maximum
 from st_sim.reactive.compiled.geometry import gap, to_body_frame
 from st_sim.reactive.compiled.in_the_way import others_in_the_way, robot_in_the_way
 from st_sim.reactive.compiled.tables import RouteTables, clear_of_robot, progress
@@ -49,8 +49,8 @@ def attention(t: RouteTables, present: np.ndarray, xy: np.ndarray, velocity: np.
             local_x, local_y = clip(local_x, -t.half_m[0], t.half_m[0]), clip(local_y, -t.half_m[1], t.half_m[1])
             near_x, near_y = to_body_frame(local_x, local_y, turned_back[n, 0], turned_back[n, 1])
             toward_x, toward_y = from_x + near_x - xy[n, a, 0], from_y + near_y - xy[n, a, 1]
-            bearing = np.arctan2(walking[n, a, 0] * toward_y - walking[n, a, 1] * toward_x,
-                                 0.0 + walking[n, a, 0] * toward_x + walking[n, a, 1] * toward_y)
+            bearing = atan2(walking[n, a, 0] * toward_y - walking[n, a, 1] * toward_x,
+                            0.0 + walking[n, a, 0] * toward_x + walking[n, a, 1] * toward_y)
             bearing = np.pi if bearing != bearing else bearing
             body_gap = gap(off_x, off_y, cos, sin, t.half_m, t.radius_m)
             body_gap = np.inf if body_gap != body_gap else body_gap

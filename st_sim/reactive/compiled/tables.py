@@ -31,7 +31,7 @@ class RouteTables(NamedTuple):
         depth_m: (H, W) the scene's depth raster [m].  to_pixel: (3, 3) world to pixel homography.  affine: bool,
             its last row is (0, 0, 1).  open_ground: bool, every point at depth 0 (no raster).
         half_m: (2,) the robot's half length and width [m].  radius_m: its radius [m].  corners: (C, 2) its
-            rectangle's distinct corners [m].  half_diagonal_m: hypot of ``half_m`` [m].
+            rectangle's distinct corners [m].  half_diagonal_m: ``Body.half_diagonal_m`` [m].
         robot_reach_m: gap kept from the robot's body [m].  delay_cost: the reaction's cost of delay.
             anticipation_steps: the reaction's look-ahead in steps.
     """
@@ -73,7 +73,7 @@ def route_tables(routes: Routes) -> RouteTables | None:
                        routes.tangent, routes.trace_m, routes.trace_depth_m, np.ascontiguousarray(depth_m, np.float64),
                        np.ascontiguousarray(to_pixel, np.float64), affine, open_ground, half_m,
                        float(routes.body.radius_m), np.array(corners(half_m), np.float64).reshape(-1, 2),
-                       float(np.hypot(*half_m)), float(routes.robot_reach_m), float(reaction.delay_cost),
+                       routes.body.half_diagonal_m, float(routes.robot_reach_m), float(reaction.delay_cost),
                        int(reaction.anticipation_steps))
 
 

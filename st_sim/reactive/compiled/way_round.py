@@ -12,12 +12,12 @@ from numba import njit
 from st_sim.reactive.candidates import DETOUR_AHEAD_M, DETOUR_BACK_FRAMES, DETOUR_LEAD_STEPS, DETOUR_MARGIN_M
 from st_sim.reactive.compiled.exact import arange, first_of_least, length, maximum, minimum
 from st_sim.reactive.compiled.tables import RouteTables, clear_of_robot, depth_window, place, tau_ahead, too_deep
-from st_sim.reactive.detour import CELL_M
+from st_sim.reactive.detour import CELL_M, edge_m
 from st_sim.reactive.footprint import PAIR_BODY_M
 
 AHEAD_M = np.array(DETOUR_AHEAD_M)
-STRAIGHT_M = CELL_M * float(np.hypot(0, 1))  # the edges of ``detour.walking_distances_m`` [m]
-DIAGONAL_M = CELL_M * float(np.hypot(1, 1))
+STRAIGHT_M = edge_m(0, 1)  # the edges of ``detour.walking_distances_m`` [m]
+DIAGONAL_M = edge_m(1, 1)
 NEAR_CELLS = int(np.ceil(PAIR_BODY_M / CELL_M)) + 1  # cells each side of a point that ``detour.cells_near`` looks at
 
 
