@@ -27,7 +27,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space, concatenate, create_empty_array
 
 from envs.batch_step import StepParts
-from envs.common.errors import EnvInputError
+from envs.common.errors import EnvInputError, NeedsResetError
 from envs.vector_env import CrowdVectorEnv, batch_infos, sub_env_seeds
 
 EXECUTORS: tuple[str, ...] = ("process", "ray")
@@ -92,6 +92,8 @@ class ShardedVectorEnv(VectorEnv):
         self._cuts = np.cumsum(self.sizes)[:-1]
         args = [(env_class_path, size, max_episode_steps, self.autoreset_mode.value, kwargs) for size in self.sizes]
         self._shards = [(RayShard if executor == "ray" else ProcessShard)(SHARD, *a) for a in args]
+        self._unfinished: str | None = None
+        """why no shard may step until the next reset: a step or reset that failed in some shard (None: they may)"""
         self.single_observation_space, self.single_action_space = self._shards[0].call("spaces")
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
@@ -104,13 +106,20 @@ class ShardedVectorEnv(VectorEnv):
                                          not isinstance(env_seed, int | np.integer) or env_seed < 0):
                 raise EnvInputError(f"sub-env {i}: seed={env_seed!r}: expected None or an int >= 0; no sub-env "
                                     "was reset")
-        parts = self._all("reset", [(list(part), options) for part in np.split(np.array(seeds, object), self._cuts)])
+        parts = self._all("reset", [(list(part), options) for part in np.split(np.array(seeds, object), self._cuts)],
+                          "reset")
+        self._unfinished = None
         observations = [obs for shard_obs, _ in parts for obs in shard_obs]
         infos = [info for _, shard_infos in parts for info in shard_infos]
         return self._batch(observations), batch_infos(self, infos, {})
 
     def step(self, actions: Any):
-        """Check every shard's actions, then step all shards at once (nothing moves if any action is refused)."""
+        """Check every shard's actions, then step all shards at once (nothing moves if any action is refused). A step
+        that fails in one shard has moved the others: then no shard steps again until ``reset`` (``NeedsResetError``
+        saying why)."""
+        if self._unfinished is not None:
+            raise NeedsResetError(f"{self._unfinished}: some shards had moved and others not; call reset() before "
+                                  "step()")
         try:
             actions = np.asarray(actions)
         except (ValueError, TypeError) as err:
@@ -120,7 +129,7 @@ class ShardedVectorEnv(VectorEnv):
             raise EnvInputError(f"actions must have shape {self.action_space.shape} (num_envs, 2), got {actions.shape}")
         split = [(part,) for part in np.split(actions, self._cuts)]
         self._all("check", split)
-        parts: list[StepParts] = self._all("step", split)
+        parts: list[StepParts] = self._all("step", split, "step")
         offsets = np.r_[0, np.cumsum(self.sizes)]
         finals = {offset + i: final for offset, p in zip(offsets, parts, strict=False) for i, final in p.finals.items()}
         return (self._batch([obs for p in parts for obs in p.observations]),
@@ -132,13 +141,17 @@ class ShardedVectorEnv(VectorEnv):
         for shard in self._shards:
             shard.close()
 
-    def _all(self, method: str, args: list[tuple]) -> list[Any]:
-        """Call ``method`` on every shard at once with its arguments; re-raise the first error a shard raised."""
+    def _all(self, method: str, args: list[tuple], moves: str | None = None) -> list[Any]:
+        """Call ``method`` on every shard at once with its arguments; re-raise the first error a shard raised (for a
+        ``method`` that ``moves`` the worlds, "step" or "reset", after refusing further steps until a reset)."""
         for shard, shard_args in zip(self._shards, args, strict=True):
             shard.send(method, *shard_args)
         results = [shard.receive() for shard in self._shards]
-        for outcome, value in results:
+        for index, (outcome, value) in enumerate(results):
             if outcome == "error":
+                if moves is not None:
+                    self._unfinished = (f"the last {moves} did not finish (shard {index}: {type(value).__name__}: "
+                                        f"{value})")
                 raise value
         return [value for _, value in results]
 

@@ -12,18 +12,20 @@ make them pick those of an older CPU (they are read at import, so each variant i
 A child (this file run as a script) steps the simulated envs with a fixed drive to the goal, a few bare crowds (the
 other layouts, the social-force model) and short navigation episodes with the ORCA planner; then, for each robot kind,
 a log replay, a reactive replay with drawn traits and a scripted encounter driven by commands beyond the robot's
-limits, and a few steps of the MPC planner (CVM forecasts) in the reactive replay and the encounter. It prints one
+limits, and a few steps of the MPC planner (CVM forecasts) in the reactive replay and the encounter; and the
+holonomic robot through the same three worlds seeing with the ``realistic`` sensor and tracker. It prints one
 SHA-256 digest per case (every body's position and velocity as float64 bytes; for the worlds of a robot also the
-observation, the reward, how the episode ended and the reactive pedestrians' whole state).
+observation, the reward, how the episode ended and the reactive pedestrians' whole state; with a sensor also its
+detections and tracks).
 
 Two positive controls keep the check from passing on nothing. Each child reports the dispatch it ran under
 (``dispatch``: numpy's enabled targets, OpenBLAS's core, a digest of libm's sines, cosines and exponentials, torch's
 capability, numba's target CPU), and the test asserts that at least one variant changed one of them; which variants
 did is printed and kept as the test's ``dispatch`` property (a variant that changes nothing on this CPU, say numpy
 without AVX-512 on a CPU without it, compares the default with itself). And the default child counts what the
-drives exercised: every over-limit drive's commands went beyond the robot's limits, and the reactive pedestrians
-stepped off their logs. Under ``--perturb`` the children run unperturbed: the test compares runs with each other, not
-with stored digests.
+drives exercised: every over-limit drive's commands went beyond the robot's limits, the reactive pedestrians
+stepped off their logs, and every sensing drive's tracker held tracks. Under ``--perturb`` the children run
+unperturbed: the test compares runs with each other, not with stored digests.
 """
 
 from __future__ import annotations
@@ -201,6 +203,32 @@ def robot_digests() -> tuple[dict[str, str], dict[str, dict[str, int]]]:
     return digests, counts
 
 
+def sensing_digests() -> tuple[dict[str, str], dict[str, dict[str, int]]]:
+    """The holonomic robot through each of ROBOT_WORLDS, ROBOT_STEPS steps toward its goal, seeing with the
+    ``realistic`` sensor and tracker: the digests (the world's as ``robot_digests`` takes them, and the detections and
+    tracks the sensor made), and per case how many steps had detections and how many had tracks."""
+    import gymnasium as gym
+
+    import envs  # noqa: F401  (registers the ids)
+
+    digests, counts = {}, {}
+    for world, (env_id, keywords) in ROBOT_WORLDS.items():
+        env = gym.make(env_id, predictor="cvm", sensing="realistic", **keywords)
+        case = f"sensing/realistic/{world}"
+        digest, counts[case] = hashlib.sha256(), {"detected": 0, "tracked": 0}
+        obs, _ = env.reset(seed=SEED)
+        for _ in range(ROBOT_STEPS):
+            obs, reward, terminated, truncated, info = env.step(_drive(obs))
+            seen = info["perception"]
+            digest.update(_world(env, obs, reward, info) + _digest(seen["detected_xy_m"], seen["track_xy_m"]))
+            counts[case]["detected"] += len(seen["detected_xy_m"]) > 0
+            counts[case]["tracked"] += len(seen["track_xy_m"]) > 0
+            if terminated or truncated:
+                obs, _ = env.reset(seed=SEED + 1)
+        digests[case] = digest.hexdigest()
+    return digests, counts
+
+
 def _blas_core() -> str:
     """The kernel family of the OpenBLAS numpy loaded (its ``get_corename``), "unknown" where none is found."""
     try:
@@ -284,12 +312,14 @@ def test_episodes_are_the_same_on_every_cpu(record_property):
     record_property("dispatch", report)
     assert any(changed.values()), f"no variant changed any library's dispatch on this CPU:\n{report}"
     reference, counts = results["default"]["digests"], results["default"]["counts"]
-    assert len(reference) == 13 + 3 + len(EPISODES) + 2 * (len(ROBOT_WORLDS) + len(MPC_WORLDS))
+    assert len(reference) == 13 + 3 + len(EPISODES) + 2 * (len(ROBOT_WORLDS) + len(MPC_WORLDS)) + len(ROBOT_WORLDS)
     within = [case for case, count in counts.items() if case.startswith("over-limit") and not count["over_limit"]]
     assert not within, f"over-limit drives whose commands never went beyond the robot's limits: {within}"
     still = [case for case, count in counts.items() if case.startswith("over-limit/") and "reactive" in case
              and not count["off_log"]]
     assert not still, f"reactive replays in which no pedestrian left its log: {still}"
+    blind = [case for case, count in counts.items() if case.startswith("sensing/") and not count["tracked"]]
+    assert not blind, f"sensing drives in which the tracker never held a track: {blind}"
     differing = {name: sorted(case for case in reference if result["digests"][case] != reference[case])
                  for name, result in results.items()}
     differing = {f"{name} {named[name][0]}": cases for name, cases in differing.items() if cases}
@@ -298,5 +328,6 @@ def test_episodes_are_the_same_on_every_cpu(record_property):
 
 if __name__ == "__main__":
     digests, counts = robot_digests()
-    print(json.dumps({"dispatch": dispatch(), "counts": counts,
-                      "digests": {**env_digests(), **crowd_digests(), **episode_digests(), **digests}}))
+    sensed, sensed_counts = sensing_digests()
+    print(json.dumps({"dispatch": dispatch(), "counts": {**counts, **sensed_counts},
+                      "digests": {**env_digests(), **crowd_digests(), **episode_digests(), **digests, **sensed}}))

@@ -17,7 +17,7 @@ from ray_session import OBJECT_STORE_BYTES, connect_kwargs
 
 import envs  # noqa: F401  (registers the ids)
 from envs import STCROWD_IDS
-from envs.common.errors import EnvInputError
+from envs.common.errors import EnvInputError, NeedsResetError
 
 CASES = {  # id -> extra env arguments: SingularTrajectory in one (the batched call that matters), CVM-S elsewhere
     "STCrowd-SimCrossing-v1": {},
@@ -138,6 +138,40 @@ def run_both(ours, theirs, steps: int, seed: int, where: str) -> None:
     for t in range(steps):
         actions = rng.uniform(-1.6, 1.6, ours.action_space.shape).astype(np.float32)
         assert_same_step(ours.step(actions), theirs.step(actions), f"{where}, step {t}")
+
+
+@pytest.mark.parametrize("failing", [0, 1])
+def test_a_step_that_fails_in_one_shard_stops_every_shard_until_reset(failing: int,
+                                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    """The other shards have moved when one shard's step fails: no shard is stepped again (nothing is sent) until a
+    reset, which brings back a fresh vector env's episodes."""
+    monkeypatch.undo()  # --perturb patches this process only: both sides must run the same arithmetic (one CPU)
+    kwargs = {"num_envs": 3, "max_episode_steps": SHORT, "predictor": "none"}
+    sharded = gym.make_vec("STCrowd-SimCrossing-v1", shards=2, **kwargs)
+    try:
+        sharded.reset(seed=5)
+        shard, sent = sharded.unwrapped._shards[failing], []
+        receive, send = shard.receive, shard.send
+        replies = iter([receive, lambda: (receive(), ("error", RuntimeError("boom")))[1]])  # check, then step
+        shard.receive = lambda: next(replies)()  # its step fails, after the others moved
+        with pytest.raises(RuntimeError, match="boom"):
+            sharded.step(np.zeros((3, 2), np.float32))
+        shard.receive = receive
+        for other in sharded.unwrapped._shards:
+            other.send = lambda *args, other_send=other.send: (sent.append(args), other_send(*args))
+        with pytest.raises(NeedsResetError, match=rf"the last step did not finish \(shard {failing}: RuntimeError: "
+                                                  r"boom\): some shards had moved"):
+            sharded.step(np.zeros((3, 2), np.float32))
+        assert sent == [], "no shard was asked to step"
+        shard.send = send
+        obs, _ = sharded.reset(seed=5)
+        fresh = gym.make_vec("STCrowd-SimCrossing-v1", **kwargs)
+        expected, _ = fresh.reset(seed=5)
+        for key in obs:
+            np.testing.assert_array_equal(obs[key], expected[key], err_msg=key)
+        fresh.close()
+    finally:
+        sharded.close()
 
 
 @pytest.mark.parametrize("autoreset_mode", [AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP])

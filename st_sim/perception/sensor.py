@@ -1,8 +1,7 @@
 """The people sensor: who the robot detects in one step, where, and who each detection came from.
 
 Every operation is IEEE-exact (``st_sim.sim.exact``; draws from the sensor's own generator), so that a detection is the
-same to the last bit on every CPU (by design: not yet run by the emulated-CPU check, ``tests/test_cpu_dispatch.py``,
-which covers the crowds).
+same to the last bit on every CPU (``tests/test_cpu_dispatch.py`` runs the ``realistic`` sensor under emulated CPUs).
 """
 
 from __future__ import annotations

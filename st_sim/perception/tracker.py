@@ -8,8 +8,7 @@ identity when two people pass close.
 
 The filter runs on each axis alone with the same 2x2 covariance (the model and the noise are isotropic), written out
 with ``+ - * /`` (no matrix product, whose rounding depends on the CPU's BLAS kernel), so that every track is the same
-to the last bit on every CPU (by design: not yet run by the emulated-CPU check, ``tests/test_cpu_dispatch.py``, which
-covers the crowds).
+to the last bit on every CPU (``tests/test_cpu_dispatch.py`` runs the ``realistic`` tracker under emulated CPUs).
 """
 
 from __future__ import annotations
