@@ -8,6 +8,7 @@ import importlib
 import json
 import os
 import re
+import shutil
 import subprocess
 import sys
 from dataclasses import replace
@@ -273,3 +274,32 @@ def test_verify_refuses_a_run_whose_policy_read_a_file_that_changed_since(on_pat
     assert main(["verify", str(tmp_path / "run"), "--policy", spec, "--quiet"]) == 1
     assert re.search(r"files the run's episodes read are not the same here: read \S*late\.npz changed",
                      capsys.readouterr().err)
+
+
+def system_library(stem: str, other: bool = False) -> Path:
+    """The file of a shared library this process has mapped whose name starts with ``stem`` (``other``: whose name
+    does not, libc's or another: a library of other bytes)."""
+    for line in Path("/proc/self/maps").read_text().splitlines():
+        name = line.split(None, 5)[-1]
+        if name.startswith("/") and ".so" in Path(name).name and Path(name).name.startswith(stem) != other:
+            return Path(name)
+    raise AssertionError(f"no library {'other than' if other else 'named'} {stem}* mapped in this process")
+
+
+def test_a_native_library_a_policy_loads_is_part_of_its_identity(on_path: Path, tmp_path: Path) -> None:
+    """Native code reads past Python's audit hook; what it maps (here a library loaded with ctypes) is seen in the
+    process's memory map, hashed, and a change between two runs into one folder is refused, naming it."""
+    library = tmp_path / "model.so"
+    shutil.copyfile(system_library("libm.so"), library)
+    name = fresh_name("native")
+    (on_path / f"{name}.py").write_text(
+        f"import ctypes\nimport numpy as np\nSPEED = 1.0\n\nclass Policy:\n    def __init__(self):\n"
+        f"        self.library = ctypes.CDLL({str(library)!r})\n" + HEAD_FOR_GOAL)
+    spec = f"{name}:Policy"
+    held = bench(tmp_path / "run", spec)["fingerprint"]
+    assert f"read {library.resolve()}" in held, held
+    bench(tmp_path / "run", spec)  # the same library: resumes
+    retrained = tmp_path / "model.so.new"  # a new file in its place: the loaded one's pages stay as they were
+    shutil.copyfile(system_library("libm.so", other=True), retrained)
+    os.replace(retrained, library)
+    refused(tmp_path / "run", spec, r"model\.so changed")

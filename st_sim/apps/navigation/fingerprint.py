@@ -22,8 +22,9 @@ The parts of a policy's fingerprint:
 - whatever the built policy declares: an optional ``fingerprint()`` method returning a string, as ``declared``.
 
 Every chunk of a run's episodes records the same parts of what its episodes read (``ChunkInputs``), in whichever
-process runs it; ``inputs_changes`` says which of them are not the same now. Files read by native code without
-Python's ``open`` (OpenCV's ``imread``) are beyond the audit: a policy declares those.
+process runs it; ``inputs_changes`` says which of them are not the same now. Native code is seen where it maps a
+file (``ReadAudit.mapped_files``: a library loaded with ``ctypes``, memory-mapped data); a file it reads and closes
+without Python's ``open`` (OpenCV's ``imread``) is beyond the audit: a policy declares those.
 
 A shipped planner's code is STCrowd's own, identified by ``stcrowd_identity`` (its version and a hash of its
 source and package data); a shipped predictor by the hashes of its checkpoints (``predictor_fingerprint``).
@@ -133,7 +134,8 @@ class ReadAudit:
 
     Attributes:
         files: resolved paths of the regular files opened for reading.  modules: names of the modules loaded from
-            outside the skipped folders (set on leaving).
+            outside the skipped folders (set on leaving).  mapped: files mapped into the process from outside them
+            and the system's libraries (``mapped_files``, set on leaving): what native code loaded or mapped.
     """
 
     _active: ClassVar[list[ReadAudit]] = []  # the audits recording now (the hook is installed once, for good)
@@ -143,6 +145,7 @@ class ReadAudit:
         self.skip = tuple(str(Path(root).expanduser().resolve()) for root in outside if root is not None)
         self.files: set[Path] = set()
         self.modules: set[str] = set()
+        self.mapped: set[Path] = set()
         self.written: set[Path] = set()
 
     def __enter__(self) -> ReadAudit:
@@ -154,12 +157,34 @@ class ReadAudit:
 
     def __exit__(self, *exc: Any) -> None:
         ReadAudit._active.remove(self)
-        self.modules = self.loaded_modules()
+        self.snapshot()
 
     def snapshot(self) -> ReadAudit:
-        """``modules`` set to what is loaded now, inside the context (returns the audit)."""
-        self.modules = self.loaded_modules()
+        """``modules`` and ``mapped`` set to what is loaded and mapped now, inside the context (returns the audit)."""
+        self.modules, self.mapped = self.loaded_modules(), self.mapped_files()
         return self
+
+    def mapped_files(self) -> set[Path]:
+        """The regular files the process has mapped now (``/proc/self/maps``: shared libraries loaded by native code,
+        such as ``ctypes.CDLL``, and memory-mapped data, such as ``torch.load(mmap=True)``), but those of the
+        dynamic loader's library folders, the interpreter's own, STCrowd's, the folders ``outside`` and the files the
+        audited code wrote; empty where the kernel offers no such list."""
+        try:
+            lines = Path("/proc/self/maps").read_text().splitlines()
+        except OSError:
+            return set()
+        found = set()
+        for line in lines:
+            fields = line.split(None, 5)
+            if len(fields) == 6 and fields[5].startswith("/"):  # a file replaced since: the one at its path now
+                found.add(fields[5].removesuffix(" (deleted)"))
+        mapped = set()
+        for name in found:
+            path = Path(name).resolve()
+            if not (_own(path) or _under(path, self.skip) or _under(path, _system_roots()) or path in self.written) \
+                    and path.is_file():
+                mapped.add(path)
+        return mapped
 
     def loaded_modules(self) -> set[str]:
         """Names of the modules loaded now from outside the skipped folders."""
@@ -219,6 +244,16 @@ def _own_roots() -> tuple[tuple[str, ...], tuple[str, ...]]:
     return (tuple(sorted({str(Path(p).resolve()) for p in (*stdlib, *PSEUDO_ROOTS)} |
                          {str(r) for r in _stcrowd_roots()})),
             tuple(sorted(str(Path(p).resolve()) for p in packages)))
+
+
+@cache
+def _system_roots() -> tuple[str, ...]:
+    """The dynamic loader's library folders (writable by the administrator only), the interpreter's executable and
+    its ``libpython``: their mapped files are the system's and Python's, not a policy's."""
+    library = Path(str(sysconfig.get_config_var("LIBDIR") or "/")) / str(sysconfig.get_config_var("LDLIBRARY") or "")
+    interpreter = {str(Path(sys.executable).resolve()), str(library.resolve())}
+    loader = {str(Path(p).resolve()) for p in ("/lib", "/lib64", "/usr/lib", "/usr/lib64", "/usr/libexec")}
+    return tuple(sorted(loader | interpreter))
 
 
 @cache
@@ -291,16 +326,18 @@ def predictor_fingerprint(predictor: str, audit: ReadAudit | None = None) -> dic
 
 def audit_parts(audit: ReadAudit, modules: bool = True) -> dict[str, str]:
     """What ``audit`` saw, as named parts: ``module <name>``: the SHA-256 of each module it saw loaded (unless not
-    ``modules``) and ``read <path>``: of each file it saw read (the path relative to the working folder where it lies
-    inside it); a module or file that an installed distribution's ``RECORD`` lists is ``version <distribution>``
-    instead (pip checks those files against the record's hashes), and ``version python`` is the interpreter's."""
+    ``modules``) and ``read <path>``: of each file it saw read, or mapped (unless not ``modules``; the path relative
+    to the working folder where it lies inside it); a module or file that an installed distribution's ``RECORD``
+    lists is ``version <distribution>`` instead (pip checks those files against the record's hashes), and ``version
+    python`` is the interpreter's."""
     parts = {"version python": platform.python_version()}
     for name in sorted(audit.modules if modules else ()):
         path = _module_file(sys.modules.get(name))
         if path is not None:
             parts.update(_part(f"module {name}", path))
     cwd = Path.cwd().resolve()
-    for path in sorted(path for path in audit.files if path.is_file()):  # a temporary file may be gone
+    files = audit.files | (audit.mapped if modules else set())
+    for path in sorted(path for path in files if path.is_file()):  # a temporary file may be gone
         shown = path.relative_to(cwd).as_posix() if path.is_relative_to(cwd) else path.as_posix()
         parts.update(_part(f"read {shown}", path))
     return dict(sorted(parts.items()))
