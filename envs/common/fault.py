@@ -52,11 +52,13 @@ class RobotMotionError(ValueError):
 def require_finite(value: np.ndarray | float, name: str) -> None:
     """Raise ``RobotMotionError`` naming ``name`` (and the first index) if ``value`` holds a NaN or an infinity."""
     array = np.asarray(value, np.float64)
-    bad = np.argwhere(~np.isfinite(array))
-    if len(bad):
-        where = f" at {tuple(int(i) for i in bad[0])}" if array.ndim else ""
-        raise RobotMotionError(f"the robot's {name} is not finite{where}: {float(array[tuple(bad[0])])} (the at-fault "
-                               "rule judges known motion only: a bug upstream)")
+    finite = np.isfinite(array)
+    if finite.all():  # the common case, on every step: no search for the culprit
+        return
+    first = tuple(int(i) for i in np.argwhere(~finite)[0])
+    where = f" at {first}" if array.ndim else ""
+    raise RobotMotionError(f"the robot's {name} is not finite{where}: {float(array[first])} (the at-fault rule judges "
+                           "known motion only: a bug upstream)")
 
 
 @dataclass(frozen=True, eq=False)

@@ -178,13 +178,8 @@ class ReadAudit:
             fields = line.split(None, 5)
             if len(fields) == 6 and fields[5].startswith("/"):  # a file replaced since: the one at its path now
                 found.add(fields[5].removesuffix(" (deleted)"))
-        mapped = set()
-        for name in found:
-            path = Path(name).resolve()
-            if not (_own(path) or _under(path, self.skip) or _under(path, _system_roots()) or path in self.written) \
-                    and path.is_file():
-                mapped.add(path)
-        return mapped
+        return {path for path in map(_foreign_mapping, found) if path is not None and not _under(path, self.skip)
+                and path not in self.written and path.is_file()}
 
     def loaded_modules(self) -> set[str]:
         """Names of the modules loaded now from outside the skipped folders."""
@@ -244,6 +239,14 @@ def _own_roots() -> tuple[tuple[str, ...], tuple[str, ...]]:
     return (tuple(sorted({str(Path(p).resolve()) for p in (*stdlib, *PSEUDO_ROOTS)} |
                          {str(r) for r in _stcrowd_roots()})),
             tuple(sorted(str(Path(p).resolve()) for p in packages)))
+
+
+@cache
+def _foreign_mapping(name: str) -> Path | None:
+    """The resolved path of a file named in the process's memory map, None if it is STCrowd's, the standard
+    library's, the system's or the interpreter's own (once per name in a process: every episode reads the map)."""
+    path = Path(name).resolve()
+    return None if _own(path) or _under(path, _system_roots()) else path
 
 
 @cache
