@@ -17,12 +17,17 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from hypothesis import is_hypothesis_test, settings
+from hypothesis import HealthCheck, is_hypothesis_test, settings
+from hypothesis.database import DirectoryBasedExampleDatabase
 
 from replays.scenes import Scene
 
-settings.register_profile("ci", derandomize=True, print_blob=True)
-settings.register_profile("fuzz", derandomize=False, print_blob=True)
+# Both built on Hypothesis's defaults, not on what it loaded at import (with $CI set, a profile with no database), so
+# a profile means the same on every machine; no deadline and no too-slow check: a shared CI machine's pauses are no bug
+_PATIENT = {"deadline": None, "suppress_health_check": [HealthCheck.too_slow], "print_blob": True}
+settings.register_profile("ci", settings.get_profile("default"), derandomize=True, database=None, **_PATIENT)
+settings.register_profile("fuzz", settings.get_profile("default"), derandomize=False, **_PATIENT,
+                          database=DirectoryBasedExampleDatabase(".hypothesis/examples"))
 PROFILE = os.environ.get("HYPOTHESIS_PROFILE", "ci")
 settings.load_profile(PROFILE)  # before the test modules are imported: their @settings inherit it
 FUZZ_FACTOR = int(os.environ.get("HYPOTHESIS_FUZZ_FACTOR", "10"))  # examples per test, times its own max_examples

@@ -29,16 +29,19 @@ def test_plain():
 '''
 
 
-def run_probe(tmp_path: Path, source: str, profile: str, run: int | str, factor: int, returncode: int
-              ) -> tuple[list[int], str]:
+def run_probe(tmp_path: Path, source: str, profile: str, run: int | str, factor: int, returncode: int,
+              on_ci: bool = False) -> tuple[list[int], str]:
     """Run the test file ``source`` under ``profile`` (``factor``: the fuzz factor) in a fresh pytest in
-    ``tmp_path``, which must exit with ``returncode``; returns (the draws it wrote, pytest's output)."""
+    ``tmp_path``, which must exit with ``returncode``, with $CI set (as CI services set it, and Hypothesis reads it)
+    if ``on_ci``; returns (the draws it wrote, pytest's output)."""
     test_file = tmp_path / ("test_failing_probe.py" if returncode else "test_profile_probe.py")
     test_file.write_text(source)
     draws = tmp_path / f"{profile}-{run}.jsonl"
     env = {**os.environ, "HYPOTHESIS_PROFILE": profile, "HYPOTHESIS_FUZZ_FACTOR": str(factor), "DRAWS": str(draws),
            "PYTHONPATH": os.pathsep.join([str(TESTS), os.environ.get("PYTHONPATH", "")])}
     env.pop("HYPOTHESIS_STORAGE_DIRECTORY", None)
+    env.pop("CI", None)
+    env.update({"CI": "true"} if on_ci else {})
     proc = subprocess.run([sys.executable, "-m", "pytest", "-p", "conftest", "-q", "-p", "no:cacheprovider",
                            "--rootdir", str(tmp_path), str(test_file)], cwd=tmp_path, env=env, capture_output=True,
                           text=True, timeout=300)
@@ -78,18 +81,19 @@ def test_draws(value):
 '''
 
 
-def run_failing(tmp_path: Path, profile: str, run: int) -> tuple[list[int], str]:
+def run_failing(tmp_path: Path, profile: str, run: int, on_ci: bool) -> tuple[list[int], str]:
     """The failing property test above under ``profile``, in ``tmp_path``: (its draws, pytest's output)."""
-    return run_probe(tmp_path, FAILING_TEST, profile, f"failing-{run}", factor=2, returncode=1)
+    return run_probe(tmp_path, FAILING_TEST, profile, f"failing-{run}", factor=2, returncode=1, on_ci=on_ci)
 
 
+@pytest.mark.parametrize("on_ci", [False, True], ids=["no-CI-variable", "CI-variable"])
 @pytest.mark.parametrize("profile", ["ci", "fuzz"])
-def test_pinned_examples_run_first_and_only_fuzz_keeps_its_failures_for_the_next_run(tmp_path: Path,
-                                                                                      profile: str) -> None:
+def test_pinned_examples_run_first_and_only_fuzz_keeps_its_failures_for_the_next_run(tmp_path: Path, profile: str,
+                                                                                      on_ci: bool) -> None:
     """docs/contributing.md, "Property tests": every profile runs the ``@example`` pins first and prints a failure's
     ``@reproduce_failure`` blob; ``ci`` keeps no example database, ``fuzz`` saves its failures in ``.hypothesis/`` and
-    tries them first on the next run."""
-    first, output = run_failing(tmp_path, profile, 1)
+    tries them first on the next run; the same with $CI set (Hypothesis then loads a profile of its own)."""
+    first, output = run_failing(tmp_path, profile, 1, on_ci)
     assert first[0] == -1, f"{profile}: the pinned example did not run first: {first[:3]}"
     page = (TESTS.parent / "docs/contributing.md").read_text(encoding="utf-8")
     shown = re.search(r"```text\n([^:\n]+):", page).group(1)  # how the page says hypothesis reports a failure
@@ -100,5 +104,5 @@ def test_pinned_examples_run_first_and_only_fuzz_keeps_its_failures_for_the_next
         assert not database.exists() or not any(database.rglob("*")), "the ci profile wrote an example database"
         return
     assert any(p.is_file() for p in database.rglob("*")), "the fuzz profile kept no failure"
-    second, _ = run_failing(tmp_path, profile, 2)
+    second, _ = run_failing(tmp_path, profile, 2, on_ci)
     assert second[0] == -1 and second[1] >= 10**8, f"the kept failure was not tried first: {second[:3]}"
