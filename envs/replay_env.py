@@ -333,8 +333,9 @@ class ReplayCrowdEnv(CrowdEnv):
         cols = np.flatnonzero(self.reactive.state.present)
         return Frame(int(self.replay.frames[self.index]), self.replay.agents[cols], self.reactive.state.xy_m[cols])
 
-    def _info(self, reward_parts: dict[str, float], termination: str | None) -> dict[str, Any]:
-        info = {**super()._info(reward_parts, termination), "pedestrians": self.pedestrians}
+    def _info(self, reward_parts: dict[str, float], termination: str | None, at_fault: bool | None
+              ) -> dict[str, Any]:
+        info = {**super()._info(reward_parts, termination, at_fault), "pedestrians": self.pedestrians}
         if self.reactive is not None:
             deviation = self.reactive.deviation_m(self.index)
             info["off_log"] = int(self.reactive.state.off_log.sum())

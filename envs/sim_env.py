@@ -223,8 +223,9 @@ class SimCrowdEnv(CrowdEnv):
     def robot_model(self) -> Robot:
         return self.sim.robot
 
-    def _info(self, reward_parts: dict[str, float], termination: str | None) -> dict[str, Any]:
-        return {**super()._info(reward_parts, termination), "pedestrians_see_ego": self.pedestrians_see_ego,
+    def _info(self, reward_parts: dict[str, float], termination: str | None, at_fault: bool | None
+              ) -> dict[str, Any]:
+        return {**super()._info(reward_parts, termination, at_fault), "pedestrians_see_ego": self.pedestrians_see_ego,
                 "group_ids": self._group_ids()}
 
     def _perception_info(self) -> dict[str, Any]:

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 import envs  # noqa: F401  (registers the ids)
+from envs.common.config import EnvConfig, RewardWeights
 from envs.common.crowd_env import REWARD_PARTS, TERMINATIONS, WEIGHT_OF
 
 SIM_ID = "STCrowd-SimCrossing-v1"  # ego starts at (10, 2.5) m, the crossing's bottom wall is at y = 0 m
@@ -31,6 +32,7 @@ def test_sim_wall_contact_is_a_wall_collision_with_the_collision_weight() -> Non
     assert info["termination"] == "wall_collision"
     assert info["at_fault"] is True and info["contact_time_s"] is None, "a wall collision is the robot's"
     assert parts["wall_collision"] == 1.0 and parts["pedestrian_collision"] == 0.0
+    assert parts["at_fault_collision"] == 1.0, "the at-fault part follows info['at_fault']"
     weights = env.unwrapped.cfg.reward
     assert reward == pytest.approx(weights.collision + weights.time + parts["progress"] + weights.off_map
                                    * parts["off_map"])
@@ -82,10 +84,14 @@ def test_sim_ego_velocity_follows_the_command_within_the_exposed_acceleration_li
 
 
 @pytest.mark.parametrize("robot_moves", [False, True], ids=["walked-into", "drove-into"])
-def test_a_collision_outranks_the_goal_and_costs_the_same_whoever_is_at_fault(robot_moves: bool) -> None:
+@pytest.mark.parametrize("at_fault_weight", [0.0, -7.5])
+def test_a_collision_outranks_the_goal_and_costs_extra_only_when_at_fault(robot_moves: bool,
+                                                                          at_fault_weight: float) -> None:
     """docs/environments.md: a collision outranks the goal (``info["termination"]``), and the reward is the weighted
-    sum of its parts; docs/navigation.md: the training reward does not use the at-fault judgement."""
-    env = gym.make("STCrowd-Zara1-v0", predictor="cvm")
+    sum of its parts; the part ``at_fault_collision`` is 1 exactly when ``info["at_fault"]`` is, so a collision
+    costs ``at_fault`` more when the fault rule puts it on the robot (by default 0: the same whoever caused it)."""
+    env = gym.make("STCrowd-Zara1-v0", predictor="cvm",
+                   config=EnvConfig(reward=RewardWeights(at_fault=at_fault_weight)))
     env.reset(seed=0, options={"start_index": 100})
     walker_next = env.unwrapped.replay.frame(101).xy_m[0].copy()  # where a pedestrian will be after the step
     env.unwrapped.ego_xy_m = walker_next + (np.array([0.5, 0.0]) if robot_moves else 0.0)
@@ -95,8 +101,12 @@ def test_a_collision_outranks_the_goal_and_costs_the_same_whoever_is_at_fault(ro
     assert terminated and parts["goal"] == 1.0 and parts["pedestrian_collision"] == 1.0, parts
     assert info["termination"] == "pedestrian_collision", "the collision outranks the goal"
     assert info["at_fault"] is robot_moves, "a standing robot was walked into; a moving one drove in"
+    assert parts["at_fault_collision"] == float(robot_moves), parts
     weighted = sum(getattr(weights, WEIGHT_OF.get(name, name)) * value for name, value in parts.items())
-    assert reward == pytest.approx(weighted), "the reward is the weighted sum of its parts, the fault aside"
+    assert reward == pytest.approx(weighted), "the reward is the weighted sum of its parts"
+    fault_aside = sum(getattr(weights, WEIGHT_OF.get(name, name)) * value for name, value in parts.items()
+                      if name != "at_fault_collision")
+    assert reward - fault_aside == pytest.approx(at_fault_weight if robot_moves else 0.0)
 
 
 @pytest.mark.parametrize("env_id", ["STCrowd-Zara1-v0", "STCrowd-Eth-v0"])

@@ -62,6 +62,10 @@ class RewardWeights:
     collision: float = -10.0
     """once, on the step the ego touches a pedestrian or a wall (parts ``pedestrian_collision`` and
     ``wall_collision``, which exclude each other)"""
+    at_fault: float = 0.0
+    """once, on a collision the benchmark's fault rule puts on the robot (part ``at_fault_collision``: a wall
+    collision, or a pedestrian collision with ``info["at_fault"]`` True; ``envs.common.fault``), on top of
+    ``collision``; 0: off, every collision costs the same whoever caused it"""
     off_map: float = -1.0
     """per step the ego stands on a non-walkable or off-image pixel"""
     time: float = -0.1

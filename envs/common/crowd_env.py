@@ -72,10 +72,10 @@ EGO_FIELDS = ("x_m", "y_m", "vx_mps", "vy_mps", "goal_x_m", "goal_y_m", "heading
               "yaw_rate_radps")
 """layout of ``obs["ego"]``: position, velocity, goal [m, m/s], the unit vector the robot faces, its turn rate [rad/s]
 (a holonomic robot faces where it last moved and does not turn: 0)"""
-REWARD_PARTS = ("progress", "goal", "pedestrian_collision", "wall_collision", "off_map", "time", "discomfort",
-                "predicted_collision")
+REWARD_PARTS = ("progress", "goal", "pedestrian_collision", "wall_collision", "at_fault_collision", "off_map", "time",
+                "discomfort", "predicted_collision")
 WEIGHT_OF: dict[str, str] = {"pedestrian_collision": "collision", "wall_collision": "collision",
-                              "predicted_collision": "prediction"}
+                              "at_fault_collision": "at_fault", "predicted_collision": "prediction"}
 """reward parts weighted by a ``RewardWeights`` field of another name (both collision kinds share its weight)"""
 TERMINATIONS: tuple[str, ...] = ("pedestrian_collision", "wall_collision", "goal")
 """values of ``info["termination"]`` besides None, by precedence (the first part that is 1 names the end)"""
@@ -236,7 +236,7 @@ class CrowdEnv(gym.Env):
         """Second half of ``reset``: the first observation and info, given the forecast (``forecast_all``) of
         ``forecast_request()``."""
         self._obs = self._observe(predicted, anchors)
-        info = self._info(dict.fromkeys(REWARD_PARTS, 0.0), None)
+        info = self._info(dict.fromkeys(REWARD_PARTS, 0.0), None, None)
         self._log_rerun(info, 0.0)
         return self._obs, info
 
@@ -281,12 +281,14 @@ class CrowdEnv(gym.Env):
         (``forecast_all``) of ``forecast_request()``."""
         self._obs = self._observe(predicted, anchors)
         parts = self._reward_parts(self._previous_xy_m) if self.ego else dict.fromkeys(REWARD_PARTS, 0.0)
+        termination = next((name for name in TERMINATIONS if parts[name]), None)
+        at_fault = self._at_fault(termination)
+        parts["at_fault_collision"] = float(bool(at_fault))  # the judgement needs the termination
         reward = float(sum(getattr(self.cfg.reward, WEIGHT_OF.get(name, name)) * value
                            for name, value in parts.items()))
-        termination = next((name for name in TERMINATIONS if parts[name]), None)
         terminated, truncated = termination is not None, self._world_ended()
         self._episode_over = terminated or truncated
-        info = self._info(parts, termination)
+        info = self._info(parts, termination, at_fault)
         if self.ego:
             self._motion = self._motion.after_step(self.ego_xy_m - self._previous_xy_m, STEP_S)
         self._log_rerun(info, reward)
@@ -524,7 +526,15 @@ class CrowdEnv(gym.Env):
         self._rerun.log_step(self._rerun_step, **rerun_step(self._obs, info, reward, self.ego, self.anchors))
         self._rerun_step += 1
 
-    def _info(self, reward_parts: dict[str, float], termination: str | None) -> dict[str, Any]:
+    def _at_fault(self, termination: str | None) -> bool | None:
+        """The fault rule's judgement of the step's collision (``envs.common.fault``): True for a wall collision,
+        the rule's for a pedestrian collision, None when the step ended in none."""
+        if termination == "wall_collision":
+            return True
+        return robot_at_fault(self._contact, self._motion) if termination == "pedestrian_collision" else None
+
+    def _info(self, reward_parts: dict[str, float], termination: str | None, at_fault: bool | None
+              ) -> dict[str, Any]:
         """Fresh info dict; ``agent_ids[i]``/``predicted_ids[i]`` name the agent of observation row i (-1: none);
         ``termination`` is what ended the episode this step (see ``TERMINATIONS``), None otherwise; on a pedestrian
         collision ``contact_time_s`` is the moment of impact [s into the step] and ``at_fault`` the judgement then
@@ -533,8 +543,6 @@ class CrowdEnv(gym.Env):
         sub-env's; None at a reset and in spectator mode)."""
         row_ids = self.observed.row_ids.copy()
         hit = self._contact if termination == "pedestrian_collision" else None
-        at_fault = (True if termination == "wall_collision" else None if hit is None
-                    else robot_at_fault(hit, self._motion))
         return {
             "frame": int(self.tracks.now.frame),
             "agent_ids": row_ids,

@@ -46,6 +46,7 @@ import shutil
 import sys
 import time
 from collections import deque
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, replace
 from importlib import resources, util
 from pathlib import Path
@@ -60,6 +61,7 @@ from replays import strict_json
 from replays.atomic import atomic_path, write_text_atomic
 from replays.data_root import sha256_of
 from st_sim.apps.navigation.demonstrations import DemoSpec, behaviour_clone, concatenate, load_or_collect
+from st_sim.apps.navigation.failure_sampling import FailureTally, allocate
 from st_sim.apps.navigation.features import FeatureConfig
 from st_sim.apps.navigation.ppo import (
     EXTRACTORS,
@@ -73,11 +75,24 @@ from st_sim.apps.navigation.ppo import (
 
 CURVE_WINDOW = 100  # training episodes averaged per learning-curve point [-]
 DAGGER_SEED_STRIDE = 10_000  # episode seeds between two DAgger rounds (a worker's share is far fewer episodes) [-]
-RESUMABLE = ("use_predictions", "env_ids", "scenarios", "num_envs", "sensor_range_m", "reward", "seed", "n_steps",
+SAMPLING_SEED_STRIDE = 100_000  # first-episode seeds between two sampling rounds' training envs [-]
+RESUMABLE = ("use_predictions", "env_ids", "scenarios", "num_envs", "sensor_range_m", "reward", "timeout_reward",
+             "sampling", "resample_every", "seed", "n_steps",
              "batch_size", "n_epochs", "learning_rate", "gamma", "net_arch", "log_std_init", "initial_forward",
              "init_policy", "demo_steps", "demos", "bc_epochs", "dagger_rounds", "dagger_steps", "extractor",
              "closest_approach", "clip_range", "target_kl", "critic_rollouts")
 """settings a run must share with the saved state to continue it (the budget and output options may differ)"""
+RECIPES: dict[str, tuple[RewardWeights, float]] = {
+    "crowdnav": (RewardWeights(collision=-20.0, discomfort=-4.0), 0.0),
+    "benchmark": (RewardWeights(collision=-10.0, at_fault=-20.0, discomfort=-4.0), -10.0),
+}
+"""training rewards by name: (the env's reward weights, the charge for a timeout). ``crowdnav``: CrowdNav++'s
+collision penalty and discomfort factor, every collision alike, a timeout free (how every shipped policy before
+``ppo-suite-2`` was trained); ``benchmark``: what the benchmark scores, a collision fails the episode (-10) and one the
+fault rule puts on the robot costs 20 more, a timeout fails it too (-10), so standing still is no way out"""
+SAMPLINGS = ("uniform", "failures")
+"""how a run shares its sub-envs among its training envs: evenly, or by how often the policy fails in each
+(``failure_sampling``, again every ``resample_every`` rollouts)"""
 
 
 @dataclass(frozen=True)
@@ -98,8 +113,15 @@ class TrainConfig:
     """sub-envs, stepped as native vector envs (one batched forecast per step in each shard)"""
     sensor_range_m: float = 5.0
     """the robot senses, and the env forecasts, the pedestrians within this distance [m] (CrowdNav++'s 5 m)"""
-    reward: RewardWeights = field(default_factory=lambda: RewardWeights(collision=-20.0, discomfort=-4.0))
-    """reward weights of the training env (CrowdNav++'s collision penalty and discomfort factor)"""
+    reward: RewardWeights = field(default_factory=lambda: RECIPES["crowdnav"][0])
+    """reward weights of the training env (``RECIPES``; default: CrowdNav++'s collision penalty and discomfort
+    factor)"""
+    timeout_reward: float = 0.0
+    """added on the step an episode times out (``FeatureVecEnv``'s ``timeout_reward``; ``RECIPES``)"""
+    sampling: str = "uniform"
+    """``SAMPLINGS``: sub-envs shared evenly among the training envs, or by their failure rates"""
+    resample_every: int = 20
+    """with ``sampling="failures"``: rollouts between two reallocations of the sub-envs"""
     seed: int = 0
     """seed of PPO and of the envs (env i resets with seed + i first)"""
     n_steps: int = 128
@@ -174,12 +196,58 @@ def outcome(info: dict) -> str:
     return "timeout" if termination is None else "goal" if termination == "goal" else "collision"
 
 
-def curve_callback(cfg: TrainConfig, curve: list[dict], timing: dict[str, float], earlier_s: float = 0.0) -> Any:
+class Resampler:
+    """Where a run's ended training episodes failed, per training env, and (``cfg.sampling == "failures"``) the
+    sub-envs shared again by those failure rates every ``cfg.resample_every`` rollouts (``failure_sampling``).
+
+    Args:
+        make_env: (counts, round) -> the training envs with those sub-envs per training env, seeded for that round.
+        history: the rounds so far (``sampling.json``: each one's env steps, counts and tally), extended in place.
+    """
+
+    def __init__(self, cfg: TrainConfig, make_env: Callable[[list[int], int], Any], history: list[dict]):
+        self.cfg, self.make_env, self.history = cfg, make_env, history
+        self.tally = FailureTally(cfg.env_ids)  # this round's window
+        self.totals = FailureTally(cfg.env_ids)  # this segment's (since the run started or resumed)
+
+    @property
+    def counts(self) -> list[int] | None:
+        """The sub-envs per training env now (None: evenly, the first round)."""
+        return self.history[-1]["counts"] if self.history else None
+
+    def first_env(self) -> Any:
+        """The training envs of the current round."""
+        vec = self.make_env(self.counts, len(self.history))
+        self.env_of = vec.env_of
+        return vec
+
+    def add(self, sub_env: int, failed: bool) -> None:
+        """Count an ended episode of sub-env ``sub_env``."""
+        self.tally.add(self.env_of[sub_env], failed)
+        self.totals.add(self.env_of[sub_env], failed)
+
+    def after_rollout(self, model: Any, rollouts: int) -> None:
+        """Every ``resample_every`` rollouts with failure sampling: the training envs made again with the counts of
+        the window's failure rates, the model's next rollout starting from their first episodes."""
+        if self.cfg.sampling != "failures" or rollouts % self.cfg.resample_every:
+            return
+        counts = allocate(self.tally.failure_rates(), self.cfg.num_envs)
+        self.history.append({"timesteps": int(model.num_timesteps), "counts": counts, "tally": self.tally.as_dict()})
+        model.get_env().close()
+        vec = self.first_env()
+        model.set_env(vec, force_reset=False)
+        model._last_obs = vec.reset()  # SB3's own fields for the next rollout's start
+        model._last_episode_starts = np.ones(self.cfg.num_envs, bool)
+        self.tally.clear()
+
+
+def curve_callback(cfg: TrainConfig, curve: list[dict], timing: dict[str, float], earlier_s: float = 0.0,
+                   resampler: Resampler | None = None) -> Any:
     """A stable-baselines3 callback: progress bar, a curve point every rollout, the resumable state every
     ``cfg.save_every`` rollouts, a stop once ``cfg.minutes`` of wall time have passed; adds the wall time of the
     rollouts (envs and the policy acting) and of the updates to ``timing["rollout_s"]`` and ``timing["update_s"]``.
     A point's ``wall_s`` counts from the run's start: ``earlier_s`` [s] is the wall time of the segments before a
-    resume."""
+    resume. ``resampler`` tallies each ended episode and reallocates the sub-envs after each rollout it asks to."""
     from stable_baselines3.common.callbacks import BaseCallback
 
     class Curve(BaseCallback):
@@ -193,9 +261,11 @@ def curve_callback(cfg: TrainConfig, curve: list[dict], timing: dict[str, float]
 
         def _on_step(self) -> bool:
             self.bar.update(cfg.num_envs)
-            for done, info in zip(self.locals["dones"], self.locals["infos"], strict=True):
+            for i, (done, info) in enumerate(zip(self.locals["dones"], self.locals["infos"], strict=True)):
                 if done:
                     self.recent.append((outcome(info), float(info["episode"]["r"])))
+                    if resampler is not None:
+                        resampler.add(i, outcome(info) != "goal")
             return time.monotonic() < self.deadline
 
         def _on_rollout_start(self) -> None:
@@ -217,8 +287,10 @@ def curve_callback(cfg: TrainConfig, curve: list[dict], timing: dict[str, float]
                               "return": float(np.mean([r for _, r in self.recent]))})
                 self.bar.set_postfix(success=f"{curve[-1]['success']:.2f}", collision=f"{curve[-1]['collision']:.2f}")
             self.rollouts += 1
+            if resampler is not None:
+                resampler.after_rollout(self.model, self.rollouts)
             if self.rollouts % cfg.save_every == 0:
-                save_resumable(self.model, cfg, curve)
+                save_resumable(self.model, cfg, curve, resampler)
 
         def _on_training_end(self) -> None:
             timing["update_s"] += time.monotonic() - self.mark if self.rollouts else 0.0
@@ -227,9 +299,12 @@ def curve_callback(cfg: TrainConfig, curve: list[dict], timing: dict[str, float]
     return Curve()
 
 
-def save_resumable(model: Any, cfg: TrainConfig, curve: list[dict]) -> None:
-    """Write the whole PPO state (``resume.zip``), the settings it needs and the curve so far, each atomically."""
+def save_resumable(model: Any, cfg: TrainConfig, curve: list[dict], resampler: Resampler | None = None) -> None:
+    """Write the whole PPO state (``resume.zip``), the settings it needs, the curve so far and the sampling rounds
+    (``sampling.json``), each atomically."""
     out = Path(cfg.out)
+    if resampler is not None:
+        write_text_atomic(out / "sampling.json", strict_json.dumps(resampler.history, indent=1))
     with atomic_path(out / "resume.zip") as tmp, open(tmp, "wb") as file:
         model.save(file)
     write_text_atomic(out / "resume.json", strict_json.dumps({k: asdict(cfg)[k] for k in RESUMABLE}, default=str))
@@ -262,6 +337,30 @@ def resumable_state(cfg: TrainConfig) -> tuple[Path, list[dict]] | None:
                          "use another --out or delete it to start afresh")
     curve_path = out / "curve.json"
     return out / "resume.zip", json.loads(curve_path.read_text()) if curve_path.exists() else []
+
+
+def saved_rounds(cfg: TrainConfig) -> list[dict]:
+    """The sampling rounds a saved run in ``cfg.out`` went through (``sampling.json``; none if it has none).
+
+    Raises:
+        ValueError: the file is not a list of rounds whose counts fit this run (names the file).
+    """
+    path = Path(cfg.out) / "sampling.json"
+    if not path.is_file():
+        return []
+    try:
+        rounds = json.loads(path.read_text())
+    except (OSError, ValueError) as err:
+        raise ValueError(f"{path}: cannot read the saved sampling rounds ({err}); delete resume.zip to start afresh"
+                         ) from None
+    fits = isinstance(rounds, list) and all(
+        isinstance(r, dict) and isinstance(r.get("counts"), list) and len(r["counts"]) == len(cfg.env_ids)
+        and all(type(c) is int and c >= 1 for c in r["counts"]) and sum(r["counts"]) == cfg.num_envs
+        for r in rounds)
+    if not fits:
+        raise ValueError(f"{path}: expected a list of rounds, each with 'counts' of {len(cfg.env_ids)} ints >= 1 "
+                         f"summing to {cfg.num_envs}; delete resume.zip to start afresh")
+    return rounds
 
 
 def clone_teacher(policy: Any, cfg: TrainConfig, net_arch: list[int]) -> dict[str, Any]:
@@ -360,9 +459,16 @@ def main(cfg: TrainConfig) -> Path:
     # seen through the features
     device = resolve_device(cfg.device)
     train_seeds = load_suite().train if cfg.scenarios else None
-    vec = VecMonitor(FeatureVecEnv(cfg.env_ids, cfg.num_envs, cfg.features, EnvConfig(reward=cfg.reward), cfg.shards,
-                                   str(device), train_seeds))
-    vec.seed(cfg.seed)
+
+    def make_env(counts: list[int] | None, round_: int) -> VecMonitor:
+        vec = VecMonitor(FeatureVecEnv(cfg.env_ids, cfg.num_envs, cfg.features, EnvConfig(reward=cfg.reward),
+                                       cfg.shards, str(device), train_seeds, counts, cfg.timeout_reward))
+        vec.seed(cfg.seed + round_ * SAMPLING_SEED_STRIDE)
+        return vec
+
+    history = saved_rounds(cfg) if (out / "resume.zip").is_file() else []
+    resampler = Resampler(cfg, make_env, history)
+    vec = resampler.first_env()
 
     # model: PPO with a tanh actor-critic on the flat features or on their attention encoding (same for both variants)
     net_arch = list(cfg.net_arch)
@@ -413,12 +519,13 @@ def main(cfg: TrainConfig) -> Path:
     learning, timing = time.perf_counter(), {"rollout_s": 0.0, "update_s": 0.0}
     if cfg.timesteps > resumed_from:
         model.learn(total_timesteps=cfg.timesteps - resumed_from,
-                    callback=curve_callback(cfg, curve, timing, earlier_s), reset_num_timesteps=resumed_from == 0,
-                    tb_log_name=run_name)
+                    callback=curve_callback(cfg, curve, timing, earlier_s, resampler),
+                    reset_num_timesteps=resumed_from == 0, tb_log_name=run_name)
+        vec = model.get_env()  # the last round's
     learnt_s = max(time.perf_counter() - learning, 1e-9)
     steps_per_s = (model.num_timesteps - resumed_from) / learnt_s
     shares = {name.removesuffix("_s"): round(seconds / learnt_s, 3) for name, seconds in timing.items()}
-    save_resumable(model, cfg, curve)
+    save_resumable(model, cfg, curve, resampler)
     wall_time_s = earlier_s + time.perf_counter() - start
     vec.close()
     print(f"{model.num_timesteps - resumed_from} env steps learnt at {steps_per_s:.0f} env steps/s "
@@ -433,6 +540,8 @@ def main(cfg: TrainConfig) -> Path:
     record = {"run": run_name, "config": asdict(cfg), "wall_time_s": wall_time_s, "cloning": cloning,
               "init_policy_sha256": None if started_from is None else started_from["sha256"],
               "resumed_from": resumed_from, "sha256": sha256, "env_steps_per_s": steps_per_s, "time_shares": shares,
+              "sampling": {"rounds": len(history), "counts": resampler.counts,
+                           "episodes_since_start": resampler.totals.as_dict()},
               "final": curve[-1] if curve else None, "command": "python -m st_sim.apps.navigation.train_ppo "
               + " ".join(sys.argv[1:])}
     write_text_atomic(out / "training.json", strict_json.dumps(record, indent=1, default=str))
@@ -471,6 +580,7 @@ COUNTS: tuple[tuple[str, int, str], ...] = (
     ("dagger_rounds", 0, "DAgger rounds after cloning, with --demo-steps"),
     ("dagger_steps", 1, "env steps the clone drives per DAgger round"),
     ("save_every", 1, "rollouts between saves of the resumable state"),
+    ("resample_every", 1, "with --sampling failures: rollouts between two reallocations of the sub-envs"),
 )
 """integer settings with a flag each: TrainConfig field, least value, what it sets"""
 RATES: tuple[tuple[str, str], ...] = (
@@ -522,6 +632,13 @@ def parse_args(argv: list[str] | None = None) -> TrainConfig:
                         help=f"how the policy reads the features (default: {d.extractor})")
     parser.add_argument("--closest-approach", action="store_true",
                         help="add each pedestrian's predicted closest approach to the robot's course to its features")
+    parser.add_argument("--recipe", choices=sorted(RECIPES), default="crowdnav",
+                        help="the training reward: crowdnav (every collision -20, a timeout free; the shipped "
+                             "policies') or benchmark (a collision -10, 20 more when the fault rule puts it on the "
+                             "robot, a timeout -10) (default: crowdnav)")
+    parser.add_argument("--sampling", choices=SAMPLINGS, default=d.sampling,
+                        help="share the sub-envs among the training envs evenly, or by how often the policy fails in "
+                             f"each, again every --resample-every rollouts (default: {d.sampling})")
     parser.add_argument("--prediction-reward", type=float, default=0.0, metavar="W",
                         help="weight of the prediction-aware reward part predicted_collision (default: 0, off)")
     parser.add_argument("--device", default=d.device, help=f"where PPO and the envs' forecasts run: {DEVICE_HELP} "
@@ -560,9 +677,16 @@ def parse_args(argv: list[str] | None = None) -> TrainConfig:
     if not np.isfinite(args.prediction_reward):
         parser.error(f"--prediction-reward={args.prediction_reward}: expected a finite weight")
     scenarios, env_ids = training_scenarios(parser, args)
+    if args.sampling == "failures" and len(env_ids) < 2:
+        parser.error("--sampling failures: it shares the sub-envs among several training envs; give --scenarios or "
+                     "several --env-ids")
+    if args.sampling == "failures" and args.num_envs < len(env_ids):
+        parser.error(f"--sampling failures: --num-envs {args.num_envs} leaves some of the {len(env_ids)} training "
+                     "envs without a sub-env")
+    weights, timeout_reward = RECIPES[args.recipe]
     return TrainConfig(use_predictions=not args.no_predictions, env_ids=env_ids, scenarios=scenarios,
-                       sensor_range_m=args.sensor_range,
-                       seed=args.seed, reward=replace(d.reward, prediction=args.prediction_reward),
+                       sensor_range_m=args.sensor_range, timeout_reward=timeout_reward, sampling=args.sampling,
+                       seed=args.seed, reward=replace(weights, prediction=args.prediction_reward),
                        extractor=args.extractor, closest_approach=args.closest_approach, tensorboard=args.tensorboard,
                        demos=args.demos, minutes=args.minutes, log_std_init=args.log_std_init, device=args.device,
                        init_policy=args.init_policy, out=args.out, ship_as=args.ship, progress=not args.quiet,

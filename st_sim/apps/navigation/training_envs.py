@@ -95,8 +95,10 @@ class FeatureShard:
     a name); others as ``FeatureVecEnv``."""
 
     def __init__(self, env_id: str, num_envs: int, features: FeatureConfig, predictor: Any,
-                 config: EnvConfig | None = None, device: str = "auto", train_seeds: TrainSeeds | None = None):
+                 config: EnvConfig | None = None, device: str = "auto", train_seeds: TrainSeeds | None = None,
+                 timeout_reward: float = 0.0):
         config = replace(config or EnvConfig(), sensor_range_m=features.sensor_range_m, forecast_nearest=NEAREST)
+        self.timeout_reward = timeout_reward
         env_id, kwargs = training_env(env_id)
         self.train_seeds = train_seeds
         self._draws = np.random.default_rng()  # the split's seeds of later episodes; seeded by the first reset's
@@ -139,6 +141,7 @@ class FeatureShard:
     def step_result(self, parts: StepParts) -> StepResult:
         """Features, rewards, dones and infos of a step (``EnvBatch.step_parts`` of these sub-envs)."""
         obs, rewards, terminations, truncations, batched = self.vector.batched(parts)
+        rewards = rewards + self.timeout_reward * (truncations & ~terminations)  # a timeout is a failure too
         features = self._encode_all(obs)
         infos = [sub_env_info(batched, i) for i in range(len(features))]
         ended = np.flatnonzero(terminations | truncations)
@@ -167,7 +170,8 @@ class FeatureShards:
     """
 
     def __init__(self, parts: Sequence[tuple[str, int]], features: FeatureConfig, config: EnvConfig | None = None,
-                 device: str = "auto", worker: bool = False, train_seeds: TrainSeeds | None = None):
+                 device: str = "auto", worker: bool = False, train_seeds: TrainSeeds | None = None,
+                 timeout_reward: float = 0.0):
         if worker:
             one_thread()
         name = env_predictor("singular" if features.use_predictions else "none")
@@ -177,7 +181,8 @@ class FeatureShards:
             checkpoint = shipped_model_name(training_env(env_id)[0]) if features.use_predictions else name
             if checkpoint not in models:
                 models[checkpoint] = resolve_predictor(name, pretrained=checkpoint, device=check_device_name(device))
-            self.shards.append(FeatureShard(env_id, size, features, models[checkpoint], config, device, train_seeds))
+            self.shards.append(FeatureShard(env_id, size, features, models[checkpoint], config, device, train_seeds,
+                                            timeout_reward))
         vectors = [shard.vector for shard in self.shards]
         self.batch = EnvBatch([env for vector in vectors for env in vector.envs],
                               [vector.max_episode_steps for vector in vectors for _ in vector.envs],
@@ -244,11 +249,17 @@ class FeatureVecEnv(VecEnv):
         device: where the forecasts run (``predictor.devices``; "auto": a GPU when torch sees one).
         train_seeds: a suite's train split (``Suite.train``): every episode is one of its seeds; None: the sub-envs'
             seeds and generators as ever.
+        counts: sub-envs of each training env, in ``env_id``'s order (each >= 1, summing to ``num_envs``); None:
+            evenly. ``env_of[i]`` names sub-env i's.
+        timeout_reward: added to the reward of a step that ends an episode without a termination (the time limit or
+            a replay's recording ran out: the benchmark's timeout), as the training env's charge for a failure
+            that is no collision [reward units]; 0: none (the env's own reward).
     """
 
     def __init__(self, env_id: str | Sequence[str], num_envs: int, features: FeatureConfig,
                  config: EnvConfig | None = None, shards: int = 1, device: str = "auto",
-                 train_seeds: TrainSeeds | None = None):
+                 train_seeds: TrainSeeds | None = None, counts: Sequence[int] | None = None,
+                 timeout_reward: float = 0.0):
         if isinstance(shards, bool) or not isinstance(shards, int | np.integer) or not 1 <= shards <= num_envs:
             raise EnvInputError(f"shards={shards!r}: expected an int between 1 and num_envs={num_envs}")
         env_ids = [env_id] if isinstance(env_id, str) else list(env_id)
@@ -256,15 +267,25 @@ class FeatureVecEnv(VecEnv):
             raise EnvInputError(f"{len(env_ids)} training envs for num_envs={num_envs}: give each at least one")
         for spec in env_ids:
             training_env(spec)
-        which = np.repeat(np.arange(len(env_ids)), [len(p) for p in np.array_split(np.arange(num_envs), len(env_ids))])
+        if counts is None:
+            counts = [len(p) for p in np.array_split(np.arange(num_envs), len(env_ids))]
+        if (len(counts) != len(env_ids) or any(isinstance(c, bool) or not isinstance(c, int | np.integer) or c < 1
+                                                for c in counts) or sum(counts) != num_envs):
+            raise EnvInputError(f"counts={list(counts)!r}: expected {len(env_ids)} ints >= 1 summing to "
+                                f"num_envs={num_envs}")
+        if not np.isfinite(timeout_reward):
+            raise EnvInputError(f"timeout_reward={timeout_reward!r}: expected a finite number")
+        which = np.repeat(np.arange(len(env_ids)), counts)
+        self.env_of = tuple(env_ids[k] for k in which.tolist())
         blocks = np.array_split(which, shards)  # the training env of each sub-env, shard by shard
         parts = [[(env_ids[k], int(np.sum(block == k))) for k in dict.fromkeys(block.tolist())] for block in blocks]
         self.sizes = [len(block) for block in blocks]
         self._cuts = np.cumsum(self.sizes)[:-1]
-        self._local = None if shards > 1 else FeatureShards(parts[0], features, config, device,
-                                                             train_seeds=train_seeds)
+        self._local = None if shards > 1 else FeatureShards(parts[0], features, config, device, False, train_seeds,
+                                                             float(timeout_reward))
         self._workers = [] if shards == 1 else [
-            ProcessShard(f"{__name__}:FeatureShards", part, features, config, device, True, train_seeds)
+            ProcessShard(f"{__name__}:FeatureShards", part, features, config, device, True, train_seeds,
+                         float(timeout_reward))
             for part in parts]
         super().__init__(num_envs, spaces.Box(-np.inf, np.inf, (features.size,), np.float32),
                          spaces.Box(-1.0, 1.0, (2,), np.float32))
