@@ -303,3 +303,32 @@ def test_a_native_library_a_policy_loads_is_part_of_its_identity(on_path: Path, 
     shutil.copyfile(system_library("libm.so", other=True), retrained)
     os.replace(retrained, library)
     refused(tmp_path / "run", spec, r"model\.so changed")
+
+
+@pytest.mark.parametrize("kind", ["module", "version"])
+def test_verify_checks_the_identity_of_every_scenario_and_names_other_versions_once(
+        kind: str, on_path: Path, tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    """A run whose second scenario was re-run on other code (``scenario_identity``, as ``replace_rows`` writes it):
+    ``verify --policy`` checks that scenario's own identity too; a module that differs is refused naming it, another
+    version of a package is named once and left to the episodes, which here reproduce."""
+    from st_sim.apps.cli import main
+
+    weights = tmp_path / "w.npz"
+    np.savez(weights, speed=np.array(1.0))
+    spec = late_reader(on_path, weights, 1)
+    run_benchmark(BenchmarkRun(spec, str(tmp_path / "run"), predictor="none", split="val", episodes=1,
+                               scenarios=("frontal-approach", "overtaking")), workers=1, progress=False)
+    path = tmp_path / "run" / "summary.json"
+    summary = json.loads(path.read_text())
+    own = {key: summary[key] for key in ("fingerprint", "predictor_fingerprint", "stcrowd", "trust_policy_file")}
+    part, value = ((f"module {spec.split(':')[0]}", "sha256 " + "0" * 64) if kind == "module"
+                   else ("version numpy", "0.0.1"))
+    own["fingerprint"] = {**own["fingerprint"], part: value}
+    second = summary["scenarios"][1]["name"]
+    path.write_text(json.dumps({**summary, "scenario_identity": {second: own}}))
+    code = main(["verify", str(tmp_path / "run"), "--policy", spec, "--quiet"])
+    printed = capsys.readouterr()
+    if kind == "module":
+        assert code == 1 and f"{part} changed" in printed.err, printed
+    else:
+        assert code == 0 and printed.out.count("version numpy") == 1, printed

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -147,7 +148,8 @@ def read_run(folder: str | os.PathLike) -> dict[str, Any]:
 def replay_episode(folder: str | os.PathLike, scenario: str, episode: int, rerun: str | None = None,
                    data_root: str | None = None, policy: str | None = None, predictor: str | None = None,
                    trust_policy_file: bool = False, summary: dict[str, Any] | None = None,
-                   check_identity: bool = True) -> tuple[dict[str, Any], dict[str, Any], Path | None]:
+                   check_identity: bool = True, notes: set[str] | None = None
+                   ) -> tuple[dict[str, Any], dict[str, Any], Path | None]:
     """Run episode ``episode`` of ``scenario`` of the benchmark run in ``folder`` again.
 
     Args:
@@ -156,8 +158,10 @@ def replay_episode(folder: str | os.PathLike, scenario: str, episode: int, rerun
         policy, predictor: specs given by the user (None: the run's, if shipped by name; ``chosen_specs``).
         trust_policy_file: load an ``sb3:`` policy with stable-baselines3's own loader.
         check_identity: a policy or predictor given by the user must be what the run identified (``fingerprint``:
-            its code, the files it read, its packages' versions, what it declares), else ``CliError`` naming what
-            changed; the shipped ones are STCrowd's code, which the figures themselves check.
+            its code, the files it read, what it declares), else ``CliError`` naming what changed; the shipped ones
+            are STCrowd's code, which the figures themselves check. Other package versions than the run's are not
+            refused (the figures say whether they matter, as for the run's read files): each is a phrase added to
+            ``notes``, or printed to stderr when ``notes`` is None.
 
     Returns:
         (the episode's line in the run, the line measured now, as ``episodes.jsonl`` writes them; the recording's
@@ -226,9 +230,15 @@ def replay_episode(folder: str | os.PathLike, scenario: str, episode: int, rerun
         if predictor not in NAMES:
             changed += fingerprint_changes(identity["predictor_fingerprint"],
                                            predictor_fingerprint(predictor, predictor_audit))
-        if changed:
+        refused = [change for change in changed if not change.startswith("version ")]
+        if refused:
             raise CliError(f"{folder}: the policy or predictor given is not the one the run identified: "
-                           f"{'; '.join(changed)}")
+                           f"{'; '.join(refused)}")
+        versions = {f"{folder}: the policy's or predictor's {change}" for change in changed if change not in refused}
+        if notes is not None:
+            notes |= versions
+        for note in sorted(versions) if notes is None else ():
+            print(note, file=sys.stderr)
     return expected, measured, path
 
 
@@ -236,9 +246,10 @@ def run_verify(args: argparse.Namespace) -> int:
     """Replay the first ``--per-scenario`` episodes of every matching scenario of each folder (one thread), print one
     line per scenario; exit code 0 if every figure of every episode equals the run's, else 1 (the lines name them).
     A run of the user's own policy or predictor (``--policy``, ``--predictor``) must be what the run identified: the
-    first replay of each folder is audited as the benchmark audits its run (``fingerprint``), and any part that
-    differs is an error naming it; so is a file or module that the run's episodes read (its ``inputs``) and that is
-    not the same here (other package versions are named, not refused: the figures say whether they matter).
+    first replay of each scenario is audited as the benchmark audits its run (``fingerprint``; a scenario re-run by
+    ``replace_rows`` has its own), and any part that differs is an error naming it; so is a file or module that the
+    run's episodes read (its ``inputs``) and that is not the same here (other package versions, in either, are named
+    once each, not refused: the figures say whether they matter).
     Patterns that match no scenario of a folder are an error, not a pass."""
     import fnmatch
 
@@ -251,6 +262,7 @@ def run_verify(args: argparse.Namespace) -> int:
         raise CliError(f"--per-scenario {args.per_scenario}: give 1 or more")
     one_thread()
     differing = replayed = 0
+    notes: set[str] = set()
     for folder in args.folders:
         summary = read_run(folder)  # read and checked once, not once per episode
         names = [entry["name"] for entry in summary["scenarios"]
@@ -266,14 +278,17 @@ def run_verify(args: argparse.Namespace) -> int:
         if changed:
             tqdm.write(f"{folder}: other versions here than where it ran ({'; '.join(changed)}); the episodes tell "
                        "whether they matter")
-        for index, name in enumerate(tqdm(names, desc=str(folder), unit="scenario", leave=False,
-                                          disable=args.quiet)):
+        for name in tqdm(names, desc=str(folder), unit="scenario", leave=False, disable=args.quiet):
             episodes = [line["episode"] for line in find_episode(summary, folder, name, 0)[0]["episodes"]]
             wrong = {}
             for episode in episodes[:args.per_scenario]:
+                before = set(notes)
                 expected, measured, _ = replay_episode(
                     folder, name, episode, data_root=args.data_root, policy=args.policy, predictor=args.predictor,
-                    trust_policy_file=args.trust_policy_file, summary=summary, check_identity=index == 0)
+                    trust_policy_file=args.trust_policy_file, summary=summary, check_identity=episode == episodes[0],
+                    notes=notes)
+                for note in sorted(notes - before):
+                    tqdm.write(f"{note}; the episodes tell whether it matters")
                 replayed += 1
                 found = differences(expected, measured)
                 if found:

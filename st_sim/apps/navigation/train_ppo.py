@@ -19,7 +19,10 @@ so far (each round's steps are kept in --out). ``--timesteps 0`` stops there (a 
 starts PPO (of any seed) from such a clone's ``policy.pt`` (or any policy file), and ``--critic-rollouts R`` fits its
 critic to the training reward for R updates before the actor moves (``critic_first.CriticFirstPPO``).
 ``--scenarios`` trains on scenarios of the shipped navigation suite (``--hold-out`` leaves some out), every episode
-from its train split (``training_envs.FeatureVecEnv``'s ``train_seeds``). ``--minutes`` stops the run after that
+from its train split (``training_envs.FeatureVecEnv``'s ``train_seeds``). ``--recipe benchmark`` pays
+what the benchmark scores (``RECIPES``: a collision by the fault rule, a timeout) and ``--sampling failures`` shares
+the sub-envs among the training envs by their failure rates (``Resampler``, ``failure_sampling``; the rounds in
+``sampling.json``). ``--minutes`` stops the run after that
 much wall time (then writes everything as at the end of the budget); ``--device`` puts PPO and the
 forecasts on a GPU where torch sees one (``auto``, the default) or where it is told.
 

@@ -19,7 +19,8 @@ processes (``FeatureShards`` in each, through ``envs.shards``), which step at on
 observations. With a suite's ``train_seeds`` every episode is one of the suite's train split
 (``envs.suite.TrainSeeds``): sub-env i's first reset seed s becomes the split's s-th seed and every later episode
 starts from a seed of the split drawn by the shard (seeded by its first seeds), so training never meets a val or test
-episode.
+episode. ``counts`` shares the sub-envs unevenly (``train_ppo``'s failure sampling) and ``timeout_reward`` charges
+the step an episode times out on (``train_ppo``'s ``benchmark`` recipe).
 """
 
 from __future__ import annotations

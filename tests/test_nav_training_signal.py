@@ -1,0 +1,160 @@
+"""What the PPO trainer is paid for and where it trains (issue 75): the ``benchmark`` recipe's charges (a collision
+by the fault rule, a timeout), and the sub-envs shared among the training envs by their failure rates."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import envs  # noqa: F401  (registers the ids)
+from envs.common.errors import EnvInputError
+from st_sim.apps.navigation.failure_sampling import FailureTally, allocate
+from st_sim.apps.navigation.features import FeatureConfig
+from st_sim.apps.navigation.train_ppo import RECIPES, cli, main, parse_args
+from st_sim.apps.navigation.training_envs import FeatureVecEnv
+
+RATES = st.lists(st.floats(0.0, 1.0), min_size=1, max_size=20)
+
+
+@settings(max_examples=200, deadline=None)
+@given(rates=RATES, spare=st.integers(0, 200), floor=st.integers(0, 3))
+def test_allocation_is_whole_keeps_the_floor_and_follows_the_failure_rates(rates: list[float], spare: int,
+                                                                           floor: int) -> None:
+    num_envs = floor * len(rates) + spare
+    counts = allocate(rates, num_envs, floor)
+    assert sum(counts) == num_envs and all(type(c) is int and c >= floor for c in counts), counts
+    for i, j in np.ndindex(len(rates), len(rates)):
+        if rates[i] > rates[j]:
+            assert counts[i] >= counts[j], f"scenario {i} fails more often than {j} and got fewer sub-envs: {counts}"
+    share = np.asarray(rates) / sum(rates) if sum(rates) > 0 else np.full(len(rates), 1 / len(rates))
+    assert np.all(np.abs(np.asarray(counts) - floor - spare * share) < 1.0), "each within one of its quota"
+
+
+@settings(max_examples=50, deadline=None)
+@given(rate=st.floats(0.0, 1.0), k=st.integers(1, 20), spare=st.integers(0, 100))
+def test_equal_failure_rates_share_the_sub_envs_evenly(rate: float, k: int, spare: int) -> None:
+    counts = allocate([rate] * k, k + spare)
+    assert max(counts) - min(counts) <= 1 and counts == sorted(counts, reverse=True), counts
+
+
+@pytest.mark.parametrize(("rates", "num_envs", "match"), [
+    ([], 4, "one rate per scenario"), ([[0.5]], 4, "one rate per scenario"), ([0.5, 1.5], 4, r"rates in \[0, 1\]"),
+    ([0.5, float("nan")], 4, r"rates in \[0, 1\]"), ([-0.1], 4, r"rates in \[0, 1\]"),
+    ([0.5, 0.5, 0.5], 2, "fewer than floor=1 sub-envs for each of 3"),
+])
+def test_bad_allocations_are_refused(rates: list, num_envs: int, match: str) -> None:
+    with pytest.raises(ValueError, match=match):
+        allocate(rates, num_envs)
+
+
+def test_the_tally_smooths_towards_one_half_and_counts_only_its_window() -> None:
+    tally = FailureTally(["a", "b", "c"])
+    for failed in (True, True, False):
+        tally.add("a", failed)
+    tally.add("b", False)
+    assert tally.failure_rates() == [3 / 5, 1 / 3, 1 / 2], "(failures + 1) / (episodes + 2); none seen: 1/2"
+    assert tally.as_dict()["a"] == {"episodes": 3, "failures": 2}
+    with pytest.raises(KeyError):
+        tally.add("d", True)
+    tally.clear()
+    assert tally.failure_rates() == [0.5, 0.5, 0.5]
+
+
+def test_sub_envs_follow_the_counts_and_bad_counts_are_refused() -> None:
+    ids = ["STCrowd-SimCorridor-v1", "STCrowd-Hotel-v0:log"]
+    vec = FeatureVecEnv(ids, 4, FeatureConfig(False), counts=[1, 3])
+    assert vec.env_of == (ids[0], ids[1], ids[1], ids[1])
+    assert vec.get_attr("pedestrians", [1, 2, 3]) == ["log"] * 3
+    vec.close()
+    for counts in ([2, 1], [0, 4], [4], [1, 2, 1], [True, 3], [1.0, 3]):
+        with pytest.raises(EnvInputError, match=r"counts=.*ints >= 1 summing to num_envs=4"):
+            FeatureVecEnv(ids, 4, FeatureConfig(False), counts=counts)
+    with pytest.raises(EnvInputError, match="timeout_reward"):
+        FeatureVecEnv(ids, 4, FeatureConfig(False), timeout_reward=float("nan"))
+
+
+def test_a_timeout_is_charged_on_its_step_and_nowhere_else() -> None:
+    """The same sub-envs and actions with and without a timeout charge: the rewards differ by the charge exactly on
+    the steps that ended an episode by the time limit or the recording's end (``TimeLimit.truncated``)."""
+    charge, steps = -7.0, 230
+    runs = []
+    for timeout_reward in (0.0, charge):
+        vec = FeatureVecEnv(["STCrowd-Hotel-v0:log", "STCrowd-SimCorridor-v1"], 4, FeatureConfig(False),
+                            timeout_reward=timeout_reward)
+        vec.seed(5)
+        vec.reset()
+        rewards, timeouts = [], []
+        for _ in range(steps):  # standing still: walkers may run in (a collision), else the episode times out
+            vec.step_async(np.zeros((4, 2), np.float32))
+            _, reward, dones, infos = vec.step_wait()
+            rewards.append(reward)
+            timeouts.append([bool(d and info["TimeLimit.truncated"]) for d, info in zip(dones, infos, strict=True)])
+        vec.close()
+        runs.append((np.array(rewards), np.array(timeouts)))
+    (free, timeouts), (charged, same_timeouts) = runs
+    np.testing.assert_array_equal(timeouts, same_timeouts)
+    assert timeouts.sum() >= 2, "a robot standing for 230 steps timed out"
+    np.testing.assert_array_equal(charged - free, np.where(timeouts, np.float32(charge), np.float32(0.0)))
+
+
+def test_the_recipes_set_the_reward_and_the_old_one_stays_the_default() -> None:
+    old, new = parse_args([]), parse_args(["--recipe", "benchmark"])
+    assert (old.reward, old.timeout_reward) == RECIPES["crowdnav"]
+    assert (old.reward.collision, old.reward.discomfort, old.reward.at_fault) == (-20.0, -4.0, 0.0)
+    assert (new.reward, new.timeout_reward) == RECIPES["benchmark"]
+    assert new.reward.at_fault < 0 and new.timeout_reward < 0, "the fault rule's collisions and timeouts cost"
+    assert parse_args(["--recipe", "benchmark", "--prediction-reward", "-2"]).reward.prediction == -2.0
+
+
+@pytest.mark.parametrize(("argv", "match"), [
+    (["--sampling", "failures"], "shares the sub-envs among several training envs"),
+    (["--sampling", "failures", "--env-ids", "STCrowd-SimCorridor-v1", "STCrowd-SimCrossing-v1", "--num-envs", "1"],
+     "leaves some of the 2 training envs without a sub-env"),
+    (["--resample-every", "0"], "--resample-every=0: expected an integer >= 1"),
+    (["--recipe", "gentle"], "invalid choice"),
+])
+def test_bad_sampling_flags_are_refused(argv: list[str], match: str, capsys: pytest.CaptureFixture) -> None:
+    with pytest.raises(SystemExit):
+        parse_args(argv)
+    assert match in capsys.readouterr().err
+
+
+def run_args(out: Path) -> list[str]:
+    """A tiny failure-sampled run: three training envs, six sub-envs, a reallocation after every rollout."""
+    return ["--no-predictions", "--env-ids", "STCrowd-SimCorridor-v1", "STCrowd-Hotel-v0:log",
+            "STCrowd-SimBottleneck-v1", "--num-envs", "6", "--shards", "1", "--n-steps", "16", "--batch-size", "32",
+            "--sampling", "failures", "--resample-every", "1", "--recipe", "benchmark", "--save-every", "1",
+            "--quiet", "--out", str(out)]
+
+
+def test_failure_sampling_reallocates_by_each_windows_failures_and_resumes_from_its_last_round(
+        tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    """Each round's counts are ``allocate`` of the window it tallied; a resumed run starts from the last round's
+    counts and goes on adding rounds; a damaged ``sampling.json`` is one error line naming it."""
+    out = tmp_path / "run"
+    main(parse_args([*run_args(out), "--timesteps", "192"]))  # two rollouts of 6 x 16
+    rounds = json.loads((out / "sampling.json").read_text())
+    assert [r["timesteps"] for r in rounds] == [96, 192]
+    for r in rounds:
+        tally = FailureTally(list(r["tally"]))
+        tally.episodes = {k: v["episodes"] for k, v in r["tally"].items()}
+        tally.failures = {k: v["failures"] for k, v in r["tally"].items()}
+        assert r["counts"] == allocate(tally.failure_rates(), 6), r
+    assert sum(v["episodes"] for r in rounds for v in r["tally"].values()) > 0, "episodes ended and were tallied"
+    record = json.loads((out / "training.json").read_text())
+    assert record["sampling"]["counts"] == rounds[-1]["counts"] and record["sampling"]["rounds"] == 2
+
+    main(parse_args([*run_args(out), "--timesteps", "288"]))
+    resumed = json.loads((out / "sampling.json").read_text())
+    assert resumed[:2] == rounds and [r["timesteps"] for r in resumed[2:]] == [288]
+
+    for damage in ("{", "[]x", json.dumps([{"counts": [2, 2]}]), json.dumps([{"counts": [2, 2, True]}]),
+                   json.dumps([{"counts": [1, 1, 1]}]), json.dumps({"counts": [2, 2, 2]})):
+        (out / "sampling.json").write_text(damage)
+        assert cli([*run_args(out), "--timesteps", "384"]) == 1
+        assert "sampling.json" in capsys.readouterr().err.splitlines()[-1]
