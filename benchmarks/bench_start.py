@@ -22,13 +22,15 @@ POLICIES = (("mpc", "singular"), ("straight", "none"))
 CHILD = """
 import statistics, sys, time
 from envs.suite import load_suite
-from st_sim.apps.navigation.benchmark import BenchmarkRun, check_run
+from st_sim.apps.navigation import benchmark
 suite, out, repeats = load_suite(), sys.argv[1], int(sys.argv[2])
 for policy, predictor in {policies}:
     times = []
     for i in range(repeats):
         start = time.perf_counter()
-        check_run(BenchmarkRun(policy, f"{{out}}/{{policy}}-{{i}}", predictor=predictor), suite)
+        run = benchmark.BenchmarkRun(policy, f"{{out}}/{{policy}}-{{i}}", predictor=predictor)
+        # a checkout with the run's plan resolves it here (its suite loaded again); an older one took the suite
+        benchmark.check_run(run, benchmark.plan_run(run) if hasattr(benchmark, "plan_run") else suite)
         times.append(time.perf_counter() - start)
     print(f"{{policy}} + {{predictor}}: first {{times[0]:.2f}} s, then median {{statistics.median(times[1:]):.2f}} s")
 """

@@ -330,3 +330,30 @@ def test_a_policy_that_fails_in_the_first_episode_is_named_with_scenario_episode
                        scenarios=("sim-corridor",))
     with pytest.raises(PolicyError, match=rf"scenario 'sim-corridor', episode 0, seed {seed}\)$"):
         run_benchmark(run, workers=1, progress=False)
+
+
+def test_a_run_is_planned_once_and_its_chunks_load_no_suite(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """One run of three scenarios in two chunks each, in this process: the suite is loaded and its seeds resolved
+    once (``plan_run``), and every chunk runs from what the plan gave it."""
+    from envs import suite as suite_module
+    from st_sim.apps.navigation import benchmark
+
+    calls = {"load_suite": 0, "seeds_of": 0, "select": 0}
+    loaded, seeds_of, select = suite_module.load_suite, suite_module.Suite.seeds_of, suite_module.Suite.select
+
+    def counting(name, function):
+        def counted(*args, **kwargs):
+            calls[name] += 1
+            return function(*args, **kwargs)
+        return counted
+
+    monkeypatch.setattr(benchmark, "load_suite", counting("load_suite", loaded))
+    monkeypatch.setattr(suite_module.Suite, "seeds_of", counting("seeds_of", seeds_of))
+    monkeypatch.setattr(suite_module.Suite, "select", counting("select", select))
+    monkeypatch.setattr(benchmark, "CHUNK_EPISODES", 2)
+    summary = run_benchmark(BenchmarkRun("straight", str(tmp_path / "run"), predictor="none", split="val",
+                                         episodes=4, scenarios=("frontal-approach", "overtaking", "group")),
+                            workers=1, progress=False)
+    assert calls == {"load_suite": 1, "seeds_of": 1, "select": 1}, calls
+    assert len(list((tmp_path / "run" / "parts").glob("*/*.jsonl"))) == 6
+    assert [[e["seed"] for e in s["episodes"]] for s in summary["scenarios"]] == [list(SUITE.seeds["val"][:4])] * 3

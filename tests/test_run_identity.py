@@ -119,8 +119,9 @@ def test_the_shipped_predictors_checkpoints_and_stcrowds_own_code_are_part_of_th
     first["sha256"] = "0" * 64
     monkeypatch.setattr(predictor.checkpoint, "pretrained_manifest", lambda: swapped)
     with pytest.raises(BenchmarkError, match="predictor 'singular' changed: checkpoints changed"):
-        benchmark.check_run(BenchmarkRun("straight", str(tmp_path / "run"), predictor="singular", split="val",
-                                         episodes=1, scenarios=("frontal-approach",)), benchmark.load_suite())
+        run = BenchmarkRun("straight", str(tmp_path / "run"), predictor="singular", split="val", episodes=1,
+                           scenarios=("frontal-approach",))
+        benchmark.check_run(run, benchmark.plan_run(run))
     monkeypatch.setattr(predictor.checkpoint, "pretrained_manifest", lambda: manifest)
     edited = {**summary["stcrowd"], "source_sha256": "f" * 64}  # as if a scoring constant had been changed
     monkeypatch.setattr(benchmark, "stcrowd_identity", lambda: edited)

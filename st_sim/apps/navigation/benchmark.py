@@ -129,6 +129,23 @@ class BenchmarkRun:
     """what the robot senses in every scenario, by level (``st_sim.perception.SENSING_LEVELS``)"""
 
 
+@dataclass(frozen=True)
+class RunPlan:
+    """A run resolved once (``plan_run``): its suite, the scenarios it runs in suite order and the seeds of its
+    split's first episodes, which every later step (the checks, the chunks, the summary) reads instead of the suite."""
+
+    suite: Suite
+    scenarios: tuple[Scenario, ...]
+    seeds: tuple[int, ...]
+
+
+def plan_run(run: BenchmarkRun) -> RunPlan:
+    """Load ``run``'s suite and resolve its scenarios and seeds (``SuiteError`` naming an unknown scenario, split or
+    episode count)."""
+    suite = load_suite(run.suite_file)
+    return RunPlan(suite, suite.select(run.scenarios), tuple(suite.seeds_of(run.split, run.episodes)))
+
+
 def json_value(value: Any) -> Any:
     """``value`` as plain JSON: NumPy scalars as Python numbers, floats to ``SIGNIFICANT_DIGITS``, NaN and inf as
     null."""
@@ -145,32 +162,32 @@ def episode_record(scenario: str, episode: int, seed: int, metrics: dict[str, An
             **{key: json_value(value) for key, value in metrics.items()}}
 
 
-def run_chunk(suite_file: str | None, scenario: str, split: str, first: int, count: int, policy: str,
-              predictor: str, part: str, data_root: str | None = None, record: str = "none",
-              trust_policy_file: bool = False, robot: str = "holonomic", sensing: str = "oracle") -> None:
-    """Grid job: episodes ``first .. first + count - 1`` of ``scenario``, appended to ``part`` (.jsonl) one line each
-    as they finish; then the chunk's timing into ``part`` with suffix .json. Episodes already in ``part`` are kept
-    and skipped (a torn last line, from a killed run, is dropped). ``record`` chooses the episodes recorded into
-    ``recordings/<scenario>/`` beside ``parts`` (``episode_recording.BenchmarkRecorder``).
+def run_chunk(scenario: Scenario, first: int, seeds: list[int], policy: str, predictor: str, part: str,
+              data_root: str | None = None, record: str = "none", trust_policy_file: bool = False,
+              robot: str = "holonomic", sensing: str = "oracle") -> None:
+    """Grid job: episodes ``first .. first + len(seeds) - 1`` of ``scenario`` (the plan's, ``plan_run``), from
+    ``seeds``, appended to ``part`` (.jsonl) one line each as they finish; then the chunk's timing into ``part`` with
+    suffix .json. Episodes already in ``part`` are kept and skipped (a torn last line, from a killed run, is
+    dropped). ``record`` chooses the episodes recorded into ``recordings/<scenario>/`` beside ``parts``
+    (``episode_recording.BenchmarkRecorder``). The policy is built here, once per chunk, not once per process: what a
+    policy carries from one episode to the next then depends on the chunk alone, not on which process ran which.
 
     Raises:
         PolicyError: the policy failed; the message names it, the scenario, the episode and the seed.
     """
-    suite = load_suite(suite_file)
-    (entry,) = suite.select([scenario])
-    seeds = suite.seeds_of(split, first + count)[first:]
+    name = scenario.name
     lines_path = Path(part)
     lines_path.parent.mkdir(parents=True, exist_ok=True)
     done = _finished_lines(lines_path, {first + i: seed for i, seed in enumerate(seeds)})
     start, policy_s, steps = time.perf_counter(), 0.0, 0
     inputs = ChunkInputs(lines_path.with_suffix(".inputs.json"))
     with ReadAudit([lines_path.parents[2], resolve_data_root(data_root, check=False)]) as audit:
-        env = make_scenario_env(entry, predictor, data_root, robot=robot, sensing=sensing)
+        env = make_scenario_env(scenario, predictor, data_root, robot=robot, sensing=sensing)
         try:
             world = world_of(env)
             checked = load_policy(policy, world, predictor, trust_file=trust_policy_file)
-            checked.check_fits(env.observation_space, scenario)
-            recorder = BenchmarkRecorder(env, record, lines_path.parents[2] / "recordings" / scenario, policy,
+            checked.check_fits(env.observation_space, name)
+            recorder = BenchmarkRecorder(env, record, lines_path.parents[2] / "recordings" / name, policy,
                                          predictor)
             with lines_path.open("a") as lines:
                 for i, seed in enumerate(seeds, start=first):
@@ -179,11 +196,11 @@ def run_chunk(suite_file: str | None, scenario: str, split: str, first: int, cou
                     try:
                         trace, thinking_s = run_episode(recorder.env, checked, world, seed)
                     except PolicyError as err:
-                        raise PolicyError(f"{err} (scenario {scenario!r}, episode {i}, seed {seed})") from err
+                        raise PolicyError(f"{err} (scenario {name!r}, episode {i}, seed {seed})") from err
                     policy_s += thinking_s
                     steps += len(trace.ego_xy_m) - 1
                     inputs.keep(audit)  # before the line: a line on disk never lacks the inputs it read
-                    line = episode_record(scenario, i, seed, episode_metrics(trace))
+                    line = episode_record(name, i, seed, episode_metrics(trace))
                     recorder.keep(line)
                     lines.write(strict_json.dumps(line) + "\n")
                     lines.flush()
@@ -191,7 +208,7 @@ def run_chunk(suite_file: str | None, scenario: str, split: str, first: int, cou
         finally:
             env.close()
     inputs.keep(audit)
-    timing = {"episodes": count - len(done), "steps": steps, "worker_s": time.perf_counter() - start,
+    timing = {"episodes": len(seeds) - len(done), "steps": steps, "worker_s": time.perf_counter() - start,
               "policy_s": policy_s}
     write_text_atomic(lines_path.with_suffix(".json"), strict_json.dumps(timing))
 
@@ -216,18 +233,17 @@ def _finished_lines(path: Path, seeds: dict[int, int]) -> set[int]:
     return done
 
 
-def plan(run: BenchmarkRun, suite: Suite) -> list[Job]:
-    """The grid jobs of ``run``: one per chunk of ``CHUNK_EPISODES`` episodes of each scenario."""
-    count = len(suite.seeds_of(run.split, run.episodes))
+def plan(run: BenchmarkRun, planned: RunPlan) -> list[Job]:
+    """The grid jobs of ``run``: one per chunk of ``CHUNK_EPISODES`` episodes of each planned scenario, each carrying
+    its scenario and seeds (a worker loads no suite)."""
     out = Path(run.out).resolve()
     data_root = None if run.data_root is None else str(Path(run.data_root).resolve())
     jobs = []
-    for scenario in suite.select(run.scenarios):
-        for first in range(0, count, CHUNK_EPISODES):
+    for scenario in planned.scenarios:
+        for first in range(0, len(planned.seeds), CHUNK_EPISODES):
             part = out / "parts" / scenario.name / f"{first:05d}.jsonl"
-            kwargs = {"suite_file": None if run.suite_file is None else str(Path(run.suite_file).resolve()),
-                      "scenario": scenario.name, "split": run.split, "first": first,
-                      "count": min(CHUNK_EPISODES, count - first), "policy": _portable(run.policy),
+            kwargs = {"scenario": scenario, "first": first,
+                      "seeds": list(planned.seeds[first:first + CHUNK_EPISODES]), "policy": _portable(run.policy),
                       "predictor": run.predictor,
                       "part": str(part), "data_root": data_root, "record": run.record,
                       "trust_policy_file": run.trust_policy_file, "robot": run.robot, "sensing": run.sensing}
@@ -244,14 +260,13 @@ def _portable(policy: str) -> str:
     return policy
 
 
-def check_run(run: BenchmarkRun, suite: Suite) -> dict[str, Any]:
+def check_run(run: BenchmarkRun, planned: RunPlan) -> dict[str, Any]:
     """Every check that can fail before any episode: the split, episodes and scenarios exist, the policy builds, a
     policy that declares its observation space fits every scenario's env (else ``PolicyError`` naming the scenarios
     that fit, if any), and the output folder holds no other run (``BenchmarkError`` naming each part of the identity
     that differs). Returns the run's identity (``run.json``): the policy and the predictor are identified by what
     they read while the first scenario's env is made, the policy built and the first episode run (``ReadAudit``)."""
-    seeds = suite.seeds_of(run.split, run.episodes)
-    scenarios = suite.select(run.scenarios)
+    suite, scenarios, seeds = planned.suite, planned.scenarios, planned.seeds
     outside = [run.out, resolve_data_root(run.data_root, check=False)]  # the envs' data: checked by its sums
     with ReadAudit(outside) as predictor_audit:
         env = make_scenario_env(scenarios[0], run.predictor, run.data_root, robot=run.robot, sensing=run.sensing)
@@ -268,7 +283,7 @@ def check_run(run: BenchmarkRun, suite: Suite) -> dict[str, Any]:
         env.close()
     if policy.observation_space is not None:
         _check_fits(policy.spec, policy.observation_space, scenarios, suite, run.data_root, run.robot)
-    identity = _identity(run, suite, policy_fingerprint(run.policy, policy.policy, policy_audit),
+    identity = _identity(run, planned, policy_fingerprint(run.policy, policy.policy, policy_audit),
                          predictor_fingerprint(run.predictor, predictor_audit))
     marker = Path(run.out) / "run.json"
     if marker.is_file():
@@ -330,15 +345,15 @@ def _differences(held: dict[str, Any], identity: dict[str, Any]) -> list[str]:
     return differ
 
 
-def _identity(run: BenchmarkRun, suite: Suite, fingerprint: dict[str, str],
+def _identity(run: BenchmarkRun, planned: RunPlan, fingerprint: dict[str, str],
               predictor_parts: dict[str, str]) -> dict[str, Any]:
+    suite = planned.suite
     return {"policy": run.policy, "fingerprint": fingerprint, "predictor": run.predictor,
             "predictor_fingerprint": predictor_parts, "trust_policy_file": run.trust_policy_file, "robot": run.robot,
             "sensing": run.sensing, "modified_data_allowed": os.environ.get(ALLOW_MODIFIED_ENV_VAR) == "1",
             "suite": suite.name, "suite_version": suite.version, "suite_sha256": suite.content_sha256,
             "benchmark_version": BENCHMARK_VERSION, "stcrowd": stcrowd_identity(), "split": run.split,
-            "scenarios": [scenario.name for scenario in suite.select(run.scenarios)],
-            "episodes": len(suite.seeds_of(run.split, run.episodes))}
+            "scenarios": [scenario.name for scenario in planned.scenarios], "episodes": len(planned.seeds)}
 
 
 def run_benchmark(run: BenchmarkRun, executor: str = "local", workers: int | None = None,
@@ -349,8 +364,8 @@ def run_benchmark(run: BenchmarkRun, executor: str = "local", workers: int | Non
     itself); otherwise on a process pool of ``workers`` (default: one per core) or on Ray.
     """
     start = time.perf_counter()
-    suite = load_suite(run.suite_file)
-    identity = check_run(run, suite)
+    planned = plan_run(run)
+    identity = check_run(run, planned)
     out = Path(run.out)
     for record in sorted(out.glob("parts/*/*.inputs.json")):
         changes = inputs_changes(read_inputs(record))
@@ -362,7 +377,7 @@ def run_benchmark(run: BenchmarkRun, executor: str = "local", workers: int | Non
     ran_on = _held_run(marker).get(RAN_ON, []) if marker.is_file() else []
     ran_on += [machine_record()] if machine_record() not in ran_on else []
     write_text_atomic(marker, strict_json.dumps({**identity, RAN_ON: ran_on}, indent=1))
-    jobs = plan(run, suite)
+    jobs = plan(run, planned)
     if executor == "local" and workers == 1:
         from tqdm import tqdm
 
@@ -376,10 +391,10 @@ def run_benchmark(run: BenchmarkRun, executor: str = "local", workers: int | Non
             raise BenchmarkError(f"{len(failed)} of {len(jobs)} chunks failed; the first, {failed[0].name}: "
                                  f"{failed[0].error}. Finished episodes are kept in {out}/parts: fix the cause and "
                                  "run the same command again to resume")
-    return collect(run, suite, jobs, {**identity, RAN_ON: ran_on}, time.perf_counter() - start)
+    return collect(run, planned, jobs, {**identity, RAN_ON: ran_on}, time.perf_counter() - start)
 
 
-def collect(run: BenchmarkRun, suite: Suite, jobs: list[Job], identity: dict[str, Any],
+def collect(run: BenchmarkRun, planned: RunPlan, jobs: list[Job], identity: dict[str, Any],
             wall_s: float) -> dict[str, Any]:
     """Gather the chunks of a finished run into ``episodes.jsonl`` and ``summary.json``; returns the summary.
     ``identity`` is the run's (``check_run``) with its ``ran_on`` records, ``wall_s`` the run's wall-clock time [s]."""
@@ -387,7 +402,7 @@ def collect(run: BenchmarkRun, suite: Suite, jobs: list[Job], identity: dict[str
     timing: dict[str, dict[str, float]] = {}
     inputs: dict[str, str] = {}
     for job in jobs:
-        name = job.kwargs["scenario"]
+        name = job.kwargs["scenario"].name
         part = Path(job.kwargs["part"])
         read = read_inputs(part.with_suffix(".inputs.json"))
         differ = sorted(key for key, value in read.items() if inputs.setdefault(key, value) != value)
@@ -400,7 +415,7 @@ def collect(run: BenchmarkRun, suite: Suite, jobs: list[Job], identity: dict[str
         for key in cell:
             cell[key] += spent[key]
     scenarios, every = [], []
-    for scenario in suite.select(run.scenarios):
+    for scenario in planned.scenarios:
         episodes = sorted(by_scenario[scenario.name], key=lambda e: e["episode"])
         every += episodes
         scenarios.append({"name": scenario.name, "env": scenario.env,
@@ -410,7 +425,7 @@ def collect(run: BenchmarkRun, suite: Suite, jobs: list[Job], identity: dict[str
     summary = {"format": RESULT_FORMAT, **{k: v for k, v in identity.items() if k not in ("episodes", "scenarios")},
                "inputs": dict(sorted(inputs.items())),
                "episodes_per_scenario": identity["episodes"], "scenario_set": identity["scenarios"],
-               "suite_scenarios": len(suite.scenarios),
+               "suite_scenarios": len(planned.suite.scenarios),
                "scenarios": scenarios, "summary": summary_of(every),
                "timing": {"wall_s": wall_s, **{key: sum(cell[key] for cell in timing.values())
                                                for key in ("worker_s", "policy_s", "steps")}}}
