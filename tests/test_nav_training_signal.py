@@ -14,6 +14,7 @@ from hypothesis import strategies as st
 import envs  # noqa: F401  (registers the ids)
 from envs.common.errors import EnvInputError
 from st_sim.apps.navigation.failure_sampling import FailureTally, allocate
+from st_sim.apps.navigation.fault_constraint import FaultConstraint
 from st_sim.apps.navigation.features import FeatureConfig
 from st_sim.apps.navigation.train_ppo import RECIPES, cli, main, parse_args
 from st_sim.apps.navigation.training_envs import FeatureVecEnv
@@ -158,3 +159,89 @@ def test_failure_sampling_reallocates_by_each_windows_failures_and_resumes_from_
         (out / "sampling.json").write_text(damage)
         assert cli([*run_args(out), "--timesteps", "384"]) == 1
         assert "sampling.json" in capsys.readouterr().err.splitlines()[-1]
+
+
+@settings(max_examples=200, deadline=None)
+@given(target=st.floats(0.0, 0.99), step=st.floats(0.01, 1e4), start=st.floats(0.0, 1e4),
+       episodes=st.integers(0, 500), share=st.floats(0.0, 1.0))
+def test_the_fault_multiplier_rises_above_its_target_falls_below_and_stays_non_negative(
+        target: float, step: float, start: float, episodes: int, share: float) -> None:
+    at_fault = round(share * episodes)
+    constraint = FaultConstraint(target, step, start)
+    after = constraint.update(episodes, at_fault)
+    assert after == constraint.multiplier >= 0.0
+    if episodes == 0:
+        assert after == start, "no ended episode moves nothing"
+    elif at_fault / episodes > target:
+        assert after >= start
+    else:
+        moved = start + step * (at_fault / episodes - target)
+        assert after <= start and (after == 0.0 or after == pytest.approx(moved))
+
+
+@pytest.mark.parametrize(("target", "step", "multiplier"), [
+    (1.0, 1.0, 0.0), (-0.1, 1.0, 0.0), (float("nan"), 1.0, 0.0), (0.1, 0.0, 0.0), (0.1, float("inf"), 0.0),
+    (0.1, 1.0, -1.0), (0.1, 1.0, float("nan")),
+])
+def test_a_bad_constraint_is_refused(target: float, step: float, multiplier: float) -> None:
+    with pytest.raises(ValueError, match="FaultConstraint"):
+        FaultConstraint(target, step, multiplier)
+    with pytest.raises(ValueError, match="at_fault=3 of episodes=2"):
+        FaultConstraint(0.1, 1.0, 0.0).update(2, 3)
+
+
+def test_the_fault_charge_is_paid_on_at_fault_collisions_only_and_moves_when_set() -> None:
+    """The same sub-envs and actions (full speed along the path, into whoever is there) with no charge and with
+    one that changes half-way: the rewards differ by the charge in force exactly on the steps that ended in a
+    collision the fault rule put on the robot."""
+    steps, runs = 160, []
+    for charges in ((0.0, 0.0), (3.0, 11.0)):
+        vec = FeatureVecEnv(["STCrowd-SimCrossing-v1", "STCrowd-Hotel-v0:log"], 4, FeatureConfig(False),
+                            fault_charge=charges[0])
+        vec.seed(2)
+        vec.reset()
+        rewards, at_fault = [], []
+        for t in range(steps):
+            if t == steps // 2:
+                vec.set_fault_charge(charges[1])
+            vec.step_async(np.tile(np.float32([1.0, 0.0]), (4, 1)))
+            _, reward, dones, infos = vec.step_wait()
+            rewards.append(reward)
+            at_fault.append([bool(d and info["at_fault"]) for d, info in zip(dones, infos, strict=True)])
+        vec.close()
+        runs.append((np.array(rewards), np.array(at_fault)))
+    (free, at_fault), (charged, same) = runs
+    np.testing.assert_array_equal(at_fault, same)
+    assert at_fault[:steps // 2].any() and at_fault[steps // 2:].any(), "collisions at fault in both halves"
+    charge = np.where(np.arange(steps) < steps // 2, 3.0, 11.0)[:, None]
+    np.testing.assert_allclose(free - charged, np.where(at_fault, charge, 0.0), rtol=0, atol=1e-5)
+    for bad in (-1.0, float("nan"), float("inf"), True, "1"):
+        with pytest.raises(EnvInputError, match="fault_charge"):
+            FeatureVecEnv(["STCrowd-SimCorridor-v1"], 1, FeatureConfig(False), fault_charge=bad)
+
+
+def test_a_constrained_run_moves_its_multiplier_by_each_rollout_and_resumes_from_it(
+        tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    """Every rollout's update is the rule applied to that rollout's episodes, from the recipe's at-fault weight; a
+    resumed run continues from the last multiplier; a damaged ``constraint.json`` is one error line naming it."""
+    out = tmp_path / "run"
+    args = [*run_args(out), "--fault-target", "0.05", "--fault-step", "40"]
+    main(parse_args([*args, "--timesteps", "192"]))
+    updates = json.loads((out / "constraint.json").read_text())
+    assert [u["timesteps"] for u in updates] == [96, 192]
+    before = -RECIPES["benchmark"][0].at_fault
+    for u in updates:
+        rate = u["at_fault"] / u["episodes"] if u["episodes"] else 0.05
+        assert u["multiplier"] == pytest.approx(max(0.0, before + 40 * (rate - 0.05))), updates
+        before = u["multiplier"]
+    assert sum(u["episodes"] for u in updates) > 0
+    main(parse_args([*args, "--timesteps", "288"]))
+    resumed = json.loads((out / "constraint.json").read_text())
+    assert resumed[:2] == updates and len(resumed) == 3
+    rate = resumed[2]["at_fault"] / resumed[2]["episodes"] if resumed[2]["episodes"] else 0.05
+    assert resumed[2]["multiplier"] == pytest.approx(max(0.0, before + 40 * (rate - 0.05)))
+    for damage in ("{", json.dumps({"multiplier": 1}), json.dumps([{"multiplier": -2}]),
+                   json.dumps([{"multiplier": "x"}])):
+        (out / "constraint.json").write_text(damage)
+        assert cli([*args, "--timesteps", "384"]) == 1
+        assert "constraint.json" in capsys.readouterr().err.splitlines()[-1]

@@ -22,7 +22,8 @@ critic to the training reward for R updates before the actor moves (``critic_fir
 from its train split (``training_envs.FeatureVecEnv``'s ``train_seeds``). ``--recipe benchmark`` pays
 what the benchmark scores (``RECIPES``: a collision by the fault rule, a timeout) and ``--sampling failures`` shares
 the sub-envs among the training envs by their failure rates (``Resampler``, ``failure_sampling``; the rounds in
-``sampling.json``). ``--minutes`` stops the run after that
+``sampling.json``); ``--fault-target RATE`` turns the at-fault charge into a constraint with a learned multiplier
+(``FaultMultiplier``, ``fault_constraint``; its updates in ``constraint.json``). ``--minutes`` stops the run after that
 much wall time (then writes everything as at the end of the budget); ``--device`` puts PPO and the
 forecasts on a GPU where torch sees one (``auto``, the default) or where it is told.
 
@@ -49,7 +50,7 @@ import shutil
 import sys
 import time
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field, replace
 from importlib import resources, util
 from pathlib import Path
@@ -65,6 +66,7 @@ from replays.atomic import atomic_path, write_text_atomic
 from replays.data_root import sha256_of
 from st_sim.apps.navigation.demonstrations import DemoSpec, behaviour_clone, concatenate, load_or_collect
 from st_sim.apps.navigation.failure_sampling import FailureTally, allocate
+from st_sim.apps.navigation.fault_constraint import FaultConstraint
 from st_sim.apps.navigation.features import FeatureConfig
 from st_sim.apps.navigation.ppo import (
     EXTRACTORS,
@@ -80,7 +82,7 @@ CURVE_WINDOW = 100  # training episodes averaged per learning-curve point [-]
 DAGGER_SEED_STRIDE = 10_000  # episode seeds between two DAgger rounds (a worker's share is far fewer episodes) [-]
 SAMPLING_SEED_STRIDE = 100_000  # first-episode seeds between two sampling rounds' training envs [-]
 RESUMABLE = ("use_predictions", "env_ids", "scenarios", "num_envs", "sensor_range_m", "reward", "timeout_reward",
-             "sampling", "resample_every", "seed", "n_steps",
+             "sampling", "resample_every", "fault_target", "fault_step", "seed", "n_steps",
              "batch_size", "n_epochs", "learning_rate", "gamma", "net_arch", "log_std_init", "initial_forward",
              "init_policy", "demo_steps", "demos", "bc_epochs", "dagger_rounds", "dagger_steps", "extractor",
              "closest_approach", "clip_range", "target_kl", "critic_rollouts")
@@ -125,6 +127,12 @@ class TrainConfig:
     """``SAMPLINGS``: sub-envs shared evenly among the training envs, or by their failure rates"""
     resample_every: int = 20
     """with ``sampling="failures"``: rollouts between two reallocations of the sub-envs"""
+    fault_target: float | None = None
+    """at-fault collisions per training episode the policy may have: the charge for one is then a multiplier learned
+    to hold that rate (``fault_constraint``; starting from ``reward.at_fault``, which the env then leaves out);
+    None: the fixed weight ``reward.at_fault``"""
+    fault_step: float = 200.0
+    """with ``fault_target``: the multiplier's change per unit of rate above the target, per rollout [reward units]"""
     seed: int = 0
     """seed of PPO and of the envs (env i resets with seed + i first)"""
     n_steps: int = 128
@@ -201,14 +209,17 @@ def outcome(info: dict) -> str:
 
 class Resampler:
     """Where a run's ended training episodes failed, per training env, and (``cfg.sampling == "failures"``) the
-    sub-envs shared again by those failure rates every ``cfg.resample_every`` rollouts (``failure_sampling``).
+    sub-envs shared again by those failure rates every ``cfg.resample_every`` rollouts (``failure_sampling``). A
+    keeper of ``curve_callback``: ``add`` each ended episode, ``after_rollout``, its ``history`` saved as ``file``.
 
     Args:
         make_env: (counts, round) -> the training envs with those sub-envs per training env, seeded for that round.
         history: the rounds so far (``sampling.json``: each one's env steps, counts and tally), extended in place.
     """
 
-    def __init__(self, cfg: TrainConfig, make_env: Callable[[list[int], int], Any], history: list[dict]):
+    file = "sampling.json"
+
+    def __init__(self, cfg: TrainConfig, make_env: Callable[[list[int] | None, int], Any], history: list[dict]):
         self.cfg, self.make_env, self.history = cfg, make_env, history
         self.tally = FailureTally(cfg.env_ids)  # this round's window
         self.totals = FailureTally(cfg.env_ids)  # this segment's (since the run started or resumed)
@@ -224,8 +235,9 @@ class Resampler:
         self.env_of = vec.env_of
         return vec
 
-    def add(self, sub_env: int, failed: bool) -> None:
-        """Count an ended episode of sub-env ``sub_env``."""
+    def add(self, sub_env: int, info: dict[str, Any]) -> None:
+        """Count an ended episode of sub-env ``sub_env`` (its last ``info``): failed unless at the goal."""
+        failed = outcome(info) != "goal"
         self.tally.add(self.env_of[sub_env], failed)
         self.totals.add(self.env_of[sub_env], failed)
 
@@ -244,13 +256,70 @@ class Resampler:
         self.tally.clear()
 
 
+class FaultMultiplier:
+    """A run's at-fault constraint (``cfg.fault_target``; ``fault_constraint``): its multiplier moved after every
+    rollout by the rollout's at-fault rate and sent to the training envs as their charge per at-fault collision. It
+    starts from the recipe's ``at_fault`` weight (whose own part the env then leaves out) or, resumed, from where it
+    was. A keeper of ``curve_callback``, as ``Resampler``.
+
+    Args:
+        history: the updates so far (``constraint.json``: env steps, episodes, at-fault ones, multiplier after).
+    """
+
+    file = "constraint.json"
+
+    def __init__(self, cfg: TrainConfig, history: list[dict]):
+        self.history = history
+        start = history[-1].get("multiplier") if history else max(0.0, -cfg.reward.at_fault)
+        try:
+            self.constraint = FaultConstraint(cfg.fault_target, cfg.fault_step, start)
+        except (TypeError, ValueError) as err:
+            raise ValueError(f"{Path(cfg.out) / self.file}: its last multiplier cannot continue the run ({err}); "
+                             "delete resume.zip to start afresh") from None
+        self.episodes = self.at_fault = 0
+
+    @property
+    def charge(self) -> float:
+        """The charge per at-fault collision now [reward units]."""
+        return self.constraint.multiplier
+
+    def add(self, sub_env: int, info: dict[str, Any]) -> None:
+        """Count an ended episode (its last ``info``): at fault or not."""
+        self.episodes += 1
+        self.at_fault += bool(info["at_fault"])
+
+    def after_rollout(self, model: Any, rollouts: int) -> None:
+        """Move the multiplier by this rollout's at-fault rate and send it to the training envs."""
+        charge = self.constraint.update(self.episodes, self.at_fault)
+        self.history.append({"timesteps": int(model.num_timesteps), "episodes": self.episodes,
+                             "at_fault": self.at_fault, "multiplier": charge})
+        model.get_env().set_fault_charge(charge)
+        self.episodes = self.at_fault = 0
+
+
+def saved_history(cfg: TrainConfig, name: str) -> list[dict]:
+    """The list a keeper saved as ``name`` in ``cfg.out`` (empty if none); ``ValueError`` naming the file when it is
+    not a JSON list of objects."""
+    path = Path(cfg.out) / name
+    if not path.is_file():
+        return []
+    try:
+        history = json.loads(path.read_text())
+    except (OSError, ValueError) as err:
+        raise ValueError(f"{path}: cannot read it ({err}); delete resume.zip to start afresh") from None
+    if not isinstance(history, list) or not all(isinstance(entry, dict) for entry in history):
+        raise ValueError(f"{path}: expected a JSON list of objects; delete resume.zip to start afresh")
+    return history
+
+
 def curve_callback(cfg: TrainConfig, curve: list[dict], timing: dict[str, float], earlier_s: float = 0.0,
-                   resampler: Resampler | None = None) -> Any:
+                   keepers: Sequence[Resampler | FaultMultiplier] = ()) -> Any:
     """A stable-baselines3 callback: progress bar, a curve point every rollout, the resumable state every
     ``cfg.save_every`` rollouts, a stop once ``cfg.minutes`` of wall time have passed; adds the wall time of the
     rollouts (envs and the policy acting) and of the updates to ``timing["rollout_s"]`` and ``timing["update_s"]``.
     A point's ``wall_s`` counts from the run's start: ``earlier_s`` [s] is the wall time of the segments before a
-    resume. ``resampler`` tallies each ended episode and reallocates the sub-envs after each rollout it asks to."""
+    resume. Each of ``keepers`` counts every ended episode (``add``), acts after every rollout (``after_rollout``)
+    and is saved with the resumable state."""
     from stable_baselines3.common.callbacks import BaseCallback
 
     class Curve(BaseCallback):
@@ -267,8 +336,8 @@ def curve_callback(cfg: TrainConfig, curve: list[dict], timing: dict[str, float]
             for i, (done, info) in enumerate(zip(self.locals["dones"], self.locals["infos"], strict=True)):
                 if done:
                     self.recent.append((outcome(info), float(info["episode"]["r"])))
-                    if resampler is not None:
-                        resampler.add(i, outcome(info) != "goal")
+                    for keeper in keepers:
+                        keeper.add(i, info)
             return time.monotonic() < self.deadline
 
         def _on_rollout_start(self) -> None:
@@ -290,10 +359,10 @@ def curve_callback(cfg: TrainConfig, curve: list[dict], timing: dict[str, float]
                               "return": float(np.mean([r for _, r in self.recent]))})
                 self.bar.set_postfix(success=f"{curve[-1]['success']:.2f}", collision=f"{curve[-1]['collision']:.2f}")
             self.rollouts += 1
-            if resampler is not None:
-                resampler.after_rollout(self.model, self.rollouts)
+            for keeper in keepers:
+                keeper.after_rollout(self.model, self.rollouts)
             if self.rollouts % cfg.save_every == 0:
-                save_resumable(self.model, cfg, curve, resampler)
+                save_resumable(self.model, cfg, curve, keepers)
 
         def _on_training_end(self) -> None:
             timing["update_s"] += time.monotonic() - self.mark if self.rollouts else 0.0
@@ -302,12 +371,13 @@ def curve_callback(cfg: TrainConfig, curve: list[dict], timing: dict[str, float]
     return Curve()
 
 
-def save_resumable(model: Any, cfg: TrainConfig, curve: list[dict], resampler: Resampler | None = None) -> None:
-    """Write the whole PPO state (``resume.zip``), the settings it needs, the curve so far and the sampling rounds
-    (``sampling.json``), each atomically."""
+def save_resumable(model: Any, cfg: TrainConfig, curve: list[dict],
+                   keepers: Sequence[Resampler | FaultMultiplier] = ()) -> None:
+    """Write the whole PPO state (``resume.zip``), the settings it needs, the curve so far and each keeper's history
+    (``sampling.json``, ``constraint.json``), each atomically."""
     out = Path(cfg.out)
-    if resampler is not None:
-        write_text_atomic(out / "sampling.json", strict_json.dumps(resampler.history, indent=1))
+    for keeper in keepers:
+        write_text_atomic(out / keeper.file, strict_json.dumps(keeper.history, indent=1))
     with atomic_path(out / "resume.zip") as tmp, open(tmp, "wb") as file:
         model.save(file)
     write_text_atomic(out / "resume.json", strict_json.dumps({k: asdict(cfg)[k] for k in RESUMABLE}, default=str))
@@ -348,16 +418,10 @@ def saved_rounds(cfg: TrainConfig) -> list[dict]:
     Raises:
         ValueError: the file is not a list of rounds whose counts fit this run (names the file).
     """
-    path = Path(cfg.out) / "sampling.json"
-    if not path.is_file():
-        return []
-    try:
-        rounds = json.loads(path.read_text())
-    except (OSError, ValueError) as err:
-        raise ValueError(f"{path}: cannot read the saved sampling rounds ({err}); delete resume.zip to start afresh"
-                         ) from None
-    fits = isinstance(rounds, list) and all(
-        isinstance(r, dict) and isinstance(r.get("counts"), list) and len(r["counts"]) == len(cfg.env_ids)
+    path = Path(cfg.out) / Resampler.file
+    rounds = saved_history(cfg, Resampler.file)
+    fits = all(
+        isinstance(r.get("counts"), list) and len(r["counts"]) == len(cfg.env_ids)
         and all(type(c) is int and c >= 1 for c in r["counts"]) and sum(r["counts"]) == cfg.num_envs
         for r in rounds)
     if not fits:
@@ -463,14 +527,21 @@ def main(cfg: TrainConfig) -> Path:
     device = resolve_device(cfg.device)
     train_seeds = load_suite().train if cfg.scenarios else None
 
+    resuming = (out / "resume.zip").is_file()
+    multiplier = None if cfg.fault_target is None else FaultMultiplier(
+        cfg, saved_history(cfg, FaultMultiplier.file) if resuming else [])
+    reward = cfg.reward if multiplier is None else replace(cfg.reward, at_fault=0.0)  # the constraint charges it
+
     def make_env(counts: list[int] | None, round_: int) -> VecMonitor:
-        vec = VecMonitor(FeatureVecEnv(cfg.env_ids, cfg.num_envs, cfg.features, EnvConfig(reward=cfg.reward),
-                                       cfg.shards, str(device), train_seeds, counts, cfg.timeout_reward))
+        vec = VecMonitor(FeatureVecEnv(cfg.env_ids, cfg.num_envs, cfg.features, EnvConfig(reward=reward),
+                                       cfg.shards, str(device), train_seeds, counts, cfg.timeout_reward,
+                                       0.0 if multiplier is None else multiplier.charge))
         vec.seed(cfg.seed + round_ * SAMPLING_SEED_STRIDE)
         return vec
 
-    history = saved_rounds(cfg) if (out / "resume.zip").is_file() else []
+    history = saved_rounds(cfg) if resuming else []
     resampler = Resampler(cfg, make_env, history)
+    keepers = [resampler] if multiplier is None else [resampler, multiplier]
     vec = resampler.first_env()
 
     # model: PPO with a tanh actor-critic on the flat features or on their attention encoding (same for both variants)
@@ -522,13 +593,13 @@ def main(cfg: TrainConfig) -> Path:
     learning, timing = time.perf_counter(), {"rollout_s": 0.0, "update_s": 0.0}
     if cfg.timesteps > resumed_from:
         model.learn(total_timesteps=cfg.timesteps - resumed_from,
-                    callback=curve_callback(cfg, curve, timing, earlier_s, resampler),
+                    callback=curve_callback(cfg, curve, timing, earlier_s, keepers),
                     reset_num_timesteps=resumed_from == 0, tb_log_name=run_name)
         vec = model.get_env()  # the last round's
     learnt_s = max(time.perf_counter() - learning, 1e-9)
     steps_per_s = (model.num_timesteps - resumed_from) / learnt_s
     shares = {name.removesuffix("_s"): round(seconds / learnt_s, 3) for name, seconds in timing.items()}
-    save_resumable(model, cfg, curve, resampler)
+    save_resumable(model, cfg, curve, keepers)
     wall_time_s = earlier_s + time.perf_counter() - start
     vec.close()
     print(f"{model.num_timesteps - resumed_from} env steps learnt at {steps_per_s:.0f} env steps/s "
@@ -545,6 +616,8 @@ def main(cfg: TrainConfig) -> Path:
               "resumed_from": resumed_from, "sha256": sha256, "env_steps_per_s": steps_per_s, "time_shares": shares,
               "sampling": {"rounds": len(history), "counts": resampler.counts,
                            "episodes_since_start": resampler.totals.as_dict()},
+              "fault_constraint": None if multiplier is None else {"multiplier": multiplier.charge,
+                                                                   "updates": len(multiplier.history)},
               "final": curve[-1] if curve else None, "command": "python -m st_sim.apps.navigation.train_ppo "
               + " ".join(sys.argv[1:])}
     write_text_atomic(out / "training.json", strict_json.dumps(record, indent=1, default=str))
@@ -642,6 +715,13 @@ def parse_args(argv: list[str] | None = None) -> TrainConfig:
     parser.add_argument("--sampling", choices=SAMPLINGS, default=d.sampling,
                         help="share the sub-envs among the training envs evenly, or by how often the policy fails in "
                              f"each, again every --resample-every rollouts (default: {d.sampling})")
+    parser.add_argument("--fault-target", type=float, default=None, metavar="RATE",
+                        help="hold the at-fault collisions per training episode at RATE with a learned charge "
+                             "(a Lagrangian multiplier starting from the recipe's at-fault weight) instead of a fixed "
+                             "one (default: fixed)")
+    parser.add_argument("--fault-step", type=float, default=d.fault_step, metavar="W",
+                        help=f"with --fault-target: the charge's change per unit of rate above it, per rollout "
+                             f"(default: {d.fault_step})")
     parser.add_argument("--prediction-reward", type=float, default=0.0, metavar="W",
                         help="weight of the prediction-aware reward part predicted_collision (default: 0, off)")
     parser.add_argument("--device", default=d.device, help=f"where PPO and the envs' forecasts run: {DEVICE_HELP} "
@@ -686,9 +766,14 @@ def parse_args(argv: list[str] | None = None) -> TrainConfig:
     if args.sampling == "failures" and args.num_envs < len(env_ids):
         parser.error(f"--sampling failures: --num-envs {args.num_envs} leaves some of the {len(env_ids)} training "
                      "envs without a sub-env")
+    if args.fault_target is not None and not 0 <= args.fault_target < 1:  # also refuses NaN
+        parser.error(f"--fault-target={args.fault_target}: expected a rate in [0, 1)")
+    if not 0 < args.fault_step < np.inf:
+        parser.error(f"--fault-step={args.fault_step}: expected a finite number > 0")
     weights, timeout_reward = RECIPES[args.recipe]
     return TrainConfig(use_predictions=not args.no_predictions, env_ids=env_ids, scenarios=scenarios,
                        sensor_range_m=args.sensor_range, timeout_reward=timeout_reward, sampling=args.sampling,
+                       fault_target=args.fault_target, fault_step=args.fault_step,
                        seed=args.seed, reward=replace(weights, prediction=args.prediction_reward),
                        extractor=args.extractor, closest_approach=args.closest_approach, tensorboard=args.tensorboard,
                        demos=args.demos, minutes=args.minutes, log_std_init=args.log_std_init, device=args.device,

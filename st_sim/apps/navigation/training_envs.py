@@ -58,6 +58,12 @@ def sub_env_info(batched: dict[str, Any], i: int) -> dict[str, Any]:
             for key, value in batched.items() if not key.startswith("_") and batched[f"_{key}"][i]}
 
 
+def check_fault_charge(charge: Any) -> None:
+    """``EnvInputError`` unless ``charge`` is a finite number >= 0."""
+    if isinstance(charge, bool) or not isinstance(charge, int | float | np.floating) or not 0 <= charge < np.inf:
+        raise EnvInputError(f"fault_charge={charge!r}: expected a finite number >= 0")
+
+
 def training_env(spec: str) -> tuple[str, dict[str, Any]]:
     """(env id, ``gym.make`` keywords) of a training env ``ID`` or ``ID:MODE`` (a replay's pedestrians, log or
     reactive); ``EnvInputError`` for an unknown id or mode."""
@@ -97,9 +103,9 @@ class FeatureShard:
 
     def __init__(self, env_id: str, num_envs: int, features: FeatureConfig, predictor: Any,
                  config: EnvConfig | None = None, device: str = "auto", train_seeds: TrainSeeds | None = None,
-                 timeout_reward: float = 0.0):
+                 timeout_reward: float = 0.0, fault_charge: float = 0.0):
         config = replace(config or EnvConfig(), sensor_range_m=features.sensor_range_m, forecast_nearest=NEAREST)
-        self.timeout_reward = timeout_reward
+        self.timeout_reward, self.fault_charge = timeout_reward, fault_charge
         env_id, kwargs = training_env(env_id)
         self.train_seeds = train_seeds
         self._draws = np.random.default_rng()  # the split's seeds of later episodes; seeded by the first reset's
@@ -153,6 +159,7 @@ class FeatureShard:
             for i, features_i in zip(ended, final_features, strict=True):
                 infos[i] = {**infos[i]["final_info"], "terminal_observation": features_i,
                             "TimeLimit.truncated": bool(truncations[i] and not terminations[i])}
+                rewards[i] -= self.fault_charge * bool(infos[i]["at_fault"])  # the constraint's charge
         return features, rewards.astype(np.float32), terminations | truncations, infos
 
     def _encode_all(self, obs: dict[str, np.ndarray]) -> np.ndarray:
@@ -172,7 +179,7 @@ class FeatureShards:
 
     def __init__(self, parts: Sequence[tuple[str, int]], features: FeatureConfig, config: EnvConfig | None = None,
                  device: str = "auto", worker: bool = False, train_seeds: TrainSeeds | None = None,
-                 timeout_reward: float = 0.0):
+                 timeout_reward: float = 0.0, fault_charge: float = 0.0):
         if worker:
             one_thread()
         name = env_predictor("singular" if features.use_predictions else "none")
@@ -183,7 +190,7 @@ class FeatureShards:
             if checkpoint not in models:
                 models[checkpoint] = resolve_predictor(name, pretrained=checkpoint, device=check_device_name(device))
             self.shards.append(FeatureShard(env_id, size, features, models[checkpoint], config, device, train_seeds,
-                                            timeout_reward))
+                                            timeout_reward, fault_charge))
         vectors = [shard.vector for shard in self.shards]
         self.batch = EnvBatch([env for vector in vectors for env in vector.envs],
                               [vector.max_episode_steps for vector in vectors for _ in vector.envs],
@@ -214,6 +221,11 @@ class FeatureShards:
                        self._split(step.infos), finals, strict=True)]
         return (np.concatenate([r[0] for r in results]), np.concatenate([r[1] for r in results]),
                 np.concatenate([r[2] for r in results]), [info for r in results for info in r[3]])
+
+    def set_fault_charge(self, charge: float) -> None:
+        """Charge ``charge`` for each later at-fault collision (``FeatureVecEnv.set_fault_charge``)."""
+        for shard in self.shards:
+            shard.fault_charge = charge
 
     def get_attr(self, attr_name: str, indices: Sequence[int]) -> list[Any]:
         return [getattr(self.batch.envs[i], attr_name) for i in indices]
@@ -255,12 +267,15 @@ class FeatureVecEnv(VecEnv):
         timeout_reward: added to the reward of a step that ends an episode without a termination (the time limit or
             a replay's recording ran out: the benchmark's timeout), as the training env's charge for a failure
             that is no collision [reward units]; 0: none (the env's own reward).
+        fault_charge: subtracted from the reward of a step whose collision the fault rule puts on the robot
+            (``info["at_fault"]``), >= 0 [reward units]: ``fault_constraint``'s multiplier, moved between rollouts
+            with ``set_fault_charge``; 0: none.
     """
 
     def __init__(self, env_id: str | Sequence[str], num_envs: int, features: FeatureConfig,
                  config: EnvConfig | None = None, shards: int = 1, device: str = "auto",
                  train_seeds: TrainSeeds | None = None, counts: Sequence[int] | None = None,
-                 timeout_reward: float = 0.0):
+                 timeout_reward: float = 0.0, fault_charge: float = 0.0):
         if isinstance(shards, bool) or not isinstance(shards, int | np.integer) or not 1 <= shards <= num_envs:
             raise EnvInputError(f"shards={shards!r}: expected an int between 1 and num_envs={num_envs}")
         env_ids = [env_id] if isinstance(env_id, str) else list(env_id)
@@ -276,6 +291,7 @@ class FeatureVecEnv(VecEnv):
                                 f"num_envs={num_envs}")
         if not np.isfinite(timeout_reward):
             raise EnvInputError(f"timeout_reward={timeout_reward!r}: expected a finite number")
+        check_fault_charge(fault_charge)
         which = np.repeat(np.arange(len(env_ids)), counts)
         self.env_of = tuple(env_ids[k] for k in which.tolist())
         blocks = np.array_split(which, shards)  # the training env of each sub-env, shard by shard
@@ -283,10 +299,10 @@ class FeatureVecEnv(VecEnv):
         self.sizes = [len(block) for block in blocks]
         self._cuts = np.cumsum(self.sizes)[:-1]
         self._local = None if shards > 1 else FeatureShards(parts[0], features, config, device, False, train_seeds,
-                                                             float(timeout_reward))
+                                                             float(timeout_reward), float(fault_charge))
         self._workers = [] if shards == 1 else [
             ProcessShard(f"{__name__}:FeatureShards", part, features, config, device, True, train_seeds,
-                         float(timeout_reward))
+                         float(timeout_reward), float(fault_charge))
             for part in parts]
         super().__init__(num_envs, spaces.Box(-np.inf, np.inf, (features.size,), np.float32),
                          spaces.Box(-1.0, 1.0, (2,), np.float32))
@@ -313,6 +329,15 @@ class FeatureVecEnv(VecEnv):
         parts = self._receive_all()
         return (np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts]),
                 np.concatenate([p[2] for p in parts]), [info for p in parts for info in p[3]])
+
+    def set_fault_charge(self, charge: float) -> None:
+        """Charge ``charge`` (>= 0, reward units) for each at-fault collision from the next step on, in every shard
+        (``fault_constraint``'s multiplier after an update)."""
+        check_fault_charge(charge)
+        if self._local is not None:
+            self._local.set_fault_charge(float(charge))
+        for worker in self._workers:
+            worker.call("set_fault_charge", float(charge))
 
     def close(self) -> None:
         if self._local is not None:
