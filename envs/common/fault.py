@@ -36,6 +36,7 @@ from typing import Final
 
 import numpy as np
 
+from st_sim.sim.exact import length
 from st_sim.sim.sweep import Contact
 
 STOP_SPEED_MPS: Final[float] = 0.05
@@ -87,7 +88,7 @@ class RobotMotion:
         """The motion before the next step, after one that moved the robot by ``displacement_m`` (2,) [m] in
         ``step_s`` [s]."""
         require_finite(displacement_m, "displacement_m")
-        moved_m = float(np.hypot(*displacement_m))
+        moved_m = float(length(np.asarray(displacement_m, np.float64)))  # the same on every CPU (libm's is not)
         speeds = (*self.speeds_mps[1:], moved_m / step_s)
         if moved_m < STOP_SPEED_MPS * step_s:
             return RobotMotion(speeds, self.heading)
@@ -133,7 +134,7 @@ def robot_to_blame(offset_m: np.ndarray, robot_velocity_mps: np.ndarray, person_
     offset = np.asarray(offset_m, np.float64)
     robot = np.asarray(robot_velocity_mps, np.float64)
     person = np.asarray(person_velocity_mps, np.float64)
-    speed = np.hypot(robot[..., 0], robot[..., 1])
+    speed = length(robot)
     judged_speed = np.maximum(speed, recent_speed_mps)  # the fastest over the impact and the 0.8 s before it
     moving = speed >= STOP_SPEED_MPS
     with np.errstate(invalid="ignore", divide="ignore"):
