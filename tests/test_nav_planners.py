@@ -66,13 +66,13 @@ def test_straight_planner_walks_into_the_crosser(open_world: NavWorld) -> None:
 
 AVOIDERS = [("orca", "none"), ("mpc", "cvm"), ("mpc", "singular"), ("ppo", "singular"), ("ppo", "none"),
             ("ppo-reactive", "singular"), ("ppo-reactive", "none"), ("ppo-suite", "singular"), ("ppo-suite", "none"),
-            ("ppo-suite-shield", "singular")]
+            ("ppo-suite-shield", "singular"), ("ppo-suite-2", "singular")]
 
 
 @pytest.mark.parametrize(("planner", "predictor"), AVOIDERS,
                          ids=["orca-none", "mpc-cvm", "mpc-singular", "ppo-singular", "ppo-none",
                               "ppo-reactive-singular", "ppo-reactive-none", "ppo-suite-singular", "ppo-suite-none",
-                              "ppo-suite-shield-singular"])
+                              "ppo-suite-shield-singular", "ppo-suite-2-singular"])
 def test_planner_avoids_the_crosser_and_moves_on(open_world: NavWorld, planner: str, predictor: str) -> None:
     if planner == "orca":
         pytest.importorskip("pyrvo", reason='ORCA needs the optional extra: pip install -e ".[orca]"')
@@ -82,7 +82,8 @@ def test_planner_avoids_the_crosser_and_moves_on(open_world: NavWorld, planner: 
 
 
 def test_every_planner_is_registered_and_unknown_names_fail(open_world: NavWorld) -> None:
-    assert set(PLANNERS) == {"straight", "orca", "mpc", "ppo", "ppo-reactive", "ppo-suite", "ppo-suite-shield"}
+    assert set(PLANNERS) == {"straight", "orca", "mpc", "ppo", "ppo-reactive", "ppo-suite", "ppo-suite-shield",
+                             "ppo-suite-2"}
     with pytest.raises(ValueError, match="planner='teleport'"):
         make_planner("teleport", open_world, "none")
     with pytest.raises(ValueError, match="predictor='oracle'"):
@@ -255,3 +256,9 @@ def test_the_shield_vetoes_a_command_into_a_wall_even_toward_the_goal() -> None:
     along = ShieldedPlanner(world, True, Proposer(np.array([0.0, 1.0])))
     np.testing.assert_array_equal(along.act(obs), [0.0, 1.0])
     assert along.vetoes == 0
+
+
+def test_ppo_suite_2_without_forecasts_is_refused_naming_what_to_give(open_world: NavWorld) -> None:
+    """It was trained with forecasts and ships no variant without: predictor none is one clear error."""
+    with pytest.raises(ValueError, match=r"ppo-suite-2 was trained with forecasts .* give it a predictor"):
+        make_planner("ppo-suite-2", open_world, "none")

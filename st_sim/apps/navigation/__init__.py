@@ -4,7 +4,7 @@
     python -m st_sim benchmark --policy mypkg.policy:MyPolicy --out runs/bench/mine
 
 Modules, one concept each:
-- ``planners``: the registry (straight, orca, mpc, ppo, ppo-reactive, ppo-suite, ppo-suite-shield) and the
+- ``planners``: the registry (straight, orca, mpc, ppo, ppo-reactive, ppo-suite, ppo-suite-shield, ppo-suite-2) and the
   ``Planner`` interface (``reset``, ``act``); ``policies``: any policy by spec (a shipped name,
   package.module:name, sb3:PATH.zip); ``sb3_zip``: a stable-baselines3 model file read without running anything
   stored in it;

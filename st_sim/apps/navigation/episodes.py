@@ -41,7 +41,7 @@ class NavRun:
     """gym id of an STCrowd env with an ego"""
     policy: str = "mpc"
     """a policy spec (``policies``): a shipped planner (straight, orca, mpc, ppo, ppo-reactive, ppo-suite,
-    ppo-suite-shield), package.module:name or sb3:PATH.zip"""
+    ppo-suite-shield, ppo-suite-2), package.module:name or sb3:PATH.zip"""
     predictor: str = "singular"
     """none, cvm, cvm-s or singular"""
     episodes: int = 100

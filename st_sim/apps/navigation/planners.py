@@ -29,6 +29,7 @@ PLANNERS: dict[str, str] = {
     "ppo-reactive": "st_sim.apps.navigation.ppo:ReactivePpoPlanner",
     "ppo-suite": "st_sim.apps.navigation.ppo:SuitePpoPlanner",
     "ppo-suite-shield": "st_sim.apps.navigation.ppo:shielded_suite_ppo",
+    "ppo-suite-2": "st_sim.apps.navigation.ppo:Suite2PpoPlanner",
 }
 """planner name -> "module:class"; every class is built as ``cls(world, use_predictions, **options)``"""
 PEERS: dict[str, str] = {
@@ -42,9 +43,10 @@ PEERS: dict[str, str] = {
 NAMED: dict[str, str] = {**PLANNERS, **PEERS}
 """every planner a policy spec can name: the shipped ones and the peers"""
 USES_PREDICTIONS: dict[str, bool] = {"straight": False, "orca": False, "mpc": True, "ppo": True, "ppo-reactive": True,
-                                     "ppo-suite": True, "ppo-suite-shield": True, **dict.fromkeys(PEERS, False)}
+                                     "ppo-suite": True, "ppo-suite-shield": True, "ppo-suite-2": True,
+                                     **dict.fromkeys(PEERS, False)}
 """planners whose actions depend on the predicted futures (the others give the same episodes for any predictor)"""
-READS_POLICY_FILE: tuple[str, ...] = ("ppo", "ppo-reactive", "ppo-suite")
+READS_POLICY_FILE: tuple[str, ...] = ("ppo", "ppo-reactive", "ppo-suite", "ppo-suite-2")
 """planners that take a trained policy file (option ``policy``) in place of their shipped one"""
 
 

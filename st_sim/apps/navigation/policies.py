@@ -6,7 +6,7 @@
 
 A spec is one of:
 - a shipped planner name (``planners.PLANNERS``: straight, orca, mpc, ppo, ppo-reactive,
-  ppo-suite, ppo-suite-shield) or a peer's
+  ppo-suite, ppo-suite-shield, ppo-suite-2) or a peer's
   (``planners.PEERS``: navground-hl, navground-orca, navground-hrvo, navground-sf, pysocialforce; ``peers``);
 - ``package.module:name``: a class or factory following the planner protocol (``act(obs) -> (2,)`` velocity,
   optionally ``reset()``), built as ``name(world, use_predictions)`` like the shipped planners when its signature

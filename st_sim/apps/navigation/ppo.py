@@ -34,6 +34,9 @@ SHIPPED_REACTIVE: dict[bool, str] = {True: "ppo-reactive-predictions", False: "p
 """the same, fine-tuned in the reactive replays of ETH, HOTEL and ZARA2 (ZARA1 and UNIV held out)"""
 SHIPPED_SUITE: dict[bool, str] = {True: "ppo-suite-predictions", False: "ppo-suite-no-predictions"}
 """the reactive ones trained on the navigation suite's train split of every scenario but ZARA1's and UNIV's"""
+SHIPPED_SUITE_2: dict[bool, str] = {True: "ppo-suite-2"}
+"""``ppo-suite-predictions`` trained on as the benchmark scores, where it fails (``train_ppo --recipe benchmark
+--sampling failures``), on the robot of benchmark version 4; with forecasts only"""
 
 
 class PolicyFileError(ValueError):
@@ -220,6 +223,20 @@ class SuitePpoPlanner(PpoPlanner):
     """``PpoPlanner`` with the policies trained on the suite's train split (``SHIPPED_SUITE``): "ppo-suite"."""
 
     shipped = SHIPPED_SUITE
+
+
+class Suite2PpoPlanner(PpoPlanner):
+    """``PpoPlanner`` with ``SHIPPED_SUITE_2``: "ppo-suite-2". It reads the predicted futures and has no variant
+    without them: with predictor ``none`` it is refused (a ``ValueError`` naming what to give), unless ``policy``
+    names a file of one's own."""
+
+    shipped = SHIPPED_SUITE_2
+
+    def __init__(self, world: NavWorld, use_predictions: bool = True, policy: str | Path | None = None):
+        if not use_predictions and policy is None:
+            raise ValueError("ppo-suite-2 was trained with forecasts and has no variant without them: give it a "
+                             "predictor (singular, cvm, ...), or use ppo-suite with --predictor none")
+        super().__init__(world, use_predictions, policy)
 
 
 def shielded_suite_ppo(world: NavWorld, use_predictions: bool = True) -> Any:
