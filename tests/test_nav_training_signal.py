@@ -79,25 +79,35 @@ def test_sub_envs_follow_the_counts_and_bad_counts_are_refused() -> None:
         FeatureVecEnv(ids, 4, FeatureConfig(False), timeout_reward=float("nan"))
 
 
+def rewards_and_ends(env_ids: list[str], seed: int, action: np.ndarray, steps: int, flag: str, kwargs: dict,
+                     charge_from: tuple[int, float] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Four sub-envs of ``env_ids`` (no forecasts, ``FeatureVecEnv(**kwargs)``) stepped ``steps`` times with the
+    path-frame ``action``: (steps, 4) rewards, and whether each step ended an episode with ``info[flag]`` true.
+    ``charge_from`` (step, charge): ``set_fault_charge(charge)`` before that step."""
+    vec = FeatureVecEnv(env_ids, 4, FeatureConfig(False), **kwargs)
+    vec.seed(seed)
+    vec.reset()
+    rewards, ends = [], []
+    for t in range(steps):
+        if charge_from is not None and t == charge_from[0]:
+            vec.set_fault_charge(charge_from[1])
+        vec.step_async(np.tile(np.asarray(action, np.float32), (4, 1)))
+        _, reward, dones, infos = vec.step_wait()
+        rewards.append(reward)
+        ends.append([bool(d and info[flag]) for d, info in zip(dones, infos, strict=True)])
+    vec.close()
+    return np.array(rewards), np.array(ends)
+
+
 def test_a_timeout_is_charged_on_its_step_and_nowhere_else() -> None:
     """The same sub-envs and actions with and without a timeout charge: the rewards differ by the charge exactly on
     the steps that ended an episode by the time limit or the recording's end (``TimeLimit.truncated``)."""
     charge, steps = -7.0, 230
-    runs = []
-    for timeout_reward in (0.0, charge):
-        vec = FeatureVecEnv(["STCrowd-Hotel-v0:log", "STCrowd-SimCorridor-v1"], 4, FeatureConfig(False),
-                            timeout_reward=timeout_reward)
-        vec.seed(5)
-        vec.reset()
-        rewards, timeouts = [], []
-        for _ in range(steps):  # standing still: walkers may run in (a collision), else the episode times out
-            vec.step_async(np.zeros((4, 2), np.float32))
-            _, reward, dones, infos = vec.step_wait()
-            rewards.append(reward)
-            timeouts.append([bool(d and info["TimeLimit.truncated"]) for d, info in zip(dones, infos, strict=True)])
-        vec.close()
-        runs.append((np.array(rewards), np.array(timeouts)))
-    (free, timeouts), (charged, same_timeouts) = runs
+    # standing still: walkers may run in (a collision), else the episode times out
+    free, timeouts = rewards_and_ends(["STCrowd-Hotel-v0:log", "STCrowd-SimCorridor-v1"], 5, np.zeros(2), steps,
+                                      "TimeLimit.truncated", {})
+    charged, same_timeouts = rewards_and_ends(["STCrowd-Hotel-v0:log", "STCrowd-SimCorridor-v1"], 5, np.zeros(2),
+                                              steps, "TimeLimit.truncated", {"timeout_reward": charge})
     np.testing.assert_array_equal(timeouts, same_timeouts)
     assert timeouts.sum() >= 2, "a robot standing for 230 steps timed out"
     np.testing.assert_array_equal(charged - free, np.where(timeouts, np.float32(charge), np.float32(0.0)))
@@ -194,23 +204,11 @@ def test_the_fault_charge_is_paid_on_at_fault_collisions_only_and_moves_when_set
     """The same sub-envs and actions (full speed along the path, into whoever is there) with no charge and with
     one that changes half-way: the rewards differ by the charge in force exactly on the steps that ended in a
     collision the fault rule put on the robot."""
-    steps, runs = 160, []
-    for charges in ((0.0, 0.0), (3.0, 11.0)):
-        vec = FeatureVecEnv(["STCrowd-SimCrossing-v1", "STCrowd-Hotel-v0:log"], 4, FeatureConfig(False),
-                            fault_charge=charges[0])
-        vec.seed(2)
-        vec.reset()
-        rewards, at_fault = [], []
-        for t in range(steps):
-            if t == steps // 2:
-                vec.set_fault_charge(charges[1])
-            vec.step_async(np.tile(np.float32([1.0, 0.0]), (4, 1)))
-            _, reward, dones, infos = vec.step_wait()
-            rewards.append(reward)
-            at_fault.append([bool(d and info["at_fault"]) for d, info in zip(dones, infos, strict=True)])
-        vec.close()
-        runs.append((np.array(rewards), np.array(at_fault)))
-    (free, at_fault), (charged, same) = runs
+    steps, env_ids = 160, ["STCrowd-SimCrossing-v1", "STCrowd-Hotel-v0:log"]
+    free, at_fault = rewards_and_ends(env_ids, 2, np.array([1.0, 0.0]), steps, "at_fault", {"fault_charge": 0.0},
+                                      (steps // 2, 0.0))
+    charged, same = rewards_and_ends(env_ids, 2, np.array([1.0, 0.0]), steps, "at_fault", {"fault_charge": 3.0},
+                                     (steps // 2, 11.0))
     np.testing.assert_array_equal(at_fault, same)
     assert at_fault[:steps // 2].any() and at_fault[steps // 2:].any(), "collisions at fault in both halves"
     charge = np.where(np.arange(steps) < steps // 2, 3.0, 11.0)[:, None]
