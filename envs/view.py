@@ -30,6 +30,7 @@ keys in the model's observation space and shows it each scenario through ``fixed
 
 from __future__ import annotations
 
+from functools import cache
 from typing import Any
 
 import gymnasium as gym
@@ -40,6 +41,7 @@ from envs.common.ego import checked_command
 from envs.common.errors import EnvInputError
 from envs.common.terrain import Terrain
 from replays.constants import FORECAST_LIMIT_M, POSITION_LIMIT_M, T_PRED
+from st_sim.sim.exact import rounded_cos_sin
 
 NEAREST = 8  # pedestrians in the view by default [-]
 RAY_COUNT = 16  # wall rays by default, evenly spaced from the path direction [-]
@@ -114,9 +116,15 @@ def wall_readings_m(terrain: Terrain, xy_m: np.ndarray, frames: np.ndarray, body
                     rays: int = RAY_COUNT) -> np.ndarray:
     """(B, R) free distances [m] from B points (B, 2) [m] along R rays per frame (B, 2, 2), ray r at angle 2 pi r / R
     from the frame's x axis, until a body of radius ``body_m`` would touch a wall; up to ``RAY_RANGE_M``."""
-    angles = np.arange(rays) * 2 * np.pi / rays
-    directions = np.cos(angles)[:, None] * frames[:, None, 0] + np.sin(angles)[:, None] * frames[:, None, 1]
+    cos, sin = _ray_cos_sin(rays)
+    directions = cos[:, None] * frames[:, None, 0] + sin[:, None] * frames[:, None, 1]
     return terrain.free_distances_m(xy_m, directions, body_m, RAY_RANGE_M, RAY_STEP_M)
+
+
+@cache
+def _ray_cos_sin(rays: int) -> tuple[np.ndarray, np.ndarray]:
+    """(R,) cosines and sines of the R ray angles 2 pi r / R, the same on every CPU (libm's are not)."""
+    return rounded_cos_sin(np.arange(rays) * 2 * np.pi / rays)
 
 
 def nearest_pedestrians(obs: dict[str, np.ndarray], ego_xy_m: np.ndarray, sensor_range_m: float, count: int

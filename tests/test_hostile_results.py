@@ -500,7 +500,7 @@ objects of short strings"""
 def test_machine_records_of_the_wrong_kind_are_refused_naming_the_field(summary: dict[str, Any], ran_on: Any) -> None:
     with folder_of({**summary, "ran_on": ran_on}) as folder:
         message = refused(folder)
-    assert re.match(r"\S+summary\.json: ran_on(\[\d+\](\.\S+)?)?: expected ", message), message
+    assert re.match(r'\S+summary\.json: ran_on(\[\d+\](\[".*"\])?)?: expected ', message), message
 
 
 @HOSTILE

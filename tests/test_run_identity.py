@@ -220,6 +220,44 @@ def test_a_file_first_read_in_a_later_episode_is_an_input_and_a_resume_after_it_
         run_benchmark(run, workers=1, progress=False)
 
 
+NATIVE_READERS = {  # read a 1 x 1 grey image and close it without Python's open: an expression of PATH
+    "imread": "int(cv2.imread(PATH, cv2.IMREAD_GRAYSCALE)[0, 0])",
+    "a program": "(100 if subprocess.run(['cat', PATH], capture_output=True, check=True).stdout else 0)",
+}
+
+
+def grey(path: Path, value: int) -> None:
+    import cv2
+
+    assert cv2.imwrite(str(path), np.full((1, 1), value, np.uint8))
+
+
+@pytest.mark.parametrize("reader", sorted(NATIVE_READERS))
+@pytest.mark.parametrize("workers", [1, 2])
+def test_a_file_native_code_reads_in_a_later_episode_is_an_input(on_path: Path, tmp_path: Path, reader: str,
+                                                                  workers: int) -> None:
+    """OpenCV's imread and a program the policy runs read past Python's open; the kernel's open watch sees them, in
+    the process that runs the chunk (one worker: this one; two: a pool's), and a resume after the file changed is
+    refused, naming it."""
+    weights = tmp_path / "speed.png"
+    grey(weights, 100)
+    name = fresh_name("nativelate")
+    (on_path / f"{name}.py").write_text(
+        "import os, subprocess\nimport cv2\nimport numpy as np\n\nclass Policy:\n"
+        "    def __init__(self):\n        self.episodes, self.speed = 0, 1.0\n"
+        "    def reset(self):\n        self.episodes += 1\n        if self.episodes >= 2:\n"
+        f"            self.speed = {NATIVE_READERS[reader].replace('PATH', repr(str(weights)))} / 100\n"
+        + HEAD_FOR_GOAL.replace("SPEED", "self.speed"))
+    spec = f"{name}:Policy"
+    run = BenchmarkRun(spec, str(tmp_path / "run"), predictor="none", split="val", episodes=2,
+                       scenarios=("frontal-approach",))
+    summary = run_benchmark(run, workers=workers, progress=False)
+    assert f"read {weights.resolve()}" in summary["inputs"], summary["inputs"]
+    grey(weights, 50)
+    with pytest.raises(BenchmarkError, match=r"inputs changed since they ran .*speed\.png changed"):
+        run_benchmark(run, workers=workers, progress=False)
+
+
 def test_a_run_records_the_versions_of_the_packages_it_loaded_and_the_data_override(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     summary = bench(tmp_path / "run", "straight")
@@ -237,7 +275,9 @@ def test_an_input_that_changes_while_a_chunk_runs_is_an_error(tmp_path: Path) ->
         data.read_bytes()
         inputs.keep(audit)
         assert ChunkInputs(tmp_path / "chunk.inputs.json").parts == inputs.parts, "kept on disk"
-        subprocess.run([sys.executable, "-c", f"open({str(data)!r}, 'wb').write(b'22')"], check=True)  # not ours
+        alias = tmp_path / "alias.bin"  # another name of the same file: what the run opened is not written
+        os.link(data, alias)
+        subprocess.run([sys.executable, "-c", f"open({str(alias)!r}, 'wb').write(b'22')"], check=True)
         with pytest.raises(InputsError, match=r"w\.bin changed while the run read it"):
             inputs.keep(audit)
 

@@ -9,6 +9,8 @@ from fractions import Fraction
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from st_sim.sim import exact
 
@@ -98,3 +100,46 @@ def test_poisson_draws_of_a_zero_mean_draw_nothing():
     rng = np.random.default_rng(5)
     assert np.array_equal(exact.poisson_draws(rng, 0.0, 3), [0, 0, 0])
     assert rng.random() == np.random.default_rng(5).random()
+
+
+def _true_cos_sin(angle: float, digits: int = 90) -> tuple[Decimal, Decimal]:
+    """cos and sin of a float's exact value to ``digits`` digits (Taylor series, no reduction: |angle| <= 8)."""
+    with localcontext(prec=digits):
+        x, term, k, sums = Decimal(angle), Decimal(1), 0, [Decimal(0)] * 4
+        while k < 8 or abs(term) > Decimal(10) ** -(digits - 2):
+            sums[k % 4] += term
+            k += 1
+            term = term * x / k
+        return sums[0] - sums[2], sums[1] - sums[3]
+
+
+def _nearest(value: float, true: Decimal) -> bool:
+    """Whether ``value`` is a float nearest to ``true``: no neighbour is closer."""
+    with localcontext(prec=90):
+        error = abs(Decimal(value) - true)
+        return all(error <= abs(Decimal(float(np.nextafter(value, side))) - true) for side in (-np.inf, np.inf))
+
+
+@settings(max_examples=200, deadline=None)
+@given(angle=st.floats(-exact.TABLE_ANGLE_RAD, exact.TABLE_ANGLE_RAD))
+def test_rounded_cos_sin_give_the_nearest_float_to_the_true_value(angle: float) -> None:
+    cos, sin = exact.rounded_cos_sin(np.array([angle]))
+    true_cos, true_sin = _true_cos_sin(angle)
+    assert _nearest(float(cos[0]), true_cos) and _nearest(float(sin[0]), true_sin), angle
+
+
+@pytest.mark.parametrize("angle", [8.001, -9.0, np.inf, np.nan])
+def test_rounded_cos_sin_refuse_angles_beyond_their_table_range(angle: float) -> None:
+    with pytest.raises(ValueError, match="rounded_cos_sin: angles must be finite"):
+        exact.rounded_cos_sin(np.array([0.5, angle]))
+
+
+def test_the_planners_direction_tables_are_the_rounded_ones() -> None:
+    """The MPC's headings, the terrain's directions and the wall rays come from rounded_cos_sin (libm's on no CPU)."""
+    from envs.common import terrain
+    from envs.view import _ray_cos_sin
+
+    angles = np.linspace(0.0, 2 * np.pi, 64, endpoint=False)
+    assert np.array_equal(terrain.HEADINGS, np.stack(exact.rounded_cos_sin(angles), axis=1))
+    assert all(np.array_equal(a, b) for a, b in zip(_ray_cos_sin(16), exact.rounded_cos_sin(np.arange(16) * 2 * np.pi
+                                                                                              / 16), strict=True))

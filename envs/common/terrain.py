@@ -23,6 +23,7 @@ from scipy.sparse import coo_matrix, csr_matrix
 from replays.scenes import Scene
 from st_sim.reactive.compiled import drop_stale_caches
 from st_sim.reactive.compiled.exact import first_of_least, length, maximum, minimum
+from st_sim.sim.exact import rounded_cos_sin
 
 KERNEL_SOURCES = ("envs/common/terrain.py", "st_sim/reactive/compiled/exact.py")
 """the files the kernels take code from: numba re-compiles a kernel when its own file changes, not when a function it
@@ -37,11 +38,11 @@ MOVES: dict[tuple[int, int], tuple[tuple[int, int], ...]] = {
     (1, 1): ((0, 1), (1, 0)), (1, -1): ((0, -1), (1, 0)),
     (1, 2): ((0, 1), (1, 1)), (2, 1): ((1, 0), (1, 1)), (1, -2): ((0, -1), (1, -1)), (2, -1): ((1, 0), (1, -1)),
 }
-LONGEST_MOVE = max(float(np.hypot(dy, dx)) for dy, dx in MOVES)  # the longest move's length [cells]
+LONGEST_MOVE = max(float(np.sqrt(dy * dy + dx * dx)) for dy, dx in MOVES)  # the longest move's length [cells]
 SOURCE_REACH_M = 1.0  # the goal feeds every eligible cell this close to it [m]
 UNREACHABLE_PENALTY_M = 100.0  # cost-to-go of a point with no grid path: its straight distance plus this [m]
 _ANGLES = np.linspace(0.0, 2 * np.pi, 64, endpoint=False)
-HEADINGS = np.stack([np.cos(_ANGLES), np.sin(_ANGLES)], axis=1)  # (64, 2) candidate directions of direction_to
+HEADINGS = np.stack(rounded_cos_sin(_ANGLES), axis=1)  # (64, 2) candidate directions of direction_to
 LOOKAHEAD_M = 0.5  # direction_to compares the cost-to-go this far ahead [m]
 GOAL_FIELDS_KEPT = 16  # cost-to-go fields kept, one per goal (sub-envs of a vector env may head to different goals)
 LOOKUP_CELLS = 1  # cost-to-go of a point = least (cell cost + distance to the cell) over (2R+1)^2 cells
@@ -196,7 +197,7 @@ class GridGraph:
                 ok &= padded[y + 2 + py, x + 2 + px]
             heads.append(cells[ok])
             tails.append(cells[ok] + dy * width + dx)
-            lengths.append(np.full(int(ok.sum()), cell_m * np.hypot(dy, dx)))
+            lengths.append(np.full(int(ok.sum()), cell_m * np.sqrt(dy * dy + dx * dx)))
         heads, tails, lengths = np.concatenate(heads), np.concatenate(tails), np.concatenate(lengths)
         nodes = eligible.size + 1
         moves = coo_matrix((np.r_[lengths, lengths], (np.r_[heads, tails], np.r_[tails, heads])),

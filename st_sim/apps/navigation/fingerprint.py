@@ -23,8 +23,9 @@ The parts of a policy's fingerprint:
 
 Every chunk of a run's episodes records the same parts of what its episodes read (``ChunkInputs``), in whichever
 process runs it; ``inputs_changes`` says which of them are not the same now. Native code is seen where it maps a
-file (``ReadAudit.mapped_files``: a library loaded with ``ctypes``, memory-mapped data); a file it reads and closes
-without Python's ``open`` (OpenCV's ``imread``) is beyond the audit: a policy declares those.
+file (``ReadAudit.mapped_files``: a library loaded with ``ctypes``, memory-mapped data) and, where the kernel lets a
+process watch its own system calls (``open_watch``: Linux), wherever it opens one: a file read and closed by a native
+reader (OpenCV's ``imread``), a program run, in any thread or child process.
 
 A shipped planner's code is STCrowd's own, identified by ``stcrowd_identity`` (its version and a hash of its
 source and package data); a shipped predictor by the hashes of its checkpoints (``predictor_fingerprint``).
@@ -48,7 +49,9 @@ from typing import Any, ClassVar
 from replays import strict_json
 from replays.atomic import write_text_atomic
 from replays.bounded_json import read_json
+from replays.data_root import cache_dir
 from replays.errors import DataFormatError
+from st_sim.apps.navigation import open_watch
 from st_sim.apps.navigation.planners import NAMED
 from st_sim.apps.navigation.policies import SB3_PREFIX
 
@@ -60,6 +63,8 @@ SOURCE_SUFFIXES = (".py", ".json", ".pt", ".sha256")
 """files of STCrowd's packages that decide what it does: code, settings, checkpoints, data sums"""
 PSEUDO_ROOTS = ("/proc", "/sys", "/dev")
 """the kernel's pseudo-files: interfaces, never a policy's data"""
+LOADER_CACHE = "/etc/ld.so.cache"
+"""the dynamic loader's index of the system's libraries: where to find code, never a policy's data"""
 
 
 def file_sha256(path: Path) -> str:
@@ -127,31 +132,40 @@ class ReadAudit:
     """A context that records what the code run inside it reads: the files it opens for reading (Python's audit
     event ``open``: ``open``, ``np.load``, ``torch.load``, ``os.open``, ...), and every module loaded by the time
     ``loaded_modules`` is called or the context left (a module imported before the context counts too, so a second
-    run in one process sees what the first did). Nothing is skipped for where it lies (the home folder's caches,
-    ``/usr``, the interpreter's prefix are read like any folder) but STCrowd's own packages, Python's standard
-    library, the kernel's pseudo-files and the folders ``outside``; a file or module that an installed
-    distribution's ``RECORD`` lists is identified by that distribution's version (``audit_parts``).
+    run in one process sees what the first did). Where ``open_watch`` runs (started by the first audit of a process),
+    every file the process and its children open meanwhile counts too, whatever opened it, but those of the dynamic
+    loader's library folders and its cache (``_system_roots``). Nothing is skipped for where it lies (the home
+    folder's caches, ``/usr``, the interpreter's prefix are read like any folder) but STCrowd's own packages,
+    Python's standard library, the kernel's pseudo-files, STCrowd's cache of what it derives from the data
+    (``cache_dir``: keyed by the data files it derives from) and the folders ``outside``; a file or module that an
+    installed distribution's ``RECORD`` lists is identified by that distribution's version (``audit_parts``).
 
     Attributes:
         files: resolved paths of the regular files opened for reading.  modules: names of the modules loaded from
             outside the skipped folders (set on leaving).  mapped: files mapped into the process from outside them
             and the system's libraries (``mapped_files``, set on leaving): what native code loaded or mapped.
+            unidentified: opens whose path the kernel watch could not read (``open_watch``; a run refuses them).
     """
 
     _active: ClassVar[list[ReadAudit]] = []  # the audits recording now (the hook is installed once, for good)
     _installed: ClassVar[bool] = False
 
     def __init__(self, outside: list[str | os.PathLike | None] = ()):
-        self.skip = tuple(str(Path(root).expanduser().resolve()) for root in outside if root is not None)
+        roots = [*outside, cache_dir()]
+        self.skip = tuple(str(Path(root).expanduser().resolve()) for root in roots if root is not None)
         self.files: set[Path] = set()
         self.modules: set[str] = set()
         self.mapped: set[Path] = set()
         self.written: set[Path] = set()
+        self.unidentified = 0
+        self._watched = 0  # the kernel watch's opens taken so far (its count when the audit began, then on)
 
     def __enter__(self) -> ReadAudit:
         if not ReadAudit._installed:
             sys.addaudithook(_on_event)
             ReadAudit._installed = True
+        if open_watch.start():
+            self._watched = open_watch.mark()
         ReadAudit._active.append(self)
         return self
 
@@ -160,7 +174,15 @@ class ReadAudit:
         self.snapshot()
 
     def snapshot(self) -> ReadAudit:
-        """``modules`` and ``mapped`` set to what is loaded and mapped now, inside the context (returns the audit)."""
+        """``modules`` and ``mapped`` set to what is loaded and mapped now, ``files`` grown by what the kernel watch saw
+        opened, inside the context (returns the audit)."""
+        seen = open_watch.opened_since(self._watched)
+        self._watched += len(seen)
+        for path, access in seen:
+            if path == open_watch.UNREAD:
+                self.unidentified += 1
+            elif not _under(Path(path), _system_roots()) and path != LOADER_CACHE:
+                self.opened(path, access)
         self.modules, self.mapped = self.loaded_modules(), self.mapped_files()
         return self
 
@@ -194,7 +216,7 @@ class ReadAudit:
             resolved = Path(os.fsdecode(path)).expanduser().resolve()
         except (OSError, ValueError, TypeError):
             return
-        if isinstance(mode, str) and set(mode) & {"w", "a", "x", "+"}:
+        if isinstance(mode, str) and set(mode) & {"w", "a", "x"}:  # "r+" reads what the file held: an input
             self.written.add(resolved)
             self.files.discard(resolved)
             return
@@ -439,6 +461,10 @@ class ChunkInputs:
     def keep(self, audit: ReadAudit) -> None:
         """Add what ``audit`` has seen so far (inside its context) and write the file if anything is new."""
         now = audit_parts(audit.snapshot())
+        if audit.unidentified:
+            raise InputsError(f"{self.path}: a process of the run opened {audit.unidentified} file(s) whose path the "
+                              "open watch could not read (a child process it may not inspect): their contents are "
+                              "unknown to the run")
         changed = sorted(part for part, value in now.items() if self.parts.get(part, value) != value)
         if changed:
             raise InputsError(f"{self.path}: {', '.join(changed)} changed while the run read it")

@@ -30,7 +30,7 @@ import numpy as np
 from st_sim.apps.navigation.modes import SampleBelief
 from st_sim.apps.navigation.pedestrians import Pedestrians, pedestrians_of
 from st_sim.apps.navigation.world import NavWorld
-from st_sim.sim.exact import dot, length
+from st_sim.sim.exact import dot, length, rounded_cos_sin
 from st_sim.sim.robot import Motion, limited_command, substep
 
 INFEASIBLE = 1e6  # cost of a candidate that goes into a wall [-]
@@ -109,7 +109,7 @@ class MpcPlanner:
         robot = world.robot
         if robot.kind == "holonomic":
             angles = np.linspace(0.0, 2 * np.pi, self.cfg.headings, endpoint=False)
-            unit = np.stack([np.cos(angles), np.sin(angles)], axis=1)
+            unit = np.stack(rounded_cos_sin(angles), axis=1)  # the same on every CPU (libm's differ)
             commands = (speeds[:, None, None] * unit[None]).reshape(-1, 2)
         else:
             turns = np.linspace(-robot.max_yaw_rate_radps, robot.max_yaw_rate_radps, self.cfg.turn_rates)

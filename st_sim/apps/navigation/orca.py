@@ -14,6 +14,7 @@ import numpy as np
 
 from st_sim.apps.navigation.pedestrians import pedestrians_of
 from st_sim.apps.navigation.world import NavWorld
+from st_sim.sim.exact import length
 
 NEIGHBOUR_DIST_M = 5.0  # ORCA looks at agents this close [m]
 MAX_NEIGHBOURS = 10  # ... and at most this many [-]
@@ -73,14 +74,14 @@ class OrcaPlanner:
         sim.process_obstacles()
         ego = sim.add_agent(ego_xy.tolist(), NEIGHBOUR_DIST_M, MAX_NEIGHBOURS, TIME_HORIZON_S, OBSTACLE_HORIZON_S,
                             world.ego_radius_m + BODY_MARGIN_M, world.max_speed_mps, ego_v.tolist())
-        distance_m = float(np.linalg.norm(goal - ego_xy))
+        distance_m = float(length(goal - ego_xy))  # the same on every CPU (OpenBLAS's is not)
         direction = world.terrain.direction_to(ego_xy, goal, world.wall_clearance_m)
         sim.set_agent_pref_velocity(ego, (direction * min(world.max_speed_mps, distance_m / world.step_s)).tolist())
         peds = pedestrians_of(obs, 1, use_predictions=False)
         for xy, velocity in zip(peds.xy_m, peds.velocity_mps, strict=True):
             agent = sim.add_agent(xy.tolist(), NEIGHBOUR_DIST_M, MAX_NEIGHBOURS, TIME_HORIZON_S, OBSTACLE_HORIZON_S,
                                   world.pedestrian_radius_m + BODY_MARGIN_M,
-                                  max(float(np.linalg.norm(velocity)), 1e-3), velocity.tolist())
+                                  max(float(length(velocity)), 1e-3), velocity.tolist())
             sim.set_agent_pref_velocity(agent, velocity.tolist())
         sim.do_step()
         velocity = sim.get_agent_velocity(ego)

@@ -193,7 +193,7 @@ def check_summary(result: Any, path: Path) -> None:
     if "ran_on" in result:
         for i, record in enumerate(field(path, result, "ran_on", RECORD_LIST)):
             for key, value in check(path, f"ran_on[{i}]", record, OBJECT).items():
-                check(path, f"ran_on[{i}].{key}", value, RECORD_VALUE)
+                check(path, f"ran_on[{i}][{_quoted(key)}]", value, RECORD_VALUE)
 
 
 def _check_inputs(path: Path, owner: dict[str, Any], where: str = "") -> None:
