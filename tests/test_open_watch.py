@@ -5,6 +5,7 @@ started by a watched one sees its own opens and not its parent's."""
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from collections.abc import Iterator
@@ -155,12 +156,15 @@ def test_a_process_started_by_a_watched_one_joins_the_watch_and_sees_its_own_ope
     assert [str(parent_reads), "r"] not in report["opened"], "the parent's open is not the child's"
 
 
-def test_this_machine_watches_in_a_fresh_process() -> None:
-    """The property every other test of the identity leans on: where the kernel allows it, the watch starts."""
+@pytest.mark.parametrize("address", [None, "1:stcrowd-open-watch-gone", "not an address"])
+def test_this_machine_watches_in_a_fresh_process(address: str | None) -> None:
+    """The property every other test of the identity leans on: where the kernel allows it, the watch starts, also in
+    a process that inherited a watcher's address but not its filter (the variable copied by hand)."""
+    env = {key: value for key, value in os.environ.items() if key != open_watch.ADDRESS_VARIABLE}
+    env |= {} if address is None else {open_watch.ADDRESS_VARIABLE: address}
     code = "from st_sim.apps.navigation import open_watch; print(open_watch.start(), open_watch.unavailable())"
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env).stdout
     assert out.split() == ["True", "None"], out
-    assert open_watch.UNREAD not in ("", "/")
 
 
 def test_a_forked_child_asks_on_its_own_socket_and_sees_its_own_opens(tmp_path: Path) -> None:
@@ -191,3 +195,29 @@ print(json.dumps({{"child": seen, "parent": open_watch.opened_since(mark)}}))
     assert [str(tmp_path / "parent.bin"), "w"] not in report["child"]
     assert [str(tmp_path / "parent.bin"), "w"] in report["parent"]
     assert [str(tmp_path / "child.bin"), "w"] in report["parent"], "a child's opens are its parent's too"
+
+
+@settings(max_examples=100, deadline=None)
+@given(parents=st.dictionaries(st.integers(2, 40), st.integers(0, 40), max_size=30),
+       opens=st.lists(st.tuples(NAMES, st.sampled_from("rw"), st.integers(2, 40)), max_size=30),
+       asker=st.integers(2, 40), since=st.integers(0, 35))
+def test_the_watcher_answers_each_process_with_its_own_and_its_descendants_opens(
+        parents: dict[int, int], opens: list[tuple[str, str, int]], asker: int, since: int) -> None:
+    """Whatever the process tree (loops included: a reused pid), a process's answer holds exactly the opens after
+    its mark whose process descends from it, in order, every path and access as recorded."""
+    log = open_watch.OpenLog()
+    log.parent_of, log.opened = dict(parents), [("/" + name, access, owner) for name, access, owner in opens]
+
+    def descends(owner: int) -> bool:
+        seen = set()
+        while owner not in seen:
+            if owner == asker:
+                return True
+            seen.add(owner)
+            owner = parents.get(owner, 0)
+        return False
+
+    expected = [(path, access) for path, access, owner in log.opened[since:] if descends(owner)]
+    assert open_watch._entries(log.reply(since, asker)) == expected
+    count, _ = open_watch._REQUEST.unpack(log.reply(-1, asker))
+    assert count == len(opens)

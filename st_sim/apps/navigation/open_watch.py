@@ -12,8 +12,9 @@ filter, which reads the path from the caller's memory, resolves it against the c
 descriptor, records it with the access asked (``"w"`` to write only, create or truncate, else ``"r"``) and lets the
 call go on (``SECCOMP_USER_NOTIF_FLAG_CONTINUE``). Calls that would open a file past the watcher (``openat2``,
 ``io_uring``, ``open_by_handle_at``, another ABI's system calls) fail with ``ENOSYS``, which their callers treat as
-"not supported" and fall back from. A call whose path the watcher cannot read (a child process it may not inspect)
-fails with ``EACCES`` and is recorded as ``UNREAD``: seen, not identified.
+"not supported" and fall back from. A call whose path the watcher cannot read (where Yama lets a process read the
+memory of its descendants only: a child that has not joined the watch yet, a program it runs) goes on and is
+recorded as ``UNREAD``: seen, not identified (a benchmark chunk then refuses its episodes).
 
 The filter stays for the life of the process and of the processes it starts, so ``start`` belongs in a process that
 runs a benchmark's episodes and nothing else (a grid worker). What it sees is what the code asks the kernel for: code
@@ -82,13 +83,17 @@ def start() -> bool:
         _state.update(pid=os.getpid(), lock=threading.Lock())
     if "socket" in _state or "error" in _state:
         return "socket" in _state
-    try:
-        _state["socket"] = _join() if os.environ.get(ADDRESS_VARIABLE) else _install()
-        _probe()
-    except OSError as err:
-        _state.pop("socket", None)
-        _state["error"] = str(err)
-    return "socket" in _state
+    for connect in ((_join, _install) if os.environ.get(ADDRESS_VARIABLE) else (_install,)):
+        try:  # a process that inherited the address but not the filter (the variable copied by hand) installs its own
+            _state["socket"] = connect()
+            _probe()
+            _state.pop("error", None)
+            return True
+        except OSError as err:
+            if "socket" in _state:
+                _state.pop("socket").close()  # type: ignore[attr-defined]
+            _state["error"] = str(err)
+    return False
 
 
 def unavailable() -> str | None:
@@ -136,8 +141,11 @@ def _ask(since: int) -> bytes:
 
 
 def _join() -> socket.socket:
-    """The socket to the watcher that an ancestor started (``ADDRESS_VARIABLE``): this process inherited its filter."""
-    address = os.environ[ADDRESS_VARIABLE]
+    """The socket to the watcher that an ancestor started (``ADDRESS_VARIABLE``: its pid and address): this process
+    inherited its filter, and lets the watcher read its memory where Yama would not."""
+    pid, _, address = os.environ[ADDRESS_VARIABLE].partition(":")
+    if pid.isdigit():
+        ctypes.CDLL(None).prctl(_PR_SET_PTRACER, int(pid), 0, 0, 0)  # without Yama: fails harmless
     sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
     try:
         sock.connect("\0" + address)
@@ -177,7 +185,7 @@ def _install() -> socket.socket:
     os.close(listener)
     if _receive(ours) != READY:
         raise OSError("the open watcher did not start")
-    os.environ[ADDRESS_VARIABLE] = address  # for the processes this one starts: they are watched by its watcher
+    os.environ[ADDRESS_VARIABLE] = f"{watcher.pid}:{address}"  # for the processes it starts: watched by its watcher
     return ours
 
 
@@ -304,7 +312,7 @@ class OpenLog:
         return owner == pid
 
     def answer(self, listener: int) -> None:
-        """Receive one notification, record its path, let the call go on (or refuse it: ``EACCES``)."""
+        """Receive one notification, record its path (``UNREAD`` where it cannot be read), let the call go on."""
         buffer = bytearray(_NOTIF.size)
         try:
             fcntl.ioctl(listener, _NOTIF_RECV, buffer, True)
@@ -323,9 +331,8 @@ class OpenLog:
         except OSError:  # the caller died, its id may be another's now: nothing read is trusted
             return
         self.opened.append((resolved if resolved is not None else UNREAD, access, owner))
-        error, flags = (0, _CONTINUE) if resolved is not None else (-errno.EACCES, 0)
         with contextlib.suppress(OSError):  # the caller died meanwhile
-            fcntl.ioctl(listener, _NOTIF_SEND, bytearray(_RESPONSE.pack(notif_id, 0, error, flags)))
+            fcntl.ioctl(listener, _NOTIF_SEND, bytearray(_RESPONSE.pack(notif_id, 0, 0, _CONTINUE)))
 
     def _owner(self, tid: int) -> int:
         """The process of thread ``tid``, its parent noted the first time it is seen."""
