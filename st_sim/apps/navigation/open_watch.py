@@ -16,8 +16,9 @@ call go on (``SECCOMP_USER_NOTIF_FLAG_CONTINUE``). Calls that would open a file 
 memory of its descendants only: a child that has not joined the watch yet, a program it runs) goes on and is
 recorded as ``UNREAD``: seen, not identified (a benchmark chunk then refuses its episodes).
 
-The filter stays for the life of the process and of the processes it starts, so ``start`` belongs in a process that
-runs a benchmark's episodes and nothing else (a grid worker). What it sees is what the code asks the kernel for: code
+The filter stays for the life of the process and of the processes it starts: ``fingerprint.ReadAudit`` starts it,
+so a process that audits a benchmark run (the ``benchmark`` or ``verify`` command, a grid worker) is watched until it
+ends. What it sees is what the code asks the kernel for: code
 in the process that rewrites a path while the kernel reads it, or that rewrites this module's records, deceives it,
 as it could deceive any record kept in its own process. Linux on x86-64 or AArch64, kernel 5.7 or later; elsewhere
 ``start`` returns False and says why (``unavailable``).
