@@ -144,6 +144,30 @@ def test_a_summary_from_before_the_identity_fields_is_migrated_only_if_its_episo
         migrate(tmp_path, "2", load_suite())
 
 
+def test_a_summary_naming_the_machines_files_loses_them_and_keeps_every_other_part(run_folder: Path,
+                                                                                  tmp_path: Path) -> None:
+    from st_sim.apps.navigation.fingerprint import cache_dir
+    from st_sim.apps.navigation.migrate_results import drop_machine_reads
+
+    summary = json.loads((run_folder / "summary.json").read_text())
+    cached = f"read {cache_dir().resolve() / 'sums-0.json'}"
+    summary["fingerprint"] |= {"read /etc/passwd": "a" * 64, "read w.npz": "b" * 64}
+    summary["inputs"] |= {cached: "c" * 64, "read /etc/model.pt": "d" * 64}
+    summary["scenario_identity"] = {SCENARIO: {"inputs": {"read /etc/hosts": "e" * 64, "read x.bin": "f" * 64}}}
+    (tmp_path / "summary.json").write_text(json.dumps(summary))
+    assert "dropped" in drop_machine_reads(tmp_path)
+    migrated = json.loads((tmp_path / "summary.json").read_text())
+    assert "read /etc/passwd" not in migrated["fingerprint"] and "read w.npz" in migrated["fingerprint"]
+    assert cached not in migrated["inputs"] and "read /etc/model.pt" in migrated["inputs"]
+    assert migrated["scenario_identity"][SCENARIO]["inputs"] == {"read x.bin": "f" * 64}
+    assert "read /etc/hosts, read /etc/passwd, 1 file(s) of the derived-data cache dropped by migrate_results " \
+        "--drop-machine-reads" in migrated["migrated"] and str(cache_dir()) not in migrated["migrated"]
+    assert {key: value for key, value in migrated.items() if key not in ("fingerprint", "inputs", "scenario_identity",
+                                                                          "migrated")} == \
+        {key: value for key, value in summary.items() if key not in ("fingerprint", "inputs", "scenario_identity")}
+    assert "names no file" in drop_machine_reads(tmp_path), "a second pass changes nothing"
+
+
 def test_rows_of_a_committed_result_are_replaced_only_by_a_run_of_the_same_policy_and_episodes(
         run_folder: Path, tmp_path: Path) -> None:
     from st_sim.apps.navigation.migrate_results import MigrationError

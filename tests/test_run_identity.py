@@ -282,6 +282,41 @@ def test_an_input_that_changes_while_a_chunk_runs_is_an_error(tmp_path: Path) ->
             inputs.keep(audit)
 
 
+def test_a_policy_that_looks_up_its_user_reads_no_input_about_the_machine(on_path: Path, tmp_path: Path,
+                                                                          monkeypatch: pytest.MonkeyPatch) -> None:
+    """``getpass.getuser`` without $USER reads /etc/passwd through the C library (torch's compiler does, on import):
+    the machine's, not the policy's, so neither its fingerprint nor its inputs name it (another machine could not
+    verify the run), while a data file it reads beside stays one."""
+    for variable in ("LOGNAME", "USER", "LNAME", "USERNAME"):
+        monkeypatch.delenv(variable, raising=False)
+    weights = tmp_path / "w.npz"
+    np.savez(weights, speed=np.array(1.0))
+    name = fresh_name("whoami")
+    (on_path / f"{name}.py").write_text(
+        "import getpass, socket\nimport numpy as np\n\nclass Policy:\n    def __init__(self):\n"
+        "        self.speed = 1.0\n    def reset(self):\n"
+        "        getpass.getuser(), socket.getaddrinfo('localhost', 80)\n"
+        f"        self.speed = float(np.load({str(weights)!r})['speed'])\n"
+        + HEAD_FOR_GOAL.replace("SPEED", "self.speed"))
+    summary = bench(tmp_path / "run", f"{name}:Policy")
+    named = {*summary["fingerprint"], *summary["inputs"]}
+    assert f"read {weights.resolve()}" in named, named
+    assert not {part for part in named if part.startswith("read /etc/")}, named
+
+
+@settings(max_examples=60, deadline=None)
+@given(machine=st.sampled_from(sorted(fingerprint.MACHINE_FILES)),
+       other=st.from_regex(r"/etc/[a-z][a-z0-9_]{0,12}\.(npz|pt|conf)", fullmatch=True))
+def test_only_the_machine_files_and_the_derived_data_cache_are_not_inputs(machine: str, other: str) -> None:
+    assert fingerprint.not_an_input(f"read {machine}")
+    assert fingerprint.not_an_input(f"read {fingerprint.cache_dir().resolve() / 'sums-0.json'}")
+    assert not fingerprint.not_an_input(f"read {other}") or other in fingerprint.MACHINE_FILES
+    assert not fingerprint.not_an_input(f"module {machine}") and not fingerprint.not_an_input(f"version {machine}")
+    audit = ReadAudit()
+    audit.opened(machine, "r")
+    assert not audit.files
+
+
 @settings(max_examples=40, deadline=None)
 @given(root=st.sampled_from(["/usr/src/app", "/usr/local/share", "/etc", "/opt/models", "~/.cache/hub",
                              "~/.config/x", sys.prefix]),

@@ -15,8 +15,8 @@ The parts of a policy's fingerprint:
 - every module loaded once the policy is built and has run its first episode (``module <name>``): whatever the
   policy imports, directly or not, but STCrowd's, the standard library's and the installed distributions';
 - every file it opened for reading meanwhile, wherever it lies (``read <path>``: relative to the working folder
-  where it lies inside it), but STCrowd's, the standard library's, the kernel's pseudo-files and the folders
-  ``outside`` names;
+  where it lies inside it), but STCrowd's, the standard library's, the kernel's pseudo-files, the C library's
+  files about the machine (``MACHINE_FILES``: users, hosts, the loader's cache) and the folders ``outside`` names;
 - a module or file that an installed distribution's ``RECORD`` lists: ``version <distribution>`` (nothing for the
   distributions STCrowd needs, whose versions are ``stcrowd_identity``'s), and ``version python``;
 - whatever the built policy declares: an optional ``fingerprint()`` method returning a string, as ``declared``.
@@ -63,8 +63,12 @@ SOURCE_SUFFIXES = (".py", ".json", ".pt", ".sha256")
 """files of STCrowd's packages that decide what it does: code, settings, checkpoints, data sums"""
 PSEUDO_ROOTS = ("/proc", "/sys", "/dev")
 """the kernel's pseudo-files: interfaces, never a policy's data"""
-LOADER_CACHE = "/etc/ld.so.cache"
-"""the dynamic loader's index of the system's libraries: where to find code, never a policy's data"""
+MACHINE_FILES = frozenset({"/etc/ld.so.cache", "/etc/nsswitch.conf", "/etc/passwd", "/etc/group", "/etc/hosts",
+                           "/etc/host.conf", "/etc/resolv.conf", "/etc/gai.conf", "/etc/services", "/etc/protocols",
+                           "/etc/localtime"})
+"""the C library's own files: the dynamic loader's index of the system's libraries and the databases it reads to
+look up a user, a group, a host, a service or the time zone (``getpass.getuser``, ``socket.getaddrinfo``): they
+describe the machine, never a policy's data, and differ from one machine to the next"""
 
 
 def file_sha256(path: Path) -> str:
@@ -134,10 +138,11 @@ class ReadAudit:
     ``loaded_modules`` is called or the context left (a module imported before the context counts too, so a second
     run in one process sees what the first did). Where ``open_watch`` runs (started by the first audit of a process),
     every file the process and its children open meanwhile counts too, whatever opened it, but those of the dynamic
-    loader's library folders and its cache (``_system_roots``). Nothing is skipped for where it lies (the home
+    loader's library folders (``_system_roots``). Nothing is skipped for where it lies (the home
     folder's caches, ``/usr``, the interpreter's prefix are read like any folder) but STCrowd's own packages,
-    Python's standard library, the kernel's pseudo-files, STCrowd's cache of what it derives from the data
-    (``cache_dir``: keyed by the data files it derives from) and the folders ``outside``; a file or module that an
+    Python's standard library, the kernel's pseudo-files, the C library's files about the machine
+    (``MACHINE_FILES``), STCrowd's cache of what it derives from the data (``cache_dir``: keyed by the data files it
+    derives from) and the folders ``outside``; a file or module that an
     installed distribution's ``RECORD`` lists is identified by that distribution's version (``audit_parts``).
 
     Attributes:
@@ -181,7 +186,7 @@ class ReadAudit:
         for path, access in seen:
             if path == open_watch.UNREAD:
                 self.unidentified += 1
-            elif not _under(Path(path), _system_roots()) and path != LOADER_CACHE:
+            elif not _under(Path(path), _system_roots()):
                 self.opened(path, access)
         self.modules, self.mapped = self.loaded_modules(), self.mapped_files()
         return self
@@ -213,8 +218,11 @@ class ReadAudit:
         if isinstance(path, int):
             return
         try:
-            resolved = Path(os.fsdecode(path)).expanduser().resolve()
+            given = os.path.abspath(os.fsdecode(path))
+            resolved = Path(given).expanduser().resolve()
         except (OSError, ValueError, TypeError):
+            return
+        if given in MACHINE_FILES or str(resolved) in MACHINE_FILES:
             return
         if isinstance(mode, str) and set(mode) & {"w", "a", "x"}:  # "r+" reads what the file held: an input
             self.written.add(resolved)
@@ -434,6 +442,13 @@ def current_part(part: str) -> str | None:
     except (ImportError, ValueError, AttributeError, OSError, importlib.metadata.PackageNotFoundError):
         return None
     return None
+
+
+def not_an_input(part: str) -> bool:
+    """Whether ``part`` is a ``read`` of a file runs no longer record: one of ``MACHINE_FILES``, or under this
+    machine's ``cache_dir`` (a run of an earlier STCrowd may name them; ``migrate_results --drop-machine-reads``)."""
+    kind, _, name = part.partition(" ")
+    return kind == "read" and (name in MACHINE_FILES or _under(Path(name), (str(cache_dir().resolve()),)))
 
 
 def inputs_changes(held: dict[str, str]) -> list[str]:

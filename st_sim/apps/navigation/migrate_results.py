@@ -1,13 +1,18 @@
 """Give a benchmark summary written before runs recorded them the two fields that decide whether results compare:
-the suite's content hash and the benchmark version.
+the suite's content hash and the benchmark version; or drop from its identity the files a run no longer counts as
+inputs.
 
     python -m st_sim.apps.navigation.migrate_results results/benchmark/* --benchmark-version 2
+    python -m st_sim.apps.navigation.migrate_results results/benchmark/* --drop-machine-reads
 
 Nothing is taken on trust: the summary must state the suite's name and version, and each of its scenarios and every
 episode's seed must be the suite's (``--suite-file``, default the shipped suite), or it is refused naming the first
 that is not; only then is ``suite_sha256`` the suite's content hash. The benchmark version says what the metrics
 meant when the run was made (the changelog: docs, "Benchmark your policy", "Versions"); it is the word of whoever
-migrates, recorded as such in ``migrated``. The summary is rewritten in place, atomically (gzipped if it was).
+migrates, recorded as such in ``migrated``. ``--drop-machine-reads`` removes the ``read`` parts that name the C
+library's files about the machine or this machine's cache of derived data (``fingerprint.not_an_input``), which runs
+recorded before they were left out: another machine holds other ones, so a run naming them could not be verified
+there. The summary is rewritten in place, atomically (gzipped if it was).
 """
 
 from __future__ import annotations
@@ -20,7 +25,9 @@ from typing import Any
 from envs.suite import Suite, load_suite
 from replays.atomic import atomic_path
 from replays.bounded_json import read_json
-from st_sim.apps.navigation.benchmark import BENCHMARK_VERSION, summary_text
+from st_sim.apps.navigation.benchmark import BENCHMARK_VERSION, FINGERPRINTS, SCENARIO_IDENTITY, summary_text
+from st_sim.apps.navigation.fingerprint import MACHINE_FILES, not_an_input
+from st_sim.apps.navigation.result_folder import INPUTS
 
 VERSIONS = tuple(str(version) for version in range(1, int(BENCHMARK_VERSION) + 1))
 """every benchmark version so far"""
@@ -86,18 +93,45 @@ def migrate(folder: Path, version: str, suite: Suite) -> str:
     return f"{path}: migrated (suite {suite.content_sha256[:12]}..., benchmark version {version})"
 
 
+def drop_machine_reads(folder: Path) -> str:
+    """Remove from the identity of the summary in ``folder`` (its fingerprints and inputs, and those of the
+    scenarios ``replace_rows`` re-ran) every part that ``not_an_input``; returns what was done."""
+    path = summary_path(folder)
+    summary = read_json(path, "benchmark summary")
+    records = [summary, *summary.get(SCENARIO_IDENTITY, {}).values()]
+    dropped = sorted({part for record in records for key in (*FINGERPRINTS, INPUTS)
+                      if isinstance(record.get(key), dict) for part in record[key] if not_an_input(part)})
+    if not dropped:
+        return f"{path}: names no file a run no longer counts as an input"
+    for record in records:
+        for key in (*FINGERPRINTS, INPUTS):
+            if isinstance(record.get(key), dict):
+                record[key] = {part: value for part, value in record[key].items() if not not_an_input(part)}
+    machine = [part for part in dropped if part.removeprefix("read ") in MACHINE_FILES]
+    cached = len(dropped) - len(machine)  # named by count: their paths are this machine's
+    what = ", ".join([*machine, *([f"{cached} file(s) of the derived-data cache"] if cached else [])])
+    summary["migrated"] = "; ".join(filter(None, [summary.get("migrated"), f"{what} dropped by migrate_results "
+                                                  "--drop-machine-reads (not inputs of a run)"]))
+    write_summary(path, summary)
+    return f"{path}: dropped {what}"
+
+
 def main(argv: list[str] | None = None) -> int:
     """Migrate every folder given; exit code 0, or 1 naming the first folder that cannot be."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("folders", nargs="+", type=Path, metavar="DIR", help="benchmark output folders")
-    parser.add_argument("--benchmark-version", required=True, choices=VERSIONS,
-                        help="what the metrics meant when the runs were made (the docs' changelog)")
+    what = parser.add_mutually_exclusive_group(required=True)
+    what.add_argument("--benchmark-version", choices=VERSIONS,
+                      help="what the metrics meant when the runs were made (the docs' changelog)")
+    what.add_argument("--drop-machine-reads", action="store_true",
+                      help="drop the files a run no longer counts as inputs (the machine's, the derived-data cache)")
     parser.add_argument("--suite-file", default=None, help="the suite the runs name (default: the shipped one)")
     args = parser.parse_args(argv)
     suite = load_suite(args.suite_file)
     for folder in args.folders:
         try:
-            print(migrate(folder, args.benchmark_version, suite))
+            print(drop_machine_reads(folder) if args.drop_machine_reads else
+                  migrate(folder, args.benchmark_version, suite))
         except (ValueError, OSError) as err:  # MigrationError, the suite's and the reader's errors
             print(f"error: {folder}: {err}")
             return 1
