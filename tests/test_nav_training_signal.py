@@ -171,6 +171,26 @@ def test_failure_sampling_reallocates_by_each_windows_failures_and_resumes_from_
         assert "sampling.json" in capsys.readouterr().err.splitlines()[-1]
 
 
+def test_a_shipped_policy_records_the_steps_it_learnt_not_its_budget(tmp_path: Path,
+                                                                     monkeypatch: pytest.MonkeyPatch) -> None:
+    """A run cut short by ``--minutes`` learnt fewer steps than its ``--timesteps``: the manifest holds what it learnt
+    (``final_training``), the file's SHA-256 and the policy it started from, never the budget."""
+    from st_sim.apps.navigation import train_ppo
+    from st_sim.apps.navigation.ppo import PRETRAINED_DIR
+
+    out = tmp_path / "run"
+    main(parse_args([*run_args(out), "--timesteps", "96"]))
+    record = json.loads((out / "training.json").read_text())
+    record["config"]["timesteps"] = 20_000_000
+    (tmp_path / "package").mkdir()
+    monkeypatch.setattr(train_ppo.resources, "files", lambda package: tmp_path / "package")
+    target = train_ppo.ship(out / "policy.pt", "mine", record)
+    entry = json.loads((tmp_path / "package" / PRETRAINED_DIR / "manifest.json").read_text())["policies"]["mine"]
+    assert target.read_bytes() == (out / "policy.pt").read_bytes() and entry["sha256"] == record["sha256"]
+    assert entry["final_training"]["timesteps"] == 96 and 20_000_000 not in entry.values()
+    assert entry["init_policy_sha256"] == record["init_policy_sha256"] and entry["file"] == "mine.pt"
+
+
 @settings(max_examples=200, deadline=None)
 @given(target=st.floats(0.0, 0.99), step=st.floats(0.01, 1e4), start=st.floats(0.0, 1e4),
        episodes=st.integers(0, 500), share=st.floats(0.0, 1.0))

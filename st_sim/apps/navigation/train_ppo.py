@@ -628,7 +628,9 @@ def main(cfg: TrainConfig) -> Path:
 
 
 def ship(policy_path: Path, name: str, record: dict) -> Path:
-    """Copy a trained policy into the package's pretrained/ folder and record it in the manifest."""
+    """Copy a trained policy into the package's pretrained/ folder and record it in the manifest: its file and
+    SHA-256, the command, the training envs, the wall time, the last curve point (``final_training``: its
+    ``timesteps`` are the env steps the run learnt) and the SHA-256 of the policy it started from."""
     folder = Path(str(resources.files(__package__).joinpath(PRETRAINED_DIR)))
     folder.mkdir(exist_ok=True)
     target = folder / f"{name}.pt"
@@ -636,7 +638,7 @@ def ship(policy_path: Path, name: str, record: dict) -> Path:
     manifest_path = folder / "manifest.json"
     manifest = json.loads(manifest_path.read_text()) if manifest_path.exists() else {"policies": {}}
     manifest["policies"][name] = {"file": target.name, "sha256": record["sha256"], "command": record["command"],
-                                  "env_ids": record["config"]["env_ids"], "timesteps": record["config"]["timesteps"],
+                                  "env_ids": record["config"]["env_ids"],
                                   "wall_time_s": round(record["wall_time_s"], 1), "final_training": record["final"],
                                   "cloning": record["cloning"], "init_policy_sha256": record.get("init_policy_sha256")}
     write_text_atomic(manifest_path, strict_json.dumps(manifest, indent=1, sort_keys=True) + "\n")
