@@ -630,7 +630,8 @@ def main(cfg: TrainConfig) -> Path:
 def ship(policy_path: Path, name: str, record: dict) -> Path:
     """Copy a trained policy into the package's pretrained/ folder and record it in the manifest: its file and
     SHA-256, the command, the training envs, the wall time, the last curve point (``final_training``: its
-    ``timesteps`` are the env steps the run learnt) and the SHA-256 of the policy it started from."""
+    ``timesteps`` within one rollout of the env steps the run learnt, never its budget) and the SHA-256 of the
+    policy it started from."""
     folder = Path(str(resources.files(__package__).joinpath(PRETRAINED_DIR)))
     folder.mkdir(exist_ok=True)
     target = folder / f"{name}.pt"
