@@ -168,6 +168,31 @@ def test_a_summary_naming_the_machines_files_loses_them_and_keeps_every_other_pa
     assert "names no file" in drop_machine_reads(tmp_path), "a second pass changes nothing"
 
 
+JSON = st.recursive(st.none() | st.booleans() | st.integers() | st.text(max_size=8)
+                    | st.sampled_from(["read /etc/passwd", "read w.npz"]),
+                    lambda inner: st.lists(inner, max_size=3)
+                    | st.dictionaries(st.sampled_from(["read /etc/passwd", "read w.npz", SCENARIO, "inputs"]), inner,
+                                      max_size=3), max_leaves=8)
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(field=st.sampled_from(["fingerprint", "inputs", "scenario_identity", "migrated", None]), value=JSON)
+def test_a_hostile_summary_is_migrated_or_refused_naming_it_never_a_traceback(tmp_path: Path, field: str | None,
+                                                                               value: object) -> None:
+    from st_sim.apps.navigation.migrate_results import MigrationError, drop_machine_reads
+
+    summary = value if field is None else {"fingerprint": {"read /etc/passwd": "a"}, field: value}
+    (tmp_path / "summary.json").write_text(json.dumps(summary))
+    try:
+        drop_machine_reads(tmp_path)
+    except MigrationError as err:
+        assert "summary.json" in str(err)
+        return
+    kept = json.loads((tmp_path / "summary.json").read_text())
+    assert not any(part.startswith("read /etc/") for key in ("fingerprint", "inputs")
+                   if isinstance(kept.get(key), dict) for part in kept[key])
+
+
 def test_rows_of_a_committed_result_are_replaced_only_by_a_run_of_the_same_policy_and_episodes(
         run_folder: Path, tmp_path: Path) -> None:
     from st_sim.apps.navigation.migrate_results import MigrationError

@@ -352,12 +352,14 @@ def test_verify_refuses_a_run_whose_policy_read_a_file_that_changed_since(on_pat
                      capsys.readouterr().err)
 
 
-def system_library(stem: str, other: bool = False) -> Path:
+def system_library(stem: str, other: bool = False, outside: Path = Path("/nonexistent")) -> Path:
     """The file of a shared library this process has mapped whose name starts with ``stem`` (``other``: whose name
-    does not, libc's or another: a library of other bytes)."""
+    does not, libc's or another: a library of other bytes), not under ``outside`` (a test's own copies, which the
+    process may have mapped first)."""
     for line in Path("/proc/self/maps").read_text().splitlines():
         name = line.split(None, 5)[-1]
-        if name.startswith("/") and ".so" in Path(name).name and Path(name).name.startswith(stem) != other:
+        if name.startswith("/") and ".so" in Path(name).name and Path(name).name.startswith(stem) != other \
+                and not Path(name).is_relative_to(outside):
             return Path(name)
     raise AssertionError(f"no library {'other than' if other else 'named'} {stem}* mapped in this process")
 
@@ -376,7 +378,7 @@ def test_a_native_library_a_policy_loads_is_part_of_its_identity(on_path: Path, 
     assert f"read {library.resolve()}" in held, held
     bench(tmp_path / "run", spec)  # the same library: resumes
     retrained = tmp_path / "model.so.new"  # a new file in its place: the loaded one's pages stay as they were
-    shutil.copyfile(system_library("libm.so", other=True), retrained)
+    shutil.copyfile(system_library("libm.so", other=True, outside=tmp_path), retrained)
     os.replace(retrained, library)
     refused(tmp_path / "run", spec, r"model\.so changed")
 

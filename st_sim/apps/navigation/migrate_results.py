@@ -98,7 +98,13 @@ def drop_machine_reads(folder: Path) -> str:
     scenarios ``replace_rows`` re-ran) every part that ``not_an_input``; returns what was done."""
     path = summary_path(folder)
     summary = read_json(path, "benchmark summary")
-    records = [summary, *summary.get(SCENARIO_IDENTITY, {}).values()]
+    identities = summary.get(SCENARIO_IDENTITY, {}) if isinstance(summary, dict) else None
+    if not isinstance(identities, dict) or not all(isinstance(record, dict) for record in identities.values()):
+        raise MigrationError(f"{path}: not a benchmark summary (an object whose {SCENARIO_IDENTITY}, if any, maps "
+                             "scenarios to objects)")
+    if not isinstance(summary.get("migrated", ""), str):
+        raise MigrationError(f"{path}: 'migrated' is not a string")
+    records = [summary, *identities.values()]
     dropped = sorted({part for record in records for key in (*FINGERPRINTS, INPUTS)
                       if isinstance(record.get(key), dict) for part in record[key] if not_an_input(part)})
     if not dropped:
