@@ -177,17 +177,23 @@ def test_a_run_records_where_it_ran_and_the_leaderboard_shows_it(tmp_path: Path,
     assert f"| straight + none | {str(record['commit'])[:12]} |" in table and record["versions"]["numpy"] in table
 
 
+def speed_policy(on_path: Path, stem: str, speed: str, from_episode: int = 1, imports: str = "os") -> str:
+    """A throwaway policy (``import numpy as np`` and ``imports``) that sets its speed to the expression ``speed`` on
+    the reset of every episode from ``from_episode`` on (1 = the first; 1.0 before) and heads for the goal at it;
+    returns its spec."""
+    name = fresh_name(stem)
+    (on_path / f"{name}.py").write_text(
+        f"import {imports}\nimport numpy as np\n\nclass Policy:\n    def __init__(self):\n"
+        "        self.episodes, self.speed = 0, 1.0\n    def reset(self):\n        self.episodes += 1\n"
+        f"        if self.episodes >= {from_episode}:\n            self.speed = {speed}\n"
+        + HEAD_FOR_GOAL.replace("SPEED", "self.speed"))
+    return f"{name}:Policy"
+
+
 def late_reader(on_path: Path, weights: Path, read_from_episode: int) -> str:
     """A throwaway policy that reads ``weights`` (np.load) on the reset of episode ``read_from_episode`` (1 = the
     first) and heads for the goal at the speed it holds; returns its spec."""
-    name = fresh_name("late")
-    (on_path / f"{name}.py").write_text(
-        "import numpy as np\n\nclass Policy:\n    def __init__(self):\n        self.episodes, self.speed = 0, 1.0\n"
-        "    def reset(self):\n        self.episodes += 1\n"
-        f"        if self.episodes >= {read_from_episode}:\n"
-        f"            self.speed = float(np.load({str(weights)!r})['speed'])\n"
-        + HEAD_FOR_GOAL.replace("SPEED", "self.speed"))
-    return f"{name}:Policy"
+    return speed_policy(on_path, "late", f"float(np.load({str(weights)!r})['speed'])", read_from_episode)
 
 
 def test_weights_under_the_home_cache_are_part_of_the_identity(on_path: Path, tmp_path: Path,
@@ -241,14 +247,8 @@ def test_a_file_native_code_reads_in_a_later_episode_is_an_input(on_path: Path, 
     refused, naming it."""
     weights = tmp_path / "speed.png"
     grey(weights, 100)
-    name = fresh_name("nativelate")
-    (on_path / f"{name}.py").write_text(
-        "import os, subprocess\nimport cv2\nimport numpy as np\n\nclass Policy:\n"
-        "    def __init__(self):\n        self.episodes, self.speed = 0, 1.0\n"
-        "    def reset(self):\n        self.episodes += 1\n        if self.episodes >= 2:\n"
-        f"            self.speed = {NATIVE_READERS[reader].replace('PATH', repr(str(weights)))} / 100\n"
-        + HEAD_FOR_GOAL.replace("SPEED", "self.speed"))
-    spec = f"{name}:Policy"
+    spec = speed_policy(on_path, "nativelate", f"{NATIVE_READERS[reader].replace('PATH', repr(str(weights)))} / 100",
+                        from_episode=2, imports="os, subprocess, cv2")
     run = BenchmarkRun(spec, str(tmp_path / "run"), predictor="none", split="val", episodes=2,
                        scenarios=("frontal-approach",))
     summary = run_benchmark(run, workers=workers, progress=False)
@@ -291,14 +291,9 @@ def test_a_policy_that_looks_up_its_user_reads_no_input_about_the_machine(on_pat
         monkeypatch.delenv(variable, raising=False)
     weights = tmp_path / "w.npz"
     np.savez(weights, speed=np.array(1.0))
-    name = fresh_name("whoami")
-    (on_path / f"{name}.py").write_text(
-        "import getpass, socket\nimport numpy as np\n\nclass Policy:\n    def __init__(self):\n"
-        "        self.speed = 1.0\n    def reset(self):\n"
-        "        getpass.getuser(), socket.getaddrinfo('localhost', 80)\n"
-        f"        self.speed = float(np.load({str(weights)!r})['speed'])\n"
-        + HEAD_FOR_GOAL.replace("SPEED", "self.speed"))
-    summary = bench(tmp_path / "run", f"{name}:Policy")
+    spec = speed_policy(on_path, "whoami", "[getpass.getuser(), socket.getaddrinfo('localhost', 80)] and "
+                        f"float(np.load({str(weights)!r})['speed'])", imports="getpass, socket")
+    summary = bench(tmp_path / "run", spec)
     named = {*summary["fingerprint"], *summary["inputs"]}
     assert f"read {weights.resolve()}" in named, named
     assert not {part for part in named if part.startswith("read /etc/")}, named
